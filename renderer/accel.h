@@ -1,0 +1,62 @@
+// The ray-query interface over the displaced scene: contributor grid + lazily filled geometry cache.
+// The integrator sees only this; how geometry is subdivided, cached and intersected lives behind it.
+// Thread-safe: intersect/occluded may be called from many threads (the cache is the only shared
+// mutable state in the renderer).
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+
+#include <glm/glm.hpp>
+
+#include "renderer/scene.h"
+
+namespace relief {
+
+struct Ray {
+  glm::vec3 origin;
+  glm::vec3 direction;  // need not be unit; t is in units of |direction|
+  float tMin = 0.0f;
+  float tMax = 1e30f;
+};
+
+struct Hit {
+  float t = 0.0f;
+  glm::vec3 P{0};   // world-space hit point
+  glm::vec3 Ng{0};  // unit face normal of the (micro-)triangle hit, facing as the input triangle
+  glm::vec2 st{0};  // interpolated texture coordinates
+  uint32_t meshIndex = 0;
+  uint32_t triangleIndex = 0;  // input triangle within the mesh
+  uint32_t microIndex = 0;     // micro-triangle within the input triangle's displaced geometry
+};
+
+struct AccelOptions {
+  uint64_t cacheBudgetTriangles = UINT64_MAX;  // UINT64_MAX: unlimited
+  int gridResolution = 0;                      // voxels along the longest axis; 0: automatic
+  bool displace = true;                        // false: the undisplaced scene
+};
+
+struct AccelStats {
+  uint64_t accesses = 0, hits = 0, compulsoryMisses = 0, capacityMisses = 0;
+  uint64_t displacedTrianglesCreated = 0, uniqueDisplacedTriangles = 0;
+  uint64_t peakResidentTriangles = 0, residentTriangles = 0;
+  uint64_t shaderPoints = 0;
+  double subdivideSeconds = 0, displaceSeconds = 0;
+};
+
+class Accelerator {
+ public:
+  virtual ~Accelerator() = default;
+  // Nearest hit with t in (ray.tMin, ray.tMax); ties broken by (mesh, triangle, micro) index so the
+  // answer never depends on cache state, order or threads.
+  virtual std::optional<Hit> intersect(const Ray& ray) = 0;
+  // Any hit with t in (ray.tMin, ray.tMax).
+  virtual bool occluded(const Ray& ray) = 0;
+  virtual AccelStats stats() const = 0;
+};
+
+// Builds the contributor grid over `scene` (which must outlive the accelerator).
+std::unique_ptr<Accelerator> makeGridAccelerator(const Scene& scene, const AccelOptions& options);
+
+}  // namespace relief

@@ -1,0 +1,131 @@
+// Parameter reflection and binding for compiled shaders (see shader.h).
+#include "runtime/shader.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+
+namespace relief::runtime {
+
+std::string_view paramTypeName(ParamType type) {
+  switch (type) {
+    case ParamType::Float: return "float";
+    case ParamType::Int: return "int";
+    case ParamType::Point: return "point";
+    case ParamType::Vector: return "vector";
+    case ParamType::Normal: return "normal";
+    case ParamType::Color: return "color";
+    case ParamType::String: return "string";
+    case ParamType::Matrix: return "matrix";
+  }
+  return "?";
+}
+
+int paramComponents(ParamType type) {
+  switch (type) {
+    case ParamType::Point:
+    case ParamType::Vector:
+    case ParamType::Normal:
+    case ParamType::Color: return 3;
+    case ParamType::Matrix: return 16;
+    default: return 1;
+  }
+}
+
+static bool isSpatial(ParamType t) {
+  return t == ParamType::Point || t == ParamType::Vector || t == ParamType::Normal;
+}
+static bool isScalar(ParamType t) { return t == ParamType::Float || t == ParamType::Int; }
+
+CompiledShader::CompiledShader(std::string name, RlfShaderEntry entry, std::vector<ParamInfo> params,
+                               uint32_t blockSize, std::shared_ptr<void> keepAlive)
+    : name_(std::move(name)),
+      entry_(entry),
+      params_(std::move(params)),
+      blockSize_(blockSize),
+      keepAlive_(std::move(keepAlive)) {}
+
+const ParamInfo* CompiledShader::findParam(std::string_view name) const {
+  for (const ParamInfo& p : params_)
+    if (p.name == name) return &p;
+  return nullptr;
+}
+
+ShaderInstance::ShaderInstance(std::shared_ptr<const CompiledShader> shader)
+    : shader_(std::move(shader)), block_(std::max<uint32_t>(shader_->blockSize(), 16)) {
+  for (const ParamInfo& p : shader_->params()) {
+    if (p.type == ParamType::String)
+      storeStrings(p, p.defaultStrings);
+    else
+      storeNumbers(p, p.defaultNumbers);
+  }
+}
+
+void ShaderInstance::storeNumbers(const ParamInfo& info, std::span<const float> numbers) {
+  const size_t count = size_t(std::max(info.arrayLength, 1)) * paramComponents(info.type);
+  std::byte* dst = block_.data() + info.offset;
+  for (size_t i = 0; i < count; ++i) {
+    const float f = i < numbers.size() ? numbers[i] : 0.0f;
+    if (info.type == ParamType::Int) {
+      const int32_t v = std::isfinite(f) ? int32_t(f) : 0;
+      std::memcpy(dst + 4 * i, &v, 4);
+    } else {
+      std::memcpy(dst + 4 * i, &f, 4);
+    }
+  }
+}
+
+void ShaderInstance::storeStrings(const ParamInfo& info, std::span<const std::string> strings) {
+  const size_t count = size_t(std::max(info.arrayLength, 1));
+  std::byte* dst = block_.data() + info.offset;
+  for (size_t i = 0; i < count; ++i) {
+    strings_.push_back(std::make_unique<std::string>(i < strings.size() ? strings[i] : ""));
+    const char* p = strings_.back()->c_str();
+    std::memcpy(dst + 8 * i, &p, sizeof p);
+  }
+}
+
+bool ShaderInstance::bind(const ParamValue& value, std::string* error) {
+  const ParamInfo* info = shader_->findParam(value.name);
+  if (!info) {
+    *error = "shader '" + shader_->name() + "' has no parameter '" + value.name + "'";
+    return false;
+  }
+  const size_t elements = size_t(std::max(info->arrayLength, 1));
+  auto mismatch = [&] {
+    *error = "parameter '" + value.name + "' of shader '" + shader_->name() + "' is declared '" +
+             std::string(paramTypeName(info->type)) +
+             (info->arrayLength ? "[" + std::to_string(info->arrayLength) + "]" : "") +
+             "' but was given '" + std::string(paramTypeName(value.type)) + "'";
+    return false;
+  };
+  if (info->type == ParamType::String || value.type == ParamType::String) {
+    if (info->type != value.type || value.strings.empty() || value.strings.size() > elements)
+      return mismatch();
+    storeStrings(*info, value.strings);
+    return true;
+  }
+  const bool compatible = info->type == value.type ||
+                          (isScalar(value.type) && info->type != ParamType::Matrix) ||
+                          (isSpatial(info->type) && isSpatial(value.type));
+  if (!compatible) return mismatch();
+
+  const int components = paramComponents(info->type);
+  const int given = paramComponents(value.type);
+  std::vector<float> numbers;
+  if (given == components) {
+    numbers = value.numbers;
+  } else if (given == 1) {  // splat scalars into triples
+    for (float f : value.numbers)
+      for (int c = 0; c < components; ++c) numbers.push_back(f);
+  } else {
+    return mismatch();
+  }
+  if (numbers.empty() || numbers.size() > elements * components ||
+      numbers.size() % components != 0)
+    return mismatch();
+  storeNumbers(*info, numbers);
+  return true;
+}
+
+}  // namespace relief::runtime
