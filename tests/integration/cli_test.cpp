@@ -1,0 +1,180 @@
+// End-to-end tests of the executables: reliefc's exit codes and clang-style diagnostics, and relief
+// rendering the default example scene against a stored reference image, deterministically across
+// orders and thread counts, and refusing bad input without writing an image.
+#include <sys/wait.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "image_compare.h"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+struct RunResult {
+  int exitCode = -1;
+  std::string out;  // stdout
+  std::string err;  // stderr
+};
+
+std::string readFile(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+fs::path scratchDir() {
+  const fs::path dir = fs::temp_directory_path() /
+                       ("relief-it-" + std::to_string(::getpid()) + "-" +
+                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+  fs::create_directories(dir);
+  return dir;
+}
+
+// Runs a shell command line with stdout and stderr captured separately.
+RunResult run(const std::string& command) {
+  const fs::path dir = scratchDir();
+  const fs::path out = dir / "stdout.txt", err = dir / "stderr.txt";
+  const std::string line = command + " >" + out.string() + " 2>" + err.string() + " </dev/null";
+  const int status = std::system(line.c_str());
+  RunResult r;
+  r.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  r.out = readFile(out);
+  r.err = readFile(err);
+  return r;
+}
+
+fs::path writeFile(const fs::path& p, const std::string& text) {
+  std::ofstream(p, std::ios::binary) << text;
+  return p;
+}
+
+const std::string kSource = RELIEF_SOURCE_DIR;
+const std::string kRelief = RELIEF_BIN;
+const std::string kReliefc = RELIEFC_BIN;
+const std::string kSphereScene = kSource + "/examples/scenes/sphere.rib";
+const std::string kShaders = kSource + "/examples/shaders";
+
+TEST(Reliefc, AcceptsTheExampleShader) {
+  RunResult r = run(kReliefc + " " + kShaders + "/bumps.disp");
+  EXPECT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_EQ(r.err, "");
+}
+
+TEST(Reliefc, ReportsAnErrorWithLocationSourceLineAndCaret) {
+  const fs::path file = writeFile(scratchDir() / "broken.disp",
+                                  "displacement broken(float Km = 0.1)\n"
+                                  "{\n"
+                                  "    P += N * Kn;\n"
+                                  "}\n");
+  RunResult r = run(kReliefc + " " + file.string());
+  EXPECT_EQ(r.exitCode, 1);
+  EXPECT_NE(r.err.find(file.string() + ":3:14: error: use of undeclared identifier 'Kn'\n"
+                                       "    P += N * Kn;\n"
+                                       "             ^~\n"),
+            std::string::npos)
+      << r.err;
+  EXPECT_NE(r.err.find("1 error generated."), std::string::npos) << r.err;
+}
+
+TEST(Reliefc, ReportsSeveralErrorsInOneRun) {
+  const fs::path file = writeFile(scratchDir() / "two.disp",
+                                  "displacement two(float Km = 0.1)\n"
+                                  "{\n"
+                                  "    float a = Km * ;\n"
+                                  "    P += N * b;\n"
+                                  "}\n");
+  RunResult r = run(kReliefc + " " + file.string());
+  EXPECT_EQ(r.exitCode, 1);
+  EXPECT_NE(r.err.find(":3:20: error:"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find(":4:14: error: use of undeclared identifier 'b'"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("2 errors generated."), std::string::npos) << r.err;
+}
+
+TEST(Reliefc, MissingInputIsAUsageError) {
+  RunResult r = run(kReliefc + " /nonexistent/nothing.disp");
+  EXPECT_EQ(r.exitCode, 2);
+  EXPECT_NE(r.err.find("nothing.disp"), std::string::npos) << r.err;
+}
+
+// The reference image test. Tolerance: a pixel fails when a channel differs by more than 2% of
+// full scale; at most 0.5% of the pixels may fail (documented in docs/testing.md). Regenerate the
+// reference with RELIEF_UPDATE_REFERENCE=1 and look at it before committing.
+TEST(Relief, RendersTheDefaultSceneLikeTheReference) {
+  const fs::path image = scratchDir() / "sphere.png";
+  const std::string reference = kSource + "/tests/images/sphere_160x120.png";
+  RunResult r = run(kRelief + " " + kSphereScene + " --quiet --resolution 160x120 -o " +
+                    image.string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  ASSERT_TRUE(fs::exists(image));
+  if (std::getenv("RELIEF_UPDATE_REFERENCE")) fs::copy_file(image, reference, fs::copy_options::overwrite_existing);
+  relief::test::ImageDiff d = relief::test::compareImages(image.string(), reference, 0.02f);
+  ASSERT_TRUE(d.loaded) << d.error;
+  EXPECT_LE(d.failFraction, 0.005) << d.failingPixels << " pixels differ; max " << d.maxDifference;
+}
+
+TEST(Relief, ImageIsIdenticalAcrossOrdersAndThreads) {
+  const fs::path dir = scratchDir();
+  const std::string base = kRelief + " " + kSphereScene + " --quiet --resolution 96x72";
+  const std::string a = (dir / "a.png").string(), b = (dir / "b.png").string(),
+                    c = (dir / "c.png").string();
+  ASSERT_EQ(run(base + " --order hilbert --threads 1 -o " + a).exitCode, 0);
+  ASSERT_EQ(run(base + " --order scanline --threads 2 -o " + b).exitCode, 0);
+  ASSERT_EQ(run(base + " --order bucket --threads 2 -o " + c).exitCode, 0);
+  for (const std::string& other : {b, c}) {
+    relief::test::ImageDiff d = relief::test::compareImages(other, a, 0.0f);
+    ASSERT_TRUE(d.loaded) << d.error;
+    EXPECT_EQ(d.failingPixels, 0) << other;
+  }
+}
+
+TEST(Relief, MissingSceneIsAnErrorNamingTheFile) {
+  const fs::path image = scratchDir() / "none.png";
+  RunResult r = run(kRelief + " /nonexistent/scene.rib --quiet -o " + image.string());
+  EXPECT_NE(r.exitCode, 0);
+  EXPECT_NE(r.err.find("/nonexistent/scene.rib"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(image));
+}
+
+TEST(Relief, BrokenShaderStopsTheRenderWithoutAnImage) {
+  const fs::path dir = scratchDir();
+  writeFile(dir / "oops.disp", "displacement oops(float Km = 0.1)\n{\n    P += N * Kn;\n}\n");
+  writeFile(dir / "scene.rib",
+            "Format 32 24 1\n"
+            "Projection \"perspective\" \"fov\" [40]\n"
+            "Translate 0 0 5\n"
+            "WorldBegin\n"
+            "LightSource \"distantlight\" 1\n"
+            "Attribute \"displacementbound\" \"float sphere\" [0.1]\n"
+            "Displacement \"oops\"\n"
+            "Sphere 1 -1 1 360\n"
+            "WorldEnd\n");
+  const fs::path image = dir / "oops.png";
+  RunResult r = run(kRelief + " " + (dir / "scene.rib").string() + " --quiet -I " + dir.string() +
+                    " -o " + image.string());
+  EXPECT_NE(r.exitCode, 0);
+  EXPECT_NE(r.err.find("oops.disp:3:14: error: use of undeclared identifier 'Kn'"), std::string::npos)
+      << r.err;
+  EXPECT_NE(r.err.find("scene.rib:7"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(image));
+}
+
+TEST(Relief, MalformedSceneReportsFileAndLine) {
+  const fs::path dir = scratchDir();
+  writeFile(dir / "bad.rib", "Format 32 24 1\nWorldBegin\nSphere 1 -1 \"x\" 360\nWorldEnd\n");
+  const fs::path image = dir / "bad.png";
+  RunResult r = run(kRelief + " " + (dir / "bad.rib").string() + " --quiet -o " + image.string());
+  EXPECT_NE(r.exitCode, 0);
+  EXPECT_NE(r.err.find("bad.rib:3:"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(image));
+}
+
+}  // namespace
