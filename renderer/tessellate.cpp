@@ -1,0 +1,83 @@
+// Tessellation of RenderMan quadrics into input triangle meshes (see tessellate.h).
+#include "renderer/tessellate.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+namespace relief {
+
+Mesh tessellateSphere(float radius, float zmin, float zmax, float thetamaxDeg, int nu, int nv,
+                      const glm::mat4& worldFromObject) {
+  Mesh mesh;
+  nu = std::max(nu, 1);
+  nv = std::max(nv, 1);
+  const float r = std::fabs(radius);
+  if (r == 0.0f) return mesh;
+  const float thetamax = std::clamp(thetamaxDeg, -360.0f, 360.0f) * std::numbers::pi_v<float> / 180.0f;
+  const bool fullTurn = std::fabs(thetamaxDeg) >= 360.0f;
+  // Latitudes of zmin/zmax; exactly +-pi/2 at the poles so the pole test below is exact.
+  auto latitude = [r](float z) {
+    if (z <= -r) return -std::numbers::pi_v<float> / 2;
+    if (z >= r) return std::numbers::pi_v<float> / 2;
+    return std::asin(z / r);
+  };
+  float latMin = latitude(std::min(zmin, zmax)), latMax = latitude(std::max(zmin, zmax));
+  const bool southPole = latMin == -std::numbers::pi_v<float> / 2;
+  const bool northPole = latMax == std::numbers::pi_v<float> / 2;
+
+  const glm::mat3 linear(worldFromObject);
+  const glm::mat3 normalFromObject = glm::transpose(glm::inverse(linear));
+  const bool flip = glm::determinant(linear) < 0.0f;
+
+  const int rowLength = nu + 1;
+  mesh.P.reserve(size_t(rowLength) * (nv + 1));
+  for (int j = 0; j <= nv; ++j) {
+    const float v = float(j) / float(nv);
+    const float lat = j == 0 ? latMin : j == nv ? latMax : latMin + v * (latMax - latMin);
+    const bool pole = (j == 0 && southPole) || (j == nv && northPole);
+    const float cosLat = pole ? 0.0f : std::cos(lat);
+    const float z = pole ? (j == 0 ? -r : r) : r * std::sin(lat);
+    for (int i = 0; i <= nu; ++i) {
+      const float u = float(i) / float(nu);
+      const size_t seamSource = size_t(j) * rowLength;  // i == 0 of this row
+      if (i == nu && fullTurn) {
+        // Same position and normal as u = 0, bit for bit, so the seam cannot crack.
+        mesh.P.push_back(mesh.P[seamSource]);
+        mesh.N.push_back(mesh.N[seamSource]);
+      } else {
+        const float phi = u * thetamax;
+        const glm::vec3 pObject(r * cosLat * std::cos(phi), r * cosLat * std::sin(phi), z);
+        mesh.P.push_back(glm::vec3(worldFromObject * glm::vec4(pObject, 1.0f)));
+        mesh.N.push_back(glm::normalize(normalFromObject * (pObject / r)));
+      }
+      mesh.uv.emplace_back(u, v);
+    }
+  }
+  mesh.st = mesh.uv;
+
+  // Winding: dP/du x dP/dv points outward, so (00, 10, 11) and (00, 11, 01) face out in object
+  // space; a mirroring worldFromObject reverses the winding, which the flip undoes.
+  auto addTriangle = [&](uint32_t a, uint32_t b, uint32_t c) {
+    mesh.indices.push_back(a);
+    mesh.indices.push_back(flip ? c : b);
+    mesh.indices.push_back(flip ? b : c);
+  };
+  const bool reversed = thetamax < 0.0f;  // a negative sweep runs clockwise: swap to stay outward
+  for (int j = 0; j < nv; ++j) {
+    for (int i = 0; i < nu; ++i) {
+      const uint32_t v00 = uint32_t(j * rowLength + i), v10 = v00 + 1;
+      const uint32_t v01 = v00 + uint32_t(rowLength), v11 = v01 + 1;
+      if (!reversed) {
+        addTriangle(v00, v10, v11);
+        addTriangle(v00, v11, v01);
+      } else {
+        addTriangle(v00, v11, v10);
+        addTriangle(v00, v01, v11);
+      }
+    }
+  }
+  return mesh;
+}
+
+}  // namespace relief

@@ -1,0 +1,26 @@
+// Turns RenderMan quadrics into input triangle meshes (world space) for the contributor grid.
+// Used by the scene reader (rib_reader.*) and by geometry tests; depends only on scene.h.
+#pragma once
+
+#include <glm/glm.hpp>
+
+#include "renderer/scene.h"
+
+namespace relief {
+
+// RenderMan Sphere radius zmin zmax thetamax (degrees), tessellated into nu x nv quads split into
+// triangles, with per-vertex P, N (outward), uv = (phi/thetamax, (theta-thetamin)/(thetamax-thetamin))
+// as RenderMan's parametric u,v, st = uv; seam vertices duplicated; poles handled without
+// degenerate-triangle NaNs. Positions transformed by worldFromObject (normals by its inverse
+// transpose).
+//
+// Seam copies of a full sphere get bit-identical positions and normals, and pole vertices are
+// exactly on the axis, so the mesh is closed in floating point. At a pole each quad keeps its
+// zero-area triangle (two pole vertices and one ring vertex): after displacement it becomes the
+// sliver that joins the pole edges of neighbouring columns, whose midpoints get different u and so
+// different displacements; dropping it would open a crack there. Subdivision and intersection
+// treat zero-area triangles without NaNs (no hit, a finite fallback normal).
+Mesh tessellateSphere(float radius, float zmin, float zmax, float thetamaxDeg, int nu, int nv,
+                      const glm::mat4& worldFromObject);
+
+}  // namespace relief

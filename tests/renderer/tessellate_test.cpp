@@ -1,0 +1,104 @@
+// Tests of tessellateSphere: outward normals and winding, parameter ranges, closedness.
+#include "renderer/tessellate.h"
+
+#include <cmath>
+#include <map>
+#include <tuple>
+
+#include <glm/gtc/matrix_transform.hpp>
+#include <gtest/gtest.h>
+
+namespace relief {
+namespace {
+
+TEST(TessellateSphere, NormalsAndWindingFaceOutward) {
+  const glm::mat4 worldFromObject = glm::translate(glm::mat4(1.0f), glm::vec3(1, 2, 3));
+  Mesh mesh = tessellateSphere(2.0f, -2.0f, 2.0f, 360.0f, 16, 8, worldFromObject);
+  ASSERT_EQ(mesh.numTriangles(), 16u * 8u * 2u);
+  const glm::vec3 centre(1, 2, 3);
+  for (size_t i = 0; i < mesh.P.size(); ++i) {
+    EXPECT_NEAR(glm::length(mesh.P[i] - centre), 2.0f, 1e-5f);
+    EXPECT_GT(glm::dot(mesh.N[i], mesh.P[i] - centre), 1.9f);
+  }
+  int numDegenerate = 0;
+  for (uint32_t t = 0; t < mesh.numTriangles(); ++t) {
+    glm::vec3 a = mesh.P[mesh.indices[3 * t]], b = mesh.P[mesh.indices[3 * t + 1]],
+              c = mesh.P[mesh.indices[3 * t + 2]];
+    glm::vec3 ng = glm::cross(b - a, c - a);
+    if (glm::length(ng) == 0.0f) {
+      ++numDegenerate;
+      continue;
+    }
+    EXPECT_GT(glm::dot(ng, (a + b + c) / 3.0f - centre), 0.0f) << "triangle " << t;
+  }
+  EXPECT_EQ(numDegenerate, 2 * 16);  // one per pole quad, exactly zero area
+}
+
+TEST(TessellateSphere, MirroringTransformKeepsOutwardWinding) {
+  const glm::mat4 mirror = glm::scale(glm::mat4(1.0f), glm::vec3(-1, 1, 1));
+  Mesh mesh = tessellateSphere(1.0f, -1.0f, 1.0f, 360.0f, 8, 6, mirror);
+  for (uint32_t t = 0; t < mesh.numTriangles(); ++t) {
+    glm::vec3 a = mesh.P[mesh.indices[3 * t]], b = mesh.P[mesh.indices[3 * t + 1]],
+              c = mesh.P[mesh.indices[3 * t + 2]];
+    glm::vec3 ng = glm::cross(b - a, c - a);
+    if (glm::length(ng) > 0.0f) {
+      EXPECT_GT(glm::dot(ng, a + b + c), 0.0f);
+    }
+  }
+}
+
+TEST(TessellateSphere, ParametersSpanUnitSquare) {
+  Mesh mesh = tessellateSphere(1.0f, -0.5f, 0.8f, 270.0f, 12, 5, glm::mat4(1.0f));
+  float uMin = 1, uMax = 0, vMin = 1, vMax = 0;
+  for (size_t i = 0; i < mesh.uv.size(); ++i) {
+    uMin = std::min(uMin, mesh.uv[i].x), uMax = std::max(uMax, mesh.uv[i].x);
+    vMin = std::min(vMin, mesh.uv[i].y), vMax = std::max(vMax, mesh.uv[i].y);
+    EXPECT_EQ(mesh.st[i], mesh.uv[i]);
+    // v = 0 at zmin, 1 at zmax; u follows the azimuth over thetamax.
+    float phi = std::atan2(mesh.P[i].y, mesh.P[i].x);
+    if (phi < -1e-4f) phi += 2.0f * float(M_PI);
+    EXPECT_NEAR(phi / (1.5f * float(M_PI)), mesh.uv[i].x, 1e-4f);
+  }
+  EXPECT_EQ(uMin, 0.0f);
+  EXPECT_EQ(uMax, 1.0f);
+  EXPECT_EQ(vMin, 0.0f);
+  EXPECT_EQ(vMax, 1.0f);
+  for (size_t i = 0; i < mesh.P.size(); ++i) {
+    if (mesh.uv[i].y == 0.0f) {
+      EXPECT_NEAR(mesh.P[i].z, -0.5f, 1e-5f);
+    }
+    if (mesh.uv[i].y == 1.0f) {
+      EXPECT_NEAR(mesh.P[i].z, 0.8f, 1e-5f);
+    }
+  }
+}
+
+// Closed: every edge, keyed by its end positions (seam and pole copies have distinct indices but
+// identical positions), is used exactly twice, once in each direction. Zero-area pole triangles are
+// skipped: they add each of their edges once in each direction (a fin), which the count would see.
+TEST(TessellateSphere, FullSphereIsClosed) {
+  const glm::mat4 worldFromObject =
+      glm::rotate(glm::mat4(1.0f), 0.7f, glm::vec3(1, 1, 0)) * glm::scale(glm::mat4(1.0f), glm::vec3(3));
+  Mesh mesh = tessellateSphere(1.0f, -1.0f, 1.0f, 360.0f, 20, 10, worldFromObject);
+  using Key = std::tuple<float, float, float>;
+  auto key = [](glm::vec3 p) { return Key(p.x, p.y, p.z); };
+  std::map<std::pair<Key, Key>, int> directed;
+  for (uint32_t t = 0; t < mesh.numTriangles(); ++t) {
+    glm::vec3 p0 = mesh.P[mesh.indices[3 * t]], p1 = mesh.P[mesh.indices[3 * t + 1]],
+              p2 = mesh.P[mesh.indices[3 * t + 2]];
+    if (p0 == p1 || p1 == p2 || p2 == p0) continue;
+    for (int e = 0; e < 3; ++e) {
+      Key a = key(mesh.P[mesh.indices[3 * t + e]]), b = key(mesh.P[mesh.indices[3 * t + (e + 1) % 3]]);
+      ++directed[{a, b}];
+    }
+  }
+  for (const auto& [edge, count] : directed) {
+    EXPECT_EQ(count, 1);
+    auto reverse = directed.find({edge.second, edge.first});
+    ASSERT_NE(reverse, directed.end());
+    EXPECT_EQ(reverse->second, 1);
+  }
+}
+
+}  // namespace
+}  // namespace relief
