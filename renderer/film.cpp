@@ -1,0 +1,91 @@
+// Image storage and OpenImageIO output (see film.h).
+#include "renderer/film.h"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <filesystem>
+#include <system_error>
+
+#include <OpenImageIO/imageio.h>
+
+namespace relief {
+
+namespace fs = std::filesystem;
+
+Film::Film(int width, int height)
+    : width_(std::max(width, 1)),
+      height_(std::max(height, 1)),
+      rgb_(size_t(width_) * size_t(height_) * 3, 0.0f) {}
+
+float linearToSrgb(float v) {
+  if (!(v > 0.0f)) return 0.0f;  // also maps NaN to black
+  if (v >= 1.0f) return 1.0f;
+  return v <= 0.0031308f ? 12.92f * v : 1.055f * std::pow(v, 1.0f / 2.4f) - 0.055f;
+}
+
+bool Film::write(const std::string& path, std::string* error) const {
+  std::string extension = fs::path(path).extension().string();
+  std::transform(extension.begin(), extension.end(), extension.begin(),
+                 [](unsigned char c) { return char(std::tolower(c)); });
+  if (extension.empty()) {
+    *error = "cannot write '" + path + "': no file extension to choose the image format";
+    return false;
+  }
+  auto out = OIIO::ImageOutput::create(path);
+  if (!out) {
+    *error = "cannot write '" + path + "': " + OIIO::geterror();
+    return false;
+  }
+  const bool floatOutput = extension == ".exr" || extension == ".hdr";
+  OIIO::ImageSpec spec(width_, height_, 3, floatOutput ? OIIO::TypeDesc::FLOAT : OIIO::TypeDesc::UINT8);
+  spec.attribute("oiio:ColorSpace", floatOutput ? "linear" : "sRGB");
+  spec.attribute("Software", "relief");
+
+  std::vector<float> floats;
+  std::vector<uint8_t> bytes;
+  const void* pixels;
+  if (floatOutput) {
+    floats = rgb_;
+    for (float& f : floats)
+      if (!std::isfinite(f)) f = 0.0f;
+    pixels = floats.data();
+  } else {
+    bytes.resize(rgb_.size());
+    for (size_t i = 0; i < rgb_.size(); ++i)
+      bytes[i] = uint8_t(std::lround(linearToSrgb(rgb_[i]) * 255.0f));
+    pixels = bytes.data();
+  }
+
+  // Same directory, so the final rename is atomic; same extension, in case a plugin checks it.
+  const fs::path target(path);
+  const fs::path temp = target.parent_path() /
+                        ("." + target.stem().string() + ".tmp" + std::to_string(::getpid()) +
+                         target.extension().string());
+  if (!out->open(temp.string(), spec)) {
+    *error = "cannot write '" + path + "': " + out->geterror();
+    return false;
+  }
+  const bool ok = out->write_image(floatOutput ? OIIO::TypeDesc::FLOAT : OIIO::TypeDesc::UINT8, pixels);
+  std::string writeError = ok ? std::string() : out->geterror();
+  if (!out->close() && ok) writeError = out->geterror();
+  if (!ok || !writeError.empty()) {
+    std::error_code ignored;
+    fs::remove(temp, ignored);
+    *error = "cannot write '" + path + "': " + (writeError.empty() ? "write failed" : writeError);
+    return false;
+  }
+  std::error_code ec;
+  fs::rename(temp, target, ec);
+  if (ec) {
+    std::error_code ignored;
+    fs::remove(temp, ignored);
+    *error = "cannot write '" + path + "': " + ec.message();
+    return false;
+  }
+  return true;
+}
+
+}  // namespace relief

@@ -1,0 +1,44 @@
+// The image being rendered: linear float RGB per pixel, written through OpenImageIO. Pixels are
+// written by exactly one thread each (the render loop owns a pixel until it is done), so the film
+// needs no locking. Used by render.* and tools/relief.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+namespace relief {
+
+class Film {
+ public:
+  Film(int width, int height);
+
+  int width() const { return width_; }
+  int height() const { return height_; }
+
+  void setPixel(int x, int y, const glm::vec3& rgb) {
+    float* p = &rgb_[3 * (size_t(y) * size_t(width_) + size_t(x))];
+    p[0] = rgb.r, p[1] = rgb.g, p[2] = rgb.b;
+  }
+  glm::vec3 pixel(int x, int y) const {
+    const float* p = &rgb_[3 * (size_t(y) * size_t(width_) + size_t(x))];
+    return {p[0], p[1], p[2]};
+  }
+  const std::vector<float>& data() const { return rgb_; }
+
+  // Writes the image; the format follows the extension (png, exr, tif, jpg, ...). Float formats
+  // (exr, hdr) keep linear values; the others are sRGB-encoded 8-bit. The file appears atomically:
+  // it is written under a temporary name in the same directory and renamed into place, so a failed
+  // or interrupted render never leaves a partial image. Returns false with *error set.
+  bool write(const std::string& path, std::string* error) const;
+
+ private:
+  int width_, height_;
+  std::vector<float> rgb_;
+};
+
+// Linear to sRGB transfer for one channel, clamped to [0, 1].
+float linearToSrgb(float v);
+
+}  // namespace relief

@@ -1,0 +1,127 @@
+// Test doubles for the scene and render tests: a brute-force Accelerator over the undisplaced
+// input triangles (the reference the real grid accelerator must agree with) and a ShaderProvider
+// serving hand-written C++ displacement shaders through the runtime ABI.
+#pragma once
+
+#include <cmath>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "renderer/accel.h"
+#include "renderer/scene.h"
+#include "runtime/shader.h"
+
+namespace relief::test {
+
+// Nearest hit by testing every triangle; ties go to the lowest (mesh, triangle) as accel.h asks.
+class BruteForceAccelerator : public Accelerator {
+ public:
+  explicit BruteForceAccelerator(const Scene& scene) : scene_(scene) {}
+
+  std::optional<Hit> intersect(const Ray& ray) override {
+    std::optional<Hit> best;
+    float tMax = ray.tMax;
+    for (uint32_t m = 0; m < scene_.meshes.size(); ++m) {
+      const Mesh& mesh = scene_.meshes[m];
+      for (uint32_t t = 0; t < mesh.numTriangles(); ++t) {
+        float tHit, b1, b2;
+        if (!hitTriangle(mesh, t, ray, tMax, &tHit, &b1, &b2)) continue;
+        if (best && tHit == best->t) continue;  // keep the lower index on ties
+        Hit h;
+        h.t = tHit;
+        h.P = ray.origin + tHit * ray.direction;
+        const glm::vec3 p0 = mesh.P[mesh.indices[3 * t]], p1 = mesh.P[mesh.indices[3 * t + 1]],
+                        p2 = mesh.P[mesh.indices[3 * t + 2]];
+        h.Ng = glm::normalize(glm::cross(p1 - p0, p2 - p0));
+        h.meshIndex = m;
+        h.triangleIndex = t;
+        best = h;
+        tMax = tHit;
+      }
+    }
+    return best;
+  }
+
+  bool occluded(const Ray& ray) override {
+    for (const Mesh& mesh : scene_.meshes)
+      for (uint32_t t = 0; t < mesh.numTriangles(); ++t) {
+        float tHit, b1, b2;
+        if (hitTriangle(mesh, t, ray, ray.tMax, &tHit, &b1, &b2)) return true;
+      }
+    return false;
+  }
+
+  AccelStats stats() const override { return {}; }
+
+ private:
+  // Möller–Trumbore with t in (tMin, tMax) exclusive.
+  static bool hitTriangle(const Mesh& mesh, uint32_t tri, const Ray& ray, float tMax, float* t,
+                          float* b1, float* b2) {
+    const glm::vec3 p0 = mesh.P[mesh.indices[3 * tri]], p1 = mesh.P[mesh.indices[3 * tri + 1]],
+                    p2 = mesh.P[mesh.indices[3 * tri + 2]];
+    const glm::vec3 e1 = p1 - p0, e2 = p2 - p0;
+    const glm::vec3 pv = glm::cross(ray.direction, e2);
+    const float det = glm::dot(e1, pv);
+    if (std::fabs(det) < 1e-20f) return false;
+    const float inv = 1.0f / det;
+    const glm::vec3 tv = ray.origin - p0;
+    *b1 = glm::dot(tv, pv) * inv;
+    if (*b1 < 0.0f || *b1 > 1.0f) return false;
+    const glm::vec3 qv = glm::cross(tv, e1);
+    *b2 = glm::dot(ray.direction, qv) * inv;
+    if (*b2 < 0.0f || *b1 + *b2 > 1.0f) return false;
+    *t = glm::dot(e2, qv) * inv;
+    return *t > ray.tMin && *t < tMax;
+  }
+
+  const Scene& scene_;
+};
+
+// "push": P += Km * N. Parameter block: float Km at offset 0.
+inline void pushEntry(const RlfShadingBatch* batch, const void* params, RlfStatus*) {
+  const float km = *static_cast<const float*>(params);
+  for (uint32_t i = 0; i < batch->count; ++i) {
+    batch->Pout.x[i] = batch->P.x[i] + km * batch->N.x[i];
+    batch->Pout.y[i] = batch->P.y[i] + km * batch->N.y[i];
+    batch->Pout.z[i] = batch->P.z[i] + km * batch->N.z[i];
+    batch->Nout.x[i] = batch->N.x[i];
+    batch->Nout.y[i] = batch->N.y[i];
+    batch->Nout.z[i] = batch->N.z[i];
+  }
+}
+
+inline std::shared_ptr<const runtime::CompiledShader> makePushShader() {
+  std::vector<runtime::ParamInfo> params(3);
+  params[0].name = "Km";
+  params[0].type = runtime::ParamType::Float;
+  params[0].offset = 0;
+  params[0].defaultNumbers = {0.1f};
+  params[1].name = "tint";
+  params[1].type = runtime::ParamType::Color;
+  params[1].offset = 4;
+  params[1].defaultNumbers = {1, 1, 1};
+  params[2].name = "map";
+  params[2].type = runtime::ParamType::String;
+  params[2].offset = 16;
+  params[2].defaultStrings = {""};
+  return std::make_shared<runtime::CompiledShader>("push", &pushEntry, std::move(params), 24,
+                                                   nullptr);
+}
+
+// Serves "push"; records the search path of every request.
+class TestShaderProvider : public runtime::ShaderProvider {
+ public:
+  std::shared_ptr<const runtime::CompiledShader> find(std::string_view name,
+                                                      std::span<const std::string> searchPath,
+                                                      std::string* error) override {
+    lastSearchPath.assign(searchPath.begin(), searchPath.end());
+    if (name == "push") return makePushShader();
+    *error = "no shader named '" + std::string(name) + "'";
+    return nullptr;
+  }
+  std::vector<std::string> lastSearchPath;
+};
+
+}  // namespace relief::test

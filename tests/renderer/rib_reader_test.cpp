@@ -1,0 +1,457 @@
+// Tests of the RIB reader: tokenizer, each supported request's effect on the Scene, and located
+// errors for malformed or truncated input.
+#include "renderer/rib_reader.h"
+
+#include <cstring>
+#include <sstream>
+
+#include <gtest/gtest.h>
+
+#include "render_test_util.h"
+
+namespace relief {
+namespace {
+
+struct ReadResult {
+  std::optional<Scene> scene;
+  SceneError error;
+  std::string warnings;
+};
+
+ReadResult read(const std::string& text, runtime::ShaderProvider* shaders = nullptr,
+                std::vector<std::string> defaultPath = {}) {
+  std::ostringstream warnings;
+  RibReadOptions options;
+  options.shaders = shaders;
+  options.defaultShaderPath = std::move(defaultPath);
+  options.warnings = &warnings;
+  ReadResult r;
+  r.scene = readRibString(text, "/scenes/test.rib", options, &r.error);
+  r.warnings = warnings.str();
+  return r;
+}
+
+// Wraps world-block text in a minimal frame.
+std::string world(const std::string& body) { return "WorldBegin\n" + body + "\nWorldEnd\n"; }
+
+glm::vec3 apply(const glm::mat4& m, glm::vec3 p) { return glm::vec3(m * glm::vec4(p, 1.0f)); }
+
+void expectNear(glm::vec3 a, glm::vec3 b, float eps = 1e-5f) {
+  EXPECT_NEAR(a.x, b.x, eps);
+  EXPECT_NEAR(a.y, b.y, eps);
+  EXPECT_NEAR(a.z, b.z, eps);
+}
+
+TEST(RibTokenizer, SplitsRequestsNumbersStringsAndArrays) {
+  std::vector<RibToken> tokens;
+  SceneError error;
+  ASSERT_TRUE(tokenizeRib("Format 64 -2.5e1 .5 # comment \"not a string\"\r\n"
+                          "Display \"a\\\"b\\n\" [1 2]\r\n",
+                          "t.rib", &tokens, &error))
+      << error.format();
+  ASSERT_EQ(tokens.size(), 11u);
+  EXPECT_EQ(tokens[0].kind, RibToken::Kind::Request);
+  EXPECT_EQ(tokens[0].text, "Format");
+  EXPECT_EQ(tokens[1].number, 64.0);
+  EXPECT_EQ(tokens[2].number, -25.0);
+  EXPECT_EQ(tokens[3].number, 0.5);
+  EXPECT_EQ(tokens[4].text, "Display");
+  EXPECT_EQ(tokens[4].line, 2);
+  EXPECT_EQ(tokens[5].kind, RibToken::Kind::String);
+  EXPECT_EQ(tokens[5].text, "a\"b\n");
+  EXPECT_EQ(tokens[6].kind, RibToken::Kind::OpenBracket);
+  EXPECT_EQ(tokens[8].number, 2.0);
+  EXPECT_EQ(tokens[9].kind, RibToken::Kind::CloseBracket);
+  EXPECT_EQ(tokens[10].kind, RibToken::Kind::End);
+  EXPECT_EQ(tokens[10].line, 3);
+}
+
+TEST(RibTokenizer, ReportsUnterminatedStringAtItsStart) {
+  std::vector<RibToken> tokens;
+  SceneError error;
+  EXPECT_FALSE(tokenizeRib("Format 1 1 1\nDisplay \"abc\n\n", "t.rib", &tokens, &error));
+  EXPECT_EQ(error.format(), "t.rib:2: error: unterminated string");
+}
+
+TEST(RibTokenizer, RejectsMalformedNumbersAndBinaryBytes) {
+  std::vector<RibToken> tokens;
+  SceneError error;
+  EXPECT_FALSE(tokenizeRib("Translate 1.2.3 0 0", "t.rib", &tokens, &error));
+  EXPECT_EQ(error.message, "malformed number '1.2.3'");
+  tokens.clear();
+  EXPECT_FALSE(tokenizeRib("\n\x81\x02", "t.rib", &tokens, &error));
+  EXPECT_EQ(error.line, 2);
+  tokens.clear();
+  EXPECT_FALSE(tokenizeRib("Scale 1e99 1 1", "t.rib", &tokens, &error));
+}
+
+TEST(RibReader, ReadsImageAndCameraOptions) {
+  ReadResult r = read("Format 320 200 1\nPixelSamples 2 3\nClipping 0.5 100\n"
+                      "Projection \"perspective\" \"fov\" [35]\nScreenWindow -2 2 -1 1\n" +
+                      world(""));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  EXPECT_EQ(r.scene->width, 320);
+  EXPECT_EQ(r.scene->height, 200);
+  EXPECT_EQ(r.scene->pixelSamples, 6);
+  EXPECT_TRUE(r.scene->camera.perspective);
+  EXPECT_FLOAT_EQ(r.scene->camera.fovDegrees, 35.0f);
+  EXPECT_FLOAT_EQ(r.scene->camera.nearClip, 0.5f);
+  EXPECT_FLOAT_EQ(r.scene->camera.farClip, 100.0f);
+  EXPECT_TRUE(r.scene->camera.screenWindowSet);
+  EXPECT_FLOAT_EQ(r.scene->camera.screenWindow[0], -2.0f);
+  EXPECT_FLOAT_EQ(r.scene->camera.screenWindow[3], 1.0f);
+  EXPECT_EQ(r.warnings, "");
+}
+
+TEST(RibReader, FrameAspectRatioSetsTheScreenWindow) {
+  ReadResult r = read("FrameAspectRatio 0.5\nProjection \"orthographic\"\n" + world(""));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  EXPECT_FALSE(r.scene->camera.perspective);
+  EXPECT_TRUE(r.scene->camera.screenWindowSet);
+  EXPECT_FLOAT_EQ(r.scene->camera.screenWindow[1], 1.0f);
+  EXPECT_FLOAT_EQ(r.scene->camera.screenWindow[3], 2.0f);
+}
+
+TEST(RibReader, TransformAtWorldBeginIsCameraFromWorld) {
+  ReadResult r = read("Translate 0 0 5\nRotate 90 0 1 0\n" + world(""));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  const glm::mat4 cameraFromWorld = glm::inverse(r.scene->camera.worldFromCamera);
+  // Rotate applies first: world +x turns to camera -z (about +y), then the translation.
+  expectNear(apply(cameraFromWorld, glm::vec3(0, 0, 0)), glm::vec3(0, 0, 5));
+  expectNear(apply(cameraFromWorld, glm::vec3(1, 0, 0)), glm::vec3(0, 0, 4));
+  // The eye sits 5 units back along the rotated view axis.
+  expectNear(apply(r.scene->camera.worldFromCamera, glm::vec3(0, 0, 0)), glm::vec3(5, 0, 0));
+}
+
+TEST(RibReader, ConcatTransformTakesRowMajorRowVectorMatrices) {
+  // RIB matrices carry the translation in elements 12..14.
+  ReadResult r = read("ConcatTransform [1 0 0 0  0 1 0 0  0 0 1 0  1 2 3 1]\n" + world(""));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  expectNear(apply(r.scene->camera.worldFromCamera, glm::vec3(0)), glm::vec3(-1, -2, -3));
+}
+
+TEST(RibReader, SphereBecomesWorldSpaceTriangles) {
+  ReadResult r = read(world("Translate 3 0 0\nScale 2 2 2\nColor [0.5 0.25 1]\nSphere 1 -1 1 360"));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  ASSERT_EQ(r.scene->meshes.size(), 1u);
+  const Mesh& mesh = r.scene->meshes[0];
+  EXPECT_GT(mesh.numTriangles(), 100u);
+  EXPECT_EQ(mesh.displacementIndex, UINT32_MAX);
+  for (const glm::vec3& p : mesh.P) EXPECT_NEAR(glm::length(p - glm::vec3(3, 0, 0)), 2.0f, 1e-4f);
+  ASSERT_LT(mesh.materialIndex, r.scene->materials.size());
+  const Material& m = r.scene->materials[mesh.materialIndex];
+  expectNear(m.color, glm::vec3(0.5f, 0.25f, 1.0f));
+  EXPECT_EQ(m.Ka, 1.0f);
+  EXPECT_EQ(m.Kd, 1.0f);
+}
+
+TEST(RibReader, AttributeAndTransformBlocksRestoreState) {
+  ReadResult r = read(world("Color [1 0 0]\n"
+                            "AttributeBegin\n Color [0 1 0]\n Translate 10 0 0\nAttributeEnd\n"
+                            "TransformBegin\n Translate 0 10 0\n Color [0 0 1]\nTransformEnd\n"
+                            "Polygon \"P\" [0 0 0  1 0 0  0 1 0]"));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  ASSERT_EQ(r.scene->meshes.size(), 1u);
+  const Mesh& mesh = r.scene->meshes[0];
+  expectNear(mesh.P[1], glm::vec3(1, 0, 0));  // both translations undone
+  // TransformEnd restores only the transform: the colour set inside stays.
+  expectNear(r.scene->materials[mesh.materialIndex].color, glm::vec3(0, 0, 1));
+}
+
+TEST(RibReader, SurfaceMatteReadsKaKdAndUnknownSurfacesWarnOnce) {
+  ReadResult r = read(world("Surface \"matte\" \"Ka\" [0.2] \"float Kd\" 0.7\n"
+                            "Polygon \"P\" [0 0 0  1 0 0  0 1 0]\n"
+                            "Surface \"plastic\"\nSurface \"plastic\"\n"
+                            "Polygon \"P\" [0 0 0  1 0 0  0 1 0]"));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  const Material& m = r.scene->materials[r.scene->meshes[0].materialIndex];
+  EXPECT_FLOAT_EQ(m.Ka, 0.2f);
+  EXPECT_FLOAT_EQ(m.Kd, 0.7f);
+  EXPECT_EQ(r.warnings,
+            "/scenes/test.rib:4: warning: surface 'plastic' is not supported; using 'matte'\n");
+}
+
+TEST(RibReader, DistantLightDefaultsAndFromTo) {
+  ReadResult r = read(world("LightSource \"distantlight\" 1\n"
+                            "LightSource \"distantlight\" 2 \"intensity\" [2] \"lightcolor\" [1 0.5 0]"
+                            " \"from\" [0 10 0] \"to\" [0 0 0]\n"
+                            "Rotate 90 1 0 0\nLightSource \"distantlight\" \"key\"\n"
+                            "LightSource \"ambientlight\" 4 \"intensity\" [0.25]"));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  ASSERT_EQ(r.scene->distantLights.size(), 3u);
+  // Default: light travels from the origin along +z, so the surface sees it towards -z.
+  expectNear(r.scene->distantLights[0].directionToLight, glm::vec3(0, 0, -1));
+  expectNear(r.scene->distantLights[0].color, glm::vec3(1));
+  expectNear(r.scene->distantLights[1].directionToLight, glm::vec3(0, 1, 0));
+  expectNear(r.scene->distantLights[1].color, glm::vec3(2, 1, 0));
+  // from/to are in the current space at the call: Rotate 90 about x turns +z into -y, so the
+  // light travels along -y and the surface sees it towards +y.
+  expectNear(r.scene->distantLights[2].directionToLight, glm::vec3(0, 1, 0));
+  EXPECT_FLOAT_EQ(r.scene->ambient, 0.25f);
+}
+
+TEST(RibReader, DisplacementBindsTypedAndUntypedParameters) {
+  test::TestShaderProvider shaders;
+  ReadResult r = read(world("Attribute \"displacementbound\" \"float sphere\" [0.1]\n"
+                            "Attribute \"relief\" \"float edgelength\" [0.02] \"float flatness\" [0.001]\n"
+                            "Displacement \"push\" \"float Km\" [0.25] \"tint\" [1 0 0]"
+                            " \"string map\" [\"bricks.tx\"]\n"
+                            "Scale 3 1 1\nSphere 1 -1 1 360"),
+                      &shaders);
+  ASSERT_TRUE(r.scene) << r.error.format();
+  ASSERT_EQ(r.scene->displacements.size(), 1u);
+  ASSERT_EQ(r.scene->meshes[0].displacementIndex, 0u);
+  const Displacement& d = r.scene->displacements[0];
+  ASSERT_TRUE(d.shader);
+  EXPECT_EQ(d.shader->name(), "push");
+  float km;
+  std::memcpy(&km, d.shader->block().data(), 4);
+  EXPECT_FLOAT_EQ(km, 0.25f);
+  float tint[3];
+  std::memcpy(tint, d.shader->block().data() + 4, 12);
+  EXPECT_FLOAT_EQ(tint[1], 0.0f);
+  const char* map;
+  std::memcpy(&map, d.shader->block().data() + 16, sizeof map);
+  EXPECT_STREQ(map, "bricks.tx");
+  // The bound is in object space and the object is scaled by up to 3.
+  EXPECT_FLOAT_EQ(d.boundWorld, 0.3f);
+  EXPECT_FLOAT_EQ(d.edgeLength, 0.02f);
+  EXPECT_FLOAT_EQ(d.flatness, 0.001f);
+  EXPECT_EQ(d.sourceLine, 4);
+  // Object space is scaled after the call; shader space is object space at the call.
+  EXPECT_FLOAT_EQ(d.spaces.currentFromObject[0], 3.0f);
+  EXPECT_FLOAT_EQ(d.spaces.currentFromShader[0], 1.0f);
+  EXPECT_FLOAT_EQ(d.spaces.objectFromCurrent[0], 1.0f / 3.0f);
+}
+
+TEST(RibReader, WorldBoundIsNotScaled) {
+  test::TestShaderProvider shaders;
+  ReadResult r = read(world("Attribute \"displacementbound\" \"float sphere\" [0.1]"
+                            " \"string coordinatesystem\" [\"world\"]\n"
+                            "Displacement \"push\"\nScale 3 3 3\nSphere 1 -1 1 360"),
+                      &shaders);
+  ASSERT_TRUE(r.scene) << r.error.format();
+  EXPECT_FLOAT_EQ(r.scene->displacements[0].boundWorld, 0.1f);
+}
+
+TEST(RibReader, SpacesAreRowMajorRowVector) {
+  test::TestShaderProvider shaders;
+  ReadResult r = read("Translate 0 0 7\n" +
+                          world("Translate 1 2 3\nDisplacement \"push\"\nSphere 1 -1 1 360"),
+                      &shaders);
+  ASSERT_TRUE(r.scene) << r.error.format();
+  const RlfSpaces& s = r.scene->displacements[0].spaces;
+  EXPECT_FLOAT_EQ(s.currentFromObject[12], 1.0f);
+  EXPECT_FLOAT_EQ(s.currentFromObject[13], 2.0f);
+  EXPECT_FLOAT_EQ(s.currentFromObject[14], 3.0f);
+  EXPECT_FLOAT_EQ(s.currentFromObject[3], 0.0f);
+  EXPECT_FLOAT_EQ(s.currentFromCamera[14], -7.0f);
+  EXPECT_FLOAT_EQ(s.cameraFromCurrent[14], 7.0f);
+}
+
+TEST(RibReader, DisplacementErrorsAreLocatedAtTheCall) {
+  test::TestShaderProvider shaders;
+  ReadResult r = read(world("\nDisplacement \"nosuch\" \"float Km\" [1]"), &shaders);
+  ASSERT_FALSE(r.scene);
+  EXPECT_EQ(r.error.line, 3);
+  EXPECT_NE(r.error.format().find("/scenes/test.rib:3: error: cannot load displacement shader "
+                                  "'nosuch': no shader named 'nosuch'"),
+            std::string::npos)
+      << r.error.format();
+
+  r = read(world("Displacement \"push\" \"string Km\" [\"x\"]"), &shaders);
+  ASSERT_FALSE(r.scene);
+  EXPECT_EQ(r.error.line, 2);
+  EXPECT_NE(r.error.message.find("'Km'"), std::string::npos) << r.error.message;
+
+  r = read(world("Displacement \"push\" \"Kx\" [1]"), &shaders);
+  ASSERT_FALSE(r.scene);
+  EXPECT_EQ(r.error.message, "shader 'push' has no parameter 'Kx'");
+
+  r = read(world("Displacement \"push\" \"Km\" [\"text\"]"), &shaders);
+  ASSERT_FALSE(r.scene);
+  EXPECT_EQ(r.error.line, 2);
+
+  r = read(world("Displacement \"push\""));  // no provider
+  ASSERT_FALSE(r.scene);
+  EXPECT_EQ(r.error.line, 2);
+}
+
+TEST(RibReader, SearchPathExpandsAmpersandAtAndRelativeDirectories) {
+  test::TestShaderProvider shaders;
+  ReadResult r = read("Option \"searchpath\" \"string shader\" [\"a:&\"]\n"
+                      "Option \"searchpath\" \"shader\" [\"/abs:&:@\"]\n" +
+                          world("Displacement \"push\""),
+                      &shaders, {"/default"});
+  ASSERT_TRUE(r.scene) << r.error.format();
+  const std::vector<std::string> expected = {"/abs", "/scenes/a", "/default", "/default"};
+  EXPECT_EQ(shaders.lastSearchPath, expected);
+}
+
+TEST(RibReader, PointsPolygonsTriangulatesAndReadsPrimvars) {
+  ReadResult r = read(world("Translate 0 0 1\n"
+                            "PointsPolygons [4 3] [0 1 2 3  0 3 4]"
+                            " \"P\" [0 0 0  1 0 0  1 1 0  0 1 0  -1 0 0]"
+                            " \"N\" [0 0 -1  0 0 -1  0 0 -1  0 0 -1  0 0 -1]"
+                            " \"st\" [0 0  1 0  1 1  0 1  0.5 0.5]"
+                            " \"Cq\" [1 2 3 4 5]"));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  ASSERT_EQ(r.scene->meshes.size(), 1u);
+  const Mesh& m = r.scene->meshes[0];
+  EXPECT_EQ(m.numTriangles(), 3u);
+  const std::vector<uint32_t> indices = {0, 1, 2, 0, 2, 3, 0, 3, 4};
+  EXPECT_EQ(m.indices, indices);
+  expectNear(m.P[2], glm::vec3(1, 1, 1));
+  ASSERT_EQ(m.N.size(), 5u);
+  expectNear(m.N[0], glm::vec3(0, 0, -1));
+  ASSERT_EQ(m.st.size(), 5u);
+  EXPECT_FLOAT_EQ(m.st[4].x, 0.5f);
+  EXPECT_NE(r.warnings.find("'Cq' is not supported"), std::string::npos) << r.warnings;
+}
+
+TEST(RibReader, SeparateSAndTBecomeSt) {
+  ReadResult r = read(world("Polygon \"P\" [0 0 0  1 0 0  0 1 0] \"s\" [0 1 0] \"t\" [0 0 1]"));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  ASSERT_EQ(r.scene->meshes[0].st.size(), 3u);
+  EXPECT_FLOAT_EQ(r.scene->meshes[0].st[2].y, 1.0f);
+}
+
+TEST(RibReader, PolygonErrorsNameTheProblem) {
+  ReadResult r = read(world("PointsPolygons [3] [0 1 5] \"P\" [0 0 0  1 0 0  0 1 0]"));
+  ASSERT_FALSE(r.scene);
+  EXPECT_EQ(r.error.format(), "/scenes/test.rib:2: error: 'PointsPolygons': vertex index 5 out "
+                              "of range (\"P\" has 3 points)");
+  r = read(world("Polygon \"P\" [0 0 0  1 0 0  0 1]"));
+  ASSERT_FALSE(r.scene);
+  EXPECT_NE(r.error.message.find("multiple of 3"), std::string::npos);
+  r = read(world("Polygon \"P\" [\"a\" \"b\" \"c\"]"));
+  ASSERT_FALSE(r.scene);
+  EXPECT_NE(r.error.message.find("expects point values, got a string array"), std::string::npos)
+      << r.error.message;
+  r = read(world("Polygon \"N\" [0 0 1]"));
+  ASSERT_FALSE(r.scene);
+  EXPECT_NE(r.error.message.find("needs a \"P\""), std::string::npos);
+}
+
+TEST(RibReader, WrongArgumentTypesAreErrors) {
+  ReadResult r = read("Format 32 24 1\nWorldBegin\nSphere 1 -1 \"x\" 360\nWorldEnd\n");
+  ASSERT_FALSE(r.scene);
+  EXPECT_EQ(r.error.format(), "/scenes/test.rib:3: error: 'Sphere' expects 4 numbers, got 2");
+  r = read("Projection \"perspective\" \"fov\" \"wide\"\n" + world(""));
+  ASSERT_FALSE(r.scene);
+  EXPECT_EQ(r.error.line, 1);
+  r = read("Projection \"perspective\" \"string fov\" [\"x\"]\n" + world(""));
+  ASSERT_FALSE(r.scene);
+  EXPECT_NE(r.error.message.find("should be 'float'"), std::string::npos);
+  r = read(world("Surface \"matte\" \"Kd\""));
+  ASSERT_FALSE(r.scene);
+  EXPECT_NE(r.error.message.find("has no value"), std::string::npos);
+  r = read(world("Color 1 2"));
+  ASSERT_FALSE(r.scene);
+  EXPECT_EQ(r.error.message, "'Color' expects 3 numbers, got 2");
+}
+
+TEST(RibReader, TruncatedFilesAreErrors) {
+  ReadResult r = read("WorldBegin\nSphere 1 -1 1 360\n");
+  ASSERT_FALSE(r.scene);
+  EXPECT_EQ(r.error.format(),
+            "/scenes/test.rib:3: error: unexpected end of file: 'WorldBegin' at line 1 has no "
+            "'WorldEnd'");
+  r = read("WorldBegin\nAttributeBegin\nWorldEnd\n");
+  ASSERT_FALSE(r.scene);
+  EXPECT_EQ(r.error.line, 3);
+  r = read("WorldBegin\nAttributeBegin\n");
+  ASSERT_FALSE(r.scene);
+  EXPECT_NE(r.error.message.find("'AttributeBegin' at line 2 has no 'AttributeEnd'"),
+            std::string::npos);
+  r = read("WorldBegin\nPolygon \"P\" [0 0 0 1 0 0\n");
+  ASSERT_FALSE(r.scene);
+  EXPECT_EQ(r.error.line, 2);
+  EXPECT_NE(r.error.message.find("missing ']'"), std::string::npos);
+  r = read("Format 10 10 1\n");
+  ASSERT_FALSE(r.scene);
+  EXPECT_NE(r.error.message.find("no 'WorldBegin'"), std::string::npos);
+}
+
+TEST(RibReader, MismatchedBlocksAreErrors) {
+  ReadResult r = read(world("TransformBegin\nAttributeEnd"));
+  ASSERT_FALSE(r.scene);
+  EXPECT_EQ(r.error.message, "'AttributeEnd' closes 'TransformBegin' at line 2");
+  r = read(world("AttributeEnd"));
+  ASSERT_FALSE(r.scene);
+  EXPECT_EQ(r.error.message, "'AttributeEnd' without 'AttributeBegin'");
+  r = read("Sphere 1 -1 1 360\n" + world(""));
+  ASSERT_FALSE(r.scene);
+  EXPECT_EQ(r.error.line, 1);
+  r = read("42\n" + world(""));
+  ASSERT_FALSE(r.scene);
+  EXPECT_EQ(r.error.message, "expected a request name, found number '42'");
+}
+
+TEST(RibReader, UnknownRequestsWarnOnceAndAreSkipped) {
+  ReadResult r = read("ShadingRate 1\nShadingRate 2\nversion 3.04\n" +
+                      world("Cone 1 1 360\nPolygon \"P\" [0 0 0  1 0 0  0 1 0]"));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  EXPECT_EQ(r.scene->meshes.size(), 1u);
+  EXPECT_EQ(r.warnings,
+            "/scenes/test.rib:1: warning: unsupported request 'ShadingRate' ignored\n"
+            "/scenes/test.rib:5: warning: unsupported request 'Cone' ignored\n");
+}
+
+TEST(RibReader, DisplayNamesTheOutputs) {
+  ReadResult r = read("Display \"a.png\" \"file\" \"rgb\"\nDisplay \"+b.exr\" \"file\" \"rgba\"\n" +
+                      world(""));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  const std::vector<std::string> expected = {"a.png", "b.exr"};
+  EXPECT_EQ(r.scene->displays, expected);
+  r = read("Display \"a.png\" \"file\" \"rgb\"\nDisplay \"c.tif\" \"framebuffer\" \"rgb\"\n" +
+           world(""));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  EXPECT_EQ(r.scene->displays, std::vector<std::string>{"c.tif"});
+}
+
+TEST(RibReader, DeclareTypesLaterParameters) {
+  test::TestShaderProvider shaders;
+  ReadResult r = read(world("Declare \"Km\" \"uniform string\"\nDisplacement \"push\" \"Km\" [\"x\"]"),
+                      &shaders);
+  ASSERT_FALSE(r.scene);  // declared a string, but the shader's Km is a float
+  EXPECT_EQ(r.error.line, 3);
+}
+
+TEST(RibReader, MissingFileIsAnErrorNamingIt) {
+  SceneError error;
+  EXPECT_FALSE(readRibFile("/nonexistent/scene.rib", RibReadOptions{}, &error));
+  EXPECT_EQ(error.file, "/nonexistent/scene.rib");
+  EXPECT_NE(error.format().find("/nonexistent/scene.rib: error: cannot open"), std::string::npos);
+}
+
+TEST(RibReader, ExampleSceneLoads) {
+  test::TestShaderProvider shaders;
+  // The example's "bumps" shader is served by a renamed stand-in: only the reader is under test.
+  class Renaming : public runtime::ShaderProvider {
+   public:
+    std::shared_ptr<const runtime::CompiledShader> find(std::string_view,
+                                                        std::span<const std::string>,
+                                                        std::string*) override {
+      std::vector<runtime::ParamInfo> params(2);
+      params[0].name = "Km";
+      params[1].name = "freq";
+      params[1].offset = 4;
+      return std::make_shared<runtime::CompiledShader>("bumps", &test::pushEntry, params, 8,
+                                                       nullptr);
+    }
+  } provider;
+  RibReadOptions options;
+  options.shaders = &provider;
+  SceneError error;
+  std::optional<Scene> scene =
+      readRibFile(std::string(RELIEF_SOURCE_DIR) + "/examples/scenes/sphere.rib", options, &error);
+  ASSERT_TRUE(scene) << error.format();
+  EXPECT_EQ(scene->width, 480);
+  EXPECT_EQ(scene->meshes.size(), 2u);
+  EXPECT_EQ(scene->distantLights.size(), 1u);
+  EXPECT_EQ(scene->displays, std::vector<std::string>{"sphere.png"});
+}
+
+}  // namespace
+}  // namespace relief
