@@ -1,0 +1,117 @@
+// Tests of image output: formats chosen by extension, sRGB encoding for 8-bit files, linear floats
+// for EXR, and atomic writes that leave nothing behind on failure.
+#include <unistd.h>
+
+#include <filesystem>
+
+#include <OpenImageIO/imageio.h>
+#include <gtest/gtest.h>
+
+#include "renderer/film.h"
+
+namespace relief {
+namespace {
+
+namespace fs = std::filesystem;
+
+fs::path scratch() {
+  const fs::path dir = fs::temp_directory_path() /
+                       ("relief-film-" + std::to_string(::getpid()) + "-" +
+                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+Film testFilm() {
+  Film film(3, 2);
+  film.setPixel(0, 0, {0.0f, 0.5f, 1.0f});
+  film.setPixel(2, 1, {2.0f, -1.0f, 0.25f});
+  return film;
+}
+
+std::vector<float> readBack(const fs::path& path, OIIO::TypeDesc type, int* channels) {
+  auto in = OIIO::ImageInput::open(path.string());
+  EXPECT_TRUE(in) << OIIO::geterror();
+  if (!in) return {};
+  const OIIO::ImageSpec& spec = in->spec();
+  *channels = spec.nchannels;
+  std::vector<float> pixels(size_t(spec.width) * spec.height * spec.nchannels);
+  if (type == OIIO::TypeDesc::UINT8) {
+    std::vector<uint8_t> bytes(pixels.size());
+    EXPECT_TRUE(in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::UINT8, bytes.data()));
+    for (size_t i = 0; i < bytes.size(); ++i) pixels[i] = bytes[i];
+  } else {
+    EXPECT_TRUE(in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, pixels.data()));
+  }
+  return pixels;
+}
+
+TEST(FilmOutput, PngIsSrgbEncodedAndClamped) {
+  const fs::path path = scratch() / "out.png";
+  std::string error;
+  ASSERT_TRUE(testFilm().write(path.string(), &error)) << error;
+  int channels = 0;
+  const std::vector<float> px = readBack(path, OIIO::TypeDesc::UINT8, &channels);
+  ASSERT_EQ(channels, 3);
+  ASSERT_EQ(px.size(), 18u);
+  EXPECT_EQ(px[0], 0.0f);
+  EXPECT_EQ(px[1], 188.0f);  // sRGB(0.5) = 0.7354
+  EXPECT_EQ(px[2], 255.0f);
+  EXPECT_EQ(px[15], 255.0f);  // 2.0 clamps
+  EXPECT_EQ(px[16], 0.0f);    // negative clamps
+  EXPECT_EQ(px[17], 137.0f);  // sRGB(0.25) = 0.5371
+}
+
+TEST(FilmOutput, ExrKeepsLinearFloats) {
+  const fs::path path = scratch() / "out.exr";
+  std::string error;
+  ASSERT_TRUE(testFilm().write(path.string(), &error)) << error;
+  int channels = 0;
+  const std::vector<float> px = readBack(path, OIIO::TypeDesc::FLOAT, &channels);
+  ASSERT_EQ(px.size(), 18u);
+  EXPECT_EQ(px[1], 0.5f);
+  EXPECT_EQ(px[15], 2.0f);
+  EXPECT_EQ(px[16], -1.0f);
+}
+
+TEST(FilmOutput, TiffIsWritten) {
+  const fs::path path = scratch() / "out.tif";
+  std::string error;
+  ASSERT_TRUE(testFilm().write(path.string(), &error)) << error;
+  int channels = 0;
+  EXPECT_EQ(readBack(path, OIIO::TypeDesc::UINT8, &channels).size(), 18u);
+}
+
+TEST(FilmOutput, FailedWriteLeavesNoFile) {
+  const fs::path dir = scratch();
+  std::string error;
+  EXPECT_FALSE(testFilm().write((dir / "missing" / "out.png").string(), &error));
+  EXPECT_NE(error.find("out.png"), std::string::npos) << error;
+  EXPECT_FALSE(testFilm().write((dir / "out.nosuchformat").string(), &error));
+  EXPECT_FALSE(testFilm().write((dir / "noextension").string(), &error));
+  EXPECT_TRUE(fs::is_empty(dir));
+}
+
+TEST(FilmOutput, ReplacesAnExistingFile) {
+  const fs::path path = scratch() / "out.png";
+  std::string error;
+  ASSERT_TRUE(testFilm().write(path.string(), &error)) << error;
+  Film other(5, 4);
+  ASSERT_TRUE(other.write(path.string(), &error)) << error;
+  auto in = OIIO::ImageInput::open(path.string());
+  ASSERT_TRUE(in);
+  EXPECT_EQ(in->spec().width, 5);
+  EXPECT_EQ(std::distance(fs::directory_iterator(path.parent_path()), fs::directory_iterator()), 1);
+}
+
+TEST(FilmOutput, SrgbTransfer) {
+  EXPECT_EQ(linearToSrgb(0.0f), 0.0f);
+  EXPECT_EQ(linearToSrgb(1.0f), 1.0f);
+  EXPECT_EQ(linearToSrgb(std::nanf("")), 0.0f);
+  EXPECT_NEAR(linearToSrgb(0.001f), 0.01292f, 1e-6f);
+  EXPECT_NEAR(linearToSrgb(0.5f), 0.7354f, 1e-4f);
+}
+
+}  // namespace
+}  // namespace relief
