@@ -1,0 +1,113 @@
+// Building the contributor grid (see contributor_grid.h).
+#include "renderer/contributor_grid.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace relief {
+namespace {
+
+bool finite(glm::vec3 v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
+
+}  // namespace
+
+ContributorGrid::ContributorGrid(const Scene& scene, const AccelOptions& options) {
+  meshOffsets_.push_back(0);
+  for (const Mesh& mesh : scene.meshes) {
+    meshOffsets_.push_back(meshOffsets_.back() + mesh.numTriangles());
+    const Displacement* disp = nullptr;
+    if (options.displace && mesh.displacementIndex < scene.displacements.size() &&
+        scene.displacements[mesh.displacementIndex].shader) {
+      disp = &scene.displacements[mesh.displacementIndex];
+      anyDisplaced_ = true;
+    }
+    displacements_.push_back(disp);
+  }
+
+  // Triangle boxes grown by the displacement bound. Triangles with non-finite corners are left
+  // out: the scene reader reports them; here they must not poison the grid.
+  std::vector<Bounds3> boxes(numTriangles());
+  for (uint32_t m = 0; m < scene.meshes.size(); ++m) {
+    const Mesh& mesh = scene.meshes[m];
+    const float grow = displacements_[m] ? std::max(0.0f, displacements_[m]->boundWorld) : 0.0f;
+    for (uint32_t t = 0; t < mesh.numTriangles(); ++t) {
+      Bounds3 box;
+      bool ok = true;
+      for (int c = 0; c < 3; ++c) {
+        const uint32_t i = mesh.indices[3 * size_t(t) + c];
+        if (i >= mesh.P.size() || !finite(mesh.P[i])) ok = false;
+        else box.extend(mesh.P[i]);
+      }
+      if (!ok || !std::isfinite(grow)) continue;
+      box.lo -= glm::vec3(grow), box.hi += glm::vec3(grow);
+      boxes[meshOffsets_[m] + t] = box;
+      bounds_.extend(box.lo), bounds_.extend(box.hi);
+    }
+  }
+  if (bounds_.empty()) bounds_ = {glm::vec3(-1), glm::vec3(1)};
+
+  const glm::vec3 extent = bounds_.hi - bounds_.lo;
+  const float longest = std::max({extent.x, extent.y, extent.z, 1e-6f});
+  padding_ = longest * 1e-5f;
+  bounds_.lo -= glm::vec3(2 * padding_), bounds_.hi += glm::vec3(2 * padding_);
+  int n = options.gridResolution;
+  if (n <= 0) {
+    n = int(std::lround(kAutoGridFactor * std::cbrt(double(std::max(1u, numTriangles())))));
+    n = std::clamp(n, 1, kMaxAutoGridResolution);
+  }
+  n = std::clamp(n, 1, kMaxGridResolution);
+  voxelSize_ = (longest + 4 * padding_) / float(n);
+  for (int a = 0; a < 3; ++a) {
+    const float span = bounds_.hi[a] - bounds_.lo[a];
+    resolution_[a] = std::clamp(int(std::ceil(span / voxelSize_)), 1, n);
+    bounds_.hi[a] = bounds_.lo[a] + float(resolution_[a]) * voxelSize_;
+  }
+
+  // Two passes over the triangles (count, then fill) give compressed rows without per-voxel vectors.
+  const size_t numVoxels = size_t(resolution_.x) * resolution_.y * resolution_.z;
+  offsets_.assign(numVoxels + 1, 0);
+  auto cellRange = [&](const Bounds3& box, glm::ivec3& lo, glm::ivec3& hi) {
+    const glm::vec3 a = (box.lo - glm::vec3(padding_) - bounds_.lo) / voxelSize_;
+    const glm::vec3 b = (box.hi + glm::vec3(padding_) - bounds_.lo) / voxelSize_;
+    lo = glm::clamp(glm::ivec3(glm::floor(a)), glm::ivec3(0), resolution_ - 1);
+    hi = glm::clamp(glm::ivec3(glm::floor(b)), glm::ivec3(0), resolution_ - 1);
+  };
+  for (int pass = 0; pass < 2; ++pass) {
+    std::vector<uint32_t> cursor;
+    if (pass == 1) {
+      for (size_t v = 0; v < numVoxels; ++v) offsets_[v + 1] += offsets_[v];
+      ids_.resize(offsets_[numVoxels]);
+      cursor.assign(offsets_.begin(), offsets_.end() - 1);
+    }
+    for (uint32_t id = 0; id < numTriangles(); ++id) {
+      if (boxes[id].empty()) continue;
+      glm::ivec3 lo, hi;
+      cellRange(boxes[id], lo, hi);
+      for (int z = lo.z; z <= hi.z; ++z)
+        for (int y = lo.y; y <= hi.y; ++y)
+          for (int x = lo.x; x <= hi.x; ++x) {
+            const uint32_t v = voxelIndex({x, y, z});
+            if (pass == 0) ++offsets_[v + 1];
+            else ids_[cursor[v]++] = id;
+          }
+    }
+  }
+}
+
+std::pair<uint32_t, uint32_t> ContributorGrid::split(uint32_t globalId) const {
+  const auto it = std::upper_bound(meshOffsets_.begin(), meshOffsets_.end(), globalId);
+  const uint32_t mesh = uint32_t(it - meshOffsets_.begin()) - 1;
+  return {mesh, globalId - meshOffsets_[mesh]};
+}
+
+Bounds3 ContributorGrid::voxelBounds(uint32_t voxel) const {
+  const int x = int(voxel % uint32_t(resolution_.x));
+  const int y = int((voxel / uint32_t(resolution_.x)) % uint32_t(resolution_.y));
+  const int z = int(voxel / (uint32_t(resolution_.x) * uint32_t(resolution_.y)));
+  Bounds3 b;
+  b.lo = bounds_.lo + glm::vec3(x, y, z) * voxelSize_ - glm::vec3(padding_);
+  b.hi = bounds_.lo + glm::vec3(x + 1, y + 1, z + 1) * voxelSize_ + glm::vec3(padding_);
+  return b;
+}
+
+}  // namespace relief

@@ -1,0 +1,80 @@
+// The contributor grid (paper, phase 1): for each voxel of a regular grid over the scene, the input
+// triangles whose displaced geometry may reach it. Built once by the grid accelerator from the
+// immutable Scene and immutable afterwards (safe to read from any thread).
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "renderer/accel.h"
+#include "renderer/scene.h"
+
+namespace relief {
+
+// A world-space box.
+struct Bounds3 {
+  glm::vec3 lo{1e30f}, hi{-1e30f};
+  void extend(glm::vec3 p) { lo = glm::min(lo, p), hi = glm::max(hi, p); }
+  bool empty() const { return lo.x > hi.x || lo.y > hi.y || lo.z > hi.z; }
+  bool overlaps(const Bounds3& o) const {
+    return lo.x <= o.hi.x && o.lo.x <= hi.x && lo.y <= o.hi.y && o.lo.y <= hi.y && lo.z <= o.hi.z &&
+           o.lo.z <= hi.z;
+  }
+};
+
+// Heuristic for AccelOptions::gridResolution == 0: voxels along the longest axis =
+// round(kAutoGridFactor * cbrt(numTriangles)), clamped to [1, kMaxAutoGridResolution]. With cubic
+// voxels this gives about kAutoGridFactor^3 = 8 voxels per input triangle on a compact scene, so a
+// voxel holds a small piece of a few input triangles: big enough that per-voxel fills rarely
+// re-subdivide one triangle for many voxels, small enough that a voxel's displaced triangles stay
+// cheap to fill and evict.
+constexpr float kAutoGridFactor = 2.0f;
+constexpr int kMaxAutoGridResolution = 128;
+// Explicit resolutions are clamped too: beyond this the per-voxel arrays alone exceed memory.
+constexpr int kMaxGridResolution = 1024;
+
+class ContributorGrid {
+ public:
+  ContributorGrid(const Scene& scene, const AccelOptions& options);
+
+  // Global triangle ids number the triangles of all meshes consecutively, mesh by mesh.
+  uint32_t numTriangles() const { return meshOffsets_.back(); }
+  uint32_t globalId(uint32_t mesh, uint32_t triangle) const { return meshOffsets_[mesh] + triangle; }
+  // (mesh, triangle) of a global id.
+  std::pair<uint32_t, uint32_t> split(uint32_t globalId) const;
+  // The displacement of a mesh, or null when it is drawn undisplaced.
+  const Displacement* displacement(uint32_t mesh) const { return displacements_[mesh]; }
+  bool anyDisplaced() const { return anyDisplaced_; }
+
+  const Bounds3& bounds() const { return bounds_; }
+  glm::ivec3 resolution() const { return resolution_; }
+  float voxelSize() const { return voxelSize_; }
+  uint32_t numVoxels() const { return uint32_t(offsets_.size() - 1); }
+  uint32_t voxelIndex(glm::ivec3 cell) const {
+    return uint32_t((cell.z * resolution_.y + cell.y) * resolution_.x + cell.x);
+  }
+  // The voxel's box, grown by `padding()` so triangles touching a face are found from both sides.
+  Bounds3 voxelBounds(uint32_t voxel) const;
+  // Slack added to every overlap test: absorbs the rounding of boxes and of the traversal.
+  float padding() const { return padding_; }
+  std::span<const uint32_t> contributors(uint32_t voxel) const {
+    return {ids_.data() + offsets_[voxel], ids_.data() + offsets_[voxel + 1]};
+  }
+  uint64_t numEntries() const { return ids_.size(); }
+
+ private:
+  std::vector<uint32_t> meshOffsets_;  // numMeshes + 1
+  std::vector<const Displacement*> displacements_;
+  bool anyDisplaced_ = false;
+  Bounds3 bounds_;
+  glm::ivec3 resolution_{1};
+  float voxelSize_ = 1.0f;
+  float padding_ = 0.0f;
+  std::vector<uint32_t> offsets_;  // numVoxels + 1, into ids_ (compressed rows)
+  std::vector<uint32_t> ids_;
+};
+
+}  // namespace relief

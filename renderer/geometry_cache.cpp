@@ -1,0 +1,111 @@
+// Lookup-or-fill, pinning and LRU eviction of voxel geometry (see geometry_cache.h).
+#include "renderer/geometry_cache.h"
+
+#include <algorithm>
+
+namespace relief {
+
+uint64_t VoxelGeometry::bytes() const {
+  return sizeof(VoxelGeometry) + P.size() * sizeof(glm::vec3) + bary.size() * sizeof(glm::vec2) +
+         indices16.size() * 2 + indices32.size() * 4 + triangleIds.size() * 4 + microIds.size() * 4 +
+         subOffsets.size() * 4 + subTriangles.size() * 4;
+}
+
+GeometryCache::GeometryCache(uint32_t numVoxels, uint64_t budgetTriangles)
+    : slots_(numVoxels), budget_(budgetTriangles) {}
+
+GeometryCache::~GeometryCache() {
+  for (Slot& slot : slots_) delete slot.geometry;
+}
+
+const VoxelGeometry* GeometryCache::tryPin(uint32_t voxel, bool& mustFill) {
+  Slot& slot = slots_[voxel];
+  for (;;) {
+    uint32_t word = slot.word.load(std::memory_order_acquire);
+    const uint32_t state = word >> kStateShift;
+    if (state == kReady) {
+      if (slot.word.compare_exchange_weak(word, word + 1, std::memory_order_acquire)) {
+        // Waiting for another thread's fill costs no work here: count it as a hit.
+        hits_.fetch_add(1, std::memory_order_relaxed);
+        return slot.geometry;
+      }
+    } else if (state == kEmpty) {
+      if (slot.word.compare_exchange_weak(word, kFilling << kStateShift, std::memory_order_acquire)) {
+        const bool refill = slot.everFilled.exchange(true, std::memory_order_relaxed);
+        (refill ? capacity_ : compulsory_).fetch_add(1, std::memory_order_relaxed);
+        mustFill = true;
+        return nullptr;
+      }
+    } else {
+      slot.word.wait(word, std::memory_order_acquire);
+    }
+  }
+}
+
+const VoxelGeometry* GeometryCache::publish(uint32_t voxel, std::unique_ptr<VoxelGeometry> geometry) {
+  Slot& slot = slots_[voxel];
+  const uint64_t n = geometry->numTriangles(), bytes = geometry->bytes();
+  created_.fetch_add(n, std::memory_order_relaxed);
+  {
+    std::lock_guard lock(mutex_);
+    residentTriangles_ += n;
+    residentBytes_ += bytes;
+    peakResidentTriangles_ = std::max(peakResidentTriangles_, residentTriangles_);
+    peakResidentBytes_ = std::max(peakResidentBytes_, residentBytes_);
+    if (residentTriangles_ > budget_) {
+      // Evict least recently used first, down to a low-water mark so that one scan pays for
+      // several fills. The slot being filled is not in resident_ yet, so it survives.
+      const uint64_t lowWater = budget_ - budget_ / 8;
+      std::vector<std::pair<uint64_t, uint32_t>> order;
+      order.reserve(resident_.size());
+      for (uint32_t v : resident_) order.emplace_back(slots_[v].lastUse.load(std::memory_order_relaxed), v);
+      std::sort(order.begin(), order.end());
+      for (auto [stamp, v] : order) {
+        if (residentTriangles_ <= lowWater) break;
+        Slot& victim = slots_[v];
+        uint32_t expected = kReady << kStateShift;  // ready with no pins
+        if (!victim.word.compare_exchange_strong(expected, kEmpty << kStateShift,
+                                                 std::memory_order_acq_rel))
+          continue;
+        residentTriangles_ -= victim.geometry->numTriangles();
+        residentBytes_ -= victim.geometry->bytes();
+        delete victim.geometry;
+        victim.geometry = nullptr;
+        const uint32_t pos = victim.residentPosition;
+        resident_[pos] = resident_.back();
+        slots_[resident_[pos]].residentPosition = pos;
+        resident_.pop_back();
+        ++evictions_;
+      }
+    }
+    slot.residentPosition = uint32_t(resident_.size());
+    resident_.push_back(voxel);
+    slot.geometry = geometry.release();
+  }
+  // Ready with the filler's own pin.
+  slot.word.store((kReady << kStateShift) | 1, std::memory_order_release);
+  slot.word.notify_all();
+  return slot.geometry;
+}
+
+void GeometryCache::release(uint32_t voxel) {
+  slots_[voxel].word.fetch_sub(1, std::memory_order_release);
+}
+
+CacheStats GeometryCache::stats() const {
+  CacheStats s;
+  s.accesses = accesses_.load(std::memory_order_relaxed);
+  s.hits = hits_.load(std::memory_order_relaxed);
+  s.compulsoryMisses = compulsory_.load(std::memory_order_relaxed);
+  s.capacityMisses = capacity_.load(std::memory_order_relaxed);
+  s.createdTriangles = created_.load(std::memory_order_relaxed);
+  std::lock_guard lock(mutex_);
+  s.residentTriangles = residentTriangles_;
+  s.peakResidentTriangles = peakResidentTriangles_;
+  s.residentBytes = residentBytes_;
+  s.peakResidentBytes = peakResidentBytes_;
+  s.evictions = evictions_;
+  return s;
+}
+
+}  // namespace relief

@@ -1,0 +1,127 @@
+// The geometry cache (paper, phase 2): per voxel, the displaced micro-triangles that overlap it,
+// filled lazily on first use, budgeted in triangles and recycled least-recently-used. Owned by the
+// grid accelerator; the only shared mutable state of the renderer.
+//
+// Fill granularity: per voxel. A fill subdivides each contributor of the voxel and keeps only the
+// micro-triangles overlapping that voxel. Voxels are then independent (a fill touches one slot, so
+// the state machine below needs no cross-voxel locking) and the budget counts exactly what is
+// resident; the price is re-subdividing a contributor for each voxel it reaches, softened by a
+// small per-thread memo of recent micro-meshes in the accelerator. Because a voxel's content is a
+// pure function of the voxel (determinism rule 1), a refill after eviction is identical.
+//
+// Thread safety: each slot has one atomic word holding its state (empty, filling, ready) and a pin
+// count. Readers pin a ready slot with a compare-and-swap; exactly one thread wins empty -> filling
+// and the others wait on the word; eviction moves ready -> empty only from a pin count of zero (by
+// compare-and-swap), so memory is never freed under a reader. Recency is a per-slot stamp written
+// with a relaxed store once per ray and voxel (no lock on the ray path); the budget bookkeeping and
+// the eviction scan take one mutex, only when a fill completes.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "renderer/contributor_grid.h"
+
+namespace relief {
+
+// The displaced geometry resident for one voxel. Shared vertices + 3 narrow indices per triangle +
+// a (input triangle, micro-triangle) key per triangle for tie-breaking and hit reporting. Face
+// normals are computed at a hit, so no per-vertex normals are stored.
+struct VoxelGeometry {
+  std::vector<glm::vec3> P;
+  std::vector<glm::vec2> bary;      // position in the input triangle, for st at a hit
+  std::vector<uint16_t> indices16;  // used when P.size() <= 65536
+  std::vector<uint32_t> indices32;  // otherwise
+  std::vector<uint32_t> triangleIds;  // global input triangle id per micro-triangle
+  std::vector<uint32_t> microIds;     // index within that input triangle's micro-mesh
+
+  // Sub-voxel grid over dense voxels (kSubGridThreshold triangles or more): cells in compressed
+  // rows of triangle indices; empty when the voxel is sparse.
+  glm::ivec3 subResolution{0};
+  glm::vec3 subOrigin{0};
+  float subCellSize = 0;
+  std::vector<uint32_t> subOffsets;
+  std::vector<uint32_t> subTriangles;
+
+  uint32_t numTriangles() const { return uint32_t(triangleIds.size()); }
+  glm::uvec3 triangle(uint32_t i) const {
+    if (!indices16.empty()) return {indices16[3 * i], indices16[3 * i + 1], indices16[3 * i + 2]};
+    return {indices32[3 * i], indices32[3 * i + 1], indices32[3 * i + 2]};
+  }
+  uint64_t bytes() const;
+};
+
+// Above this many triangles a voxel gets a sub-voxel grid (the paper's "more than about 100").
+constexpr uint32_t kSubGridThreshold = 100;
+
+struct CacheStats {
+  uint64_t accesses = 0, hits = 0, compulsoryMisses = 0, capacityMisses = 0;
+  uint64_t createdTriangles = 0;  // summed over fills, refills included
+  uint64_t residentTriangles = 0, peakResidentTriangles = 0;
+  uint64_t residentBytes = 0, peakResidentBytes = 0;
+  uint64_t evictions = 0;
+};
+
+class GeometryCache {
+ public:
+  GeometryCache(uint32_t numVoxels, uint64_t budgetTriangles);
+  ~GeometryCache();
+  GeometryCache(const GeometryCache&) = delete;
+  GeometryCache& operator=(const GeometryCache&) = delete;
+
+  // Returns the voxel's geometry pinned for the caller, building it with `build(voxel)` (which
+  // returns a unique_ptr<VoxelGeometry>) if not resident. Every acquire must be paired with
+  // release(voxel). `stamp` orders uses for LRU (later is more recent).
+  template <typename Build>
+  const VoxelGeometry* acquire(uint32_t voxel, uint64_t stamp, Build&& build);
+  void release(uint32_t voxel);
+
+  CacheStats stats() const;
+  uint64_t budget() const { return budget_; }
+
+ private:
+  // Slot word: state in the top two bits, pin count below.
+  static constexpr uint32_t kStateShift = 30;
+  static constexpr uint32_t kEmpty = 0, kFilling = 1, kReady = 2;
+  static constexpr uint32_t kPinMask = (1u << kStateShift) - 1;
+
+  struct Slot {
+    std::atomic<uint32_t> word{0};
+    std::atomic<uint64_t> lastUse{0};
+    std::atomic<bool> everFilled{false};
+    VoxelGeometry* geometry = nullptr;  // written only by the filler (filling) or evictor (pins 0)
+    uint32_t residentPosition = 0;      // index in resident_, under mutex_
+  };
+
+  // Slow paths of acquire: returns the pinned geometry, or null if the caller must fill.
+  const VoxelGeometry* tryPin(uint32_t voxel, bool& mustFill);
+  const VoxelGeometry* publish(uint32_t voxel, std::unique_ptr<VoxelGeometry> geometry);
+
+  std::vector<Slot> slots_;
+  uint64_t budget_;
+  mutable std::mutex mutex_;  // guards resident_, the eviction scan and the budget counters
+  std::vector<uint32_t> resident_;
+  uint64_t residentTriangles_ = 0, peakResidentTriangles_ = 0;
+  uint64_t residentBytes_ = 0, peakResidentBytes_ = 0;
+  uint64_t evictions_ = 0;
+  std::atomic<uint64_t> accesses_{0}, hits_{0}, compulsory_{0}, capacity_{0}, created_{0};
+};
+
+template <typename Build>
+const VoxelGeometry* GeometryCache::acquire(uint32_t voxel, uint64_t stamp, Build&& build) {
+  accesses_.fetch_add(1, std::memory_order_relaxed);
+  Slot& slot = slots_[voxel];
+  // Only raise the stamp (a relaxed load first keeps the line shared when it is already recent).
+  if (slot.lastUse.load(std::memory_order_relaxed) < stamp)
+    slot.lastUse.store(stamp, std::memory_order_relaxed);
+  bool mustFill = false;
+  if (const VoxelGeometry* g = tryPin(voxel, mustFill)) return g;
+  return publish(voxel, build(voxel));
+}
+
+}  // namespace relief

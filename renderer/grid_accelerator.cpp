@@ -1,0 +1,355 @@
+// Grid traversal, voxel fills and hit reporting (see grid_accelerator.h).
+#include "renderer/grid_accelerator.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+
+#include "renderer/intersect.h"
+
+namespace relief {
+namespace {
+
+std::atomic<uint64_t> nextInstanceId{1};
+
+// Recent micro-meshes of this thread: neighbouring voxels share contributors and the DDA walks to
+// neighbours, so a few entries avoid most re-subdivision. Affects speed only (rule 1).
+constexpr int kMemoEntries = 16;
+struct MemoEntry {
+  uint64_t owner = 0;
+  uint32_t triangle = 0;
+  MicroMesh mesh;
+};
+struct Memo {
+  MemoEntry entries[kMemoEntries];
+  int nextVictim = 0;
+};
+thread_local Memo memo;
+
+bool overlaps(const Bounds3& box, const glm::vec3& a, const glm::vec3& b, const glm::vec3& c) {
+  const glm::vec3 lo = glm::min(a, glm::min(b, c)), hi = glm::max(a, glm::max(b, c));
+  return lo.x <= box.hi.x && box.lo.x <= hi.x && lo.y <= box.hi.y && box.lo.y <= hi.y &&
+         lo.z <= box.hi.z && box.lo.z <= hi.z;
+}
+
+// Clips the ray to a box; false if it misses it within [t0, t1].
+bool clipToBox(const glm::vec3& o, const glm::vec3& d, const glm::vec3& lo, const glm::vec3& hi,
+               float& t0, float& t1) {
+  for (int a = 0; a < 3; ++a) {
+    if (d[a] == 0.0f) {
+      if (o[a] < lo[a] || o[a] > hi[a]) return false;
+      continue;
+    }
+    float tn = (lo[a] - o[a]) / d[a], tf = (hi[a] - o[a]) / d[a];
+    if (tn > tf) std::swap(tn, tf);
+    t0 = std::max(t0, tn), t1 = std::min(t1, tf);
+  }
+  return t0 <= t1;
+}
+
+// 3D DDA (Amanatides and Woo) over a grid of cubic cells, starting at ray parameter t0.
+struct Dda {
+  glm::ivec3 cell, step, res;
+  glm::vec3 tNext, tDelta;
+  Dda(const glm::vec3& o, const glm::vec3& d, const glm::vec3& lo, float size, glm::ivec3 resolution,
+      float t0)
+      : res(resolution) {
+    const glm::vec3 entry = o + t0 * d;
+    cell = glm::clamp(glm::ivec3(glm::floor((entry - lo) / size)), glm::ivec3(0), res - 1);
+    for (int a = 0; a < 3; ++a) {
+      if (d[a] == 0.0f) {
+        step[a] = 0, tNext[a] = std::numeric_limits<float>::infinity(), tDelta[a] = 0;
+        continue;
+      }
+      step[a] = d[a] > 0 ? 1 : -1;
+      const float boundary = lo[a] + float(cell[a] + (d[a] > 0 ? 1 : 0)) * size;
+      tNext[a] = (boundary - o[a]) / d[a];
+      tDelta[a] = size / std::fabs(d[a]);
+    }
+  }
+  int exitAxis() const {
+    return tNext.x < tNext.y ? (tNext.x < tNext.z ? 0 : 2) : (tNext.y < tNext.z ? 1 : 2);
+  }
+  float tExit() const { return tNext[exitAxis()]; }
+  // Moves to the next cell; false when leaving the grid.
+  bool advance() {
+    const int axis = exitAxis();
+    cell[axis] += step[axis];
+    if (cell[axis] < 0 || cell[axis] >= res[axis]) return false;
+    tNext[axis] += tDelta[axis];
+    return true;
+  }
+};
+
+// Sub-voxel grid for dense voxels: cubic cells, about kSubGridDensity triangles per cell.
+constexpr float kSubGridDensity = 3.0f;
+constexpr int kMaxSubGridResolution = 32;
+
+void buildSubGrid(VoxelGeometry& g, const Bounds3& box, float padding) {
+  const uint32_t n = g.numTriangles();
+  if (n < kSubGridThreshold) return;
+  const int r = std::clamp(int(std::cbrt(float(n) / kSubGridDensity)), 2, kMaxSubGridResolution);
+  const glm::vec3 extent = box.hi - box.lo;
+  g.subCellSize = std::max({extent.x, extent.y, extent.z}) / float(r);
+  g.subOrigin = box.lo;
+  g.subResolution = glm::ivec3(r);
+  const size_t numCells = size_t(r) * r * r;
+  g.subOffsets.assign(numCells + 1, 0);
+  auto range = [&](uint32_t i, glm::ivec3& lo, glm::ivec3& hi) {
+    const glm::uvec3 t = g.triangle(i);
+    const glm::vec3 a = glm::min(g.P[t.x], glm::min(g.P[t.y], g.P[t.z])) - glm::vec3(padding);
+    const glm::vec3 b = glm::max(g.P[t.x], glm::max(g.P[t.y], g.P[t.z])) + glm::vec3(padding);
+    lo = glm::clamp(glm::ivec3(glm::floor((a - g.subOrigin) / g.subCellSize)), glm::ivec3(0), g.subResolution - 1);
+    hi = glm::clamp(glm::ivec3(glm::floor((b - g.subOrigin) / g.subCellSize)), glm::ivec3(0), g.subResolution - 1);
+  };
+  std::vector<uint32_t> cursor;
+  for (int pass = 0; pass < 2; ++pass) {
+    if (pass == 1) {
+      for (size_t c = 0; c < numCells; ++c) g.subOffsets[c + 1] += g.subOffsets[c];
+      g.subTriangles.resize(g.subOffsets[numCells]);
+      cursor.assign(g.subOffsets.begin(), g.subOffsets.end() - 1);
+    }
+    for (uint32_t i = 0; i < n; ++i) {
+      glm::ivec3 lo, hi;
+      range(i, lo, hi);
+      for (int z = lo.z; z <= hi.z; ++z)
+        for (int y = lo.y; y <= hi.y; ++y)
+          for (int x = lo.x; x <= hi.x; ++x) {
+            const size_t c = (size_t(z) * r + y) * r + x;
+            if (pass == 0) ++g.subOffsets[c + 1];
+            else g.subTriangles[cursor[c]++] = i;
+          }
+    }
+  }
+}
+
+}  // namespace
+
+// The nearest hit so far, with what is needed to report it after the voxel is released.
+struct GridAccelerator::Best {
+  bool found = false;
+  float t = 0;
+  uint32_t triangleId = 0, microId = 0;
+  TriangleHit hit{};
+  glm::vec3 p[3];
+  glm::vec2 bary[3];
+  bool better(float t2, uint32_t tri, uint32_t micro) const {
+    if (!found || t2 < t) return true;
+    if (t2 > t) return false;
+    return tri < triangleId || (tri == triangleId && micro < microId);
+  }
+};
+
+GridAccelerator::GridAccelerator(const Scene& scene, const AccelOptions& options)
+    : scene_(scene),
+      options_(options),
+      grid_(scene, options),
+      instanceId_(nextInstanceId.fetch_add(1)),
+      subdivided_(grid_.numTriangles()) {
+  if (grid_.anyDisplaced())
+    cache_ = std::make_unique<GeometryCache>(grid_.numVoxels(), options.cacheBudgetTriangles);
+}
+
+GridAccelerator::~GridAccelerator() = default;
+
+const MicroMesh& GridAccelerator::microMesh(uint32_t globalId) {
+  for (MemoEntry& e : memo.entries)
+    if (e.owner == instanceId_ && e.triangle == globalId) return e.mesh;
+  MemoEntry& e = memo.entries[memo.nextVictim];
+  memo.nextVictim = (memo.nextVictim + 1) % kMemoEntries;
+  const auto [mesh, triangle] = grid_.split(globalId);
+  SubdivideCounters counters;
+  e.owner = 0;  // invalid while rebuilding
+  subdivideTriangle(scene_.meshes[mesh], triangle, grid_.displacement(mesh), e.mesh, counters);
+  e.owner = instanceId_;
+  e.triangle = globalId;
+  if (subdivided_[globalId].exchange(1, std::memory_order_relaxed) == 0)
+    uniqueTriangles_.fetch_add(e.mesh.numTriangles(), std::memory_order_relaxed);
+  shaderPoints_.fetch_add(counters.shaderPoints, std::memory_order_relaxed);
+  displaceNanos_.fetch_add(counters.displaceNanos, std::memory_order_relaxed);
+  if (counters.status.nonFinite) nonFinite_.fetch_add(counters.status.nonFinite);
+  if (counters.status.loopLimit) loopLimit_.fetch_add(counters.status.loopLimit);
+  if (counters.status.indexClamped) indexClamped_.fetch_add(counters.status.indexClamped);
+  if (counters.status.unknownSpace) unknownSpace_.fetch_add(counters.status.unknownSpace);
+  if (counters.status.textureErrors) textureErrors_.fetch_add(counters.status.textureErrors);
+  return e.mesh;
+}
+
+std::unique_ptr<VoxelGeometry> GridAccelerator::buildVoxel(uint32_t voxel) {
+  const auto start = std::chrono::steady_clock::now();
+  auto g = std::make_unique<VoxelGeometry>();
+  const Bounds3 box = grid_.voxelBounds(voxel);
+  thread_local std::vector<uint32_t> remap;
+  std::vector<uint32_t> indices;
+  for (uint32_t id : grid_.contributors(voxel)) {
+    const MicroMesh& mm = microMesh(id);
+    remap.assign(mm.P.size(), UINT32_MAX);
+    for (uint32_t i = 0; i < mm.numTriangles(); ++i) {
+      const uint32_t* tri = &mm.indices[3 * size_t(i)];
+      if (!overlaps(box, mm.P[tri[0]], mm.P[tri[1]], mm.P[tri[2]])) continue;
+      for (int c = 0; c < 3; ++c) {
+        uint32_t& slot = remap[tri[c]];
+        if (slot == UINT32_MAX) {
+          slot = uint32_t(g->P.size());
+          g->P.push_back(mm.P[tri[c]]);
+          g->bary.push_back(mm.bary[tri[c]]);
+        }
+        indices.push_back(slot);
+      }
+      g->triangleIds.push_back(id);
+      g->microIds.push_back(i);
+    }
+  }
+  if (g->P.size() <= 65536) g->indices16.assign(indices.begin(), indices.end());
+  else g->indices32 = std::move(indices);
+  buildSubGrid(*g, box, grid_.padding());
+  const uint64_t n = g->numTriangles();
+  uint64_t seen = maxVoxelTriangles_.load(std::memory_order_relaxed);
+  while (n > seen && !maxVoxelTriangles_.compare_exchange_weak(seen, n)) {}
+  fillNanos_.fetch_add(uint64_t(std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                    std::chrono::steady_clock::now() - start)
+                                    .count()),
+                       std::memory_order_relaxed);
+  return g;
+}
+
+void GridAccelerator::intersectVoxel(uint32_t voxel, const WatertightRay& wr, const Ray& ray,
+                                     uint64_t stamp, bool anyHit, Best& best) {
+  TriangleHit h;
+  auto tLimit = [&] {
+    return best.found ? std::nextafter(best.t, std::numeric_limits<float>::infinity()) : ray.tMax;
+  };
+  if (!cache_) {
+    for (uint32_t id : grid_.contributors(voxel)) {
+      const auto [m, t] = grid_.split(id);
+      const Mesh& mesh = scene_.meshes[m];
+      glm::vec3 p[3];
+      for (int c = 0; c < 3; ++c) p[c] = mesh.P[mesh.indices[3 * size_t(t) + c]];
+      if (!intersectTriangle(wr, p[0], p[1], p[2], ray.tMin, tLimit(), h)) continue;
+      if (!best.better(h.t, id, 0)) continue;
+      best.found = true, best.t = h.t, best.triangleId = id, best.microId = 0, best.hit = h;
+      const glm::vec2 corner[3] = {{0, 0}, {1, 0}, {0, 1}};
+      for (int c = 0; c < 3; ++c) best.p[c] = p[c], best.bary[c] = corner[c];
+      if (anyHit) return;
+    }
+    return;
+  }
+  const VoxelGeometry* g = cache_->acquire(voxel, stamp, [this](uint32_t v) { return buildVoxel(v); });
+  auto test = [&](uint32_t i) {
+    const glm::uvec3 tri = g->triangle(i);
+    if (!intersectTriangle(wr, g->P[tri.x], g->P[tri.y], g->P[tri.z], ray.tMin, tLimit(), h)) return;
+    if (!best.better(h.t, g->triangleIds[i], g->microIds[i])) return;
+    best.found = true, best.t = h.t, best.triangleId = g->triangleIds[i];
+    best.microId = g->microIds[i], best.hit = h;
+    for (int c = 0; c < 3; ++c) best.p[c] = g->P[tri[c]], best.bary[c] = g->bary[tri[c]];
+  };
+  if (g->subResolution.x == 0) {
+    for (uint32_t i = 0; i < g->numTriangles() && !(anyHit && best.found); ++i) test(i);
+  } else {
+    // Walk the sub-cells along the ray's whole passage through the (padded) voxel box, so every
+    // stored triangle the ray meets inside the voxel is tested, whatever the outer DDA's rounding.
+    const glm::vec3 hi = g->subOrigin + glm::vec3(g->subResolution) * g->subCellSize;
+    float t0 = std::max(ray.tMin, 0.0f), t1 = ray.tMax;
+    if (clipToBox(ray.origin, ray.direction, g->subOrigin, hi, t0, t1)) {
+      Dda dda(ray.origin, ray.direction, g->subOrigin, g->subCellSize, g->subResolution, t0);
+      const int r = g->subResolution.x;
+      for (;;) {
+        const size_t c = (size_t(dda.cell.z) * r + dda.cell.y) * r + dda.cell.x;
+        for (uint32_t k = g->subOffsets[c]; k < g->subOffsets[c + 1]; ++k) {
+          test(g->subTriangles[k]);
+          if (anyHit && best.found) break;
+        }
+        if (anyHit && best.found) break;
+        const float tExit = dda.tExit();
+        if (best.found && best.t < tExit) break;
+        if (tExit > t1 || !dda.advance()) break;
+      }
+    }
+  }
+  cache_->release(voxel);
+}
+
+template <bool kAnyHit>
+void GridAccelerator::traverse(const Ray& ray, Best& best) {
+  const Bounds3& bounds = grid_.bounds();
+  float t0 = std::max(ray.tMin, 0.0f), t1 = ray.tMax;
+  if (!clipToBox(ray.origin, ray.direction, bounds.lo, bounds.hi, t0, t1)) return;
+  Dda dda(ray.origin, ray.direction, bounds.lo, grid_.voxelSize(), grid_.resolution(), t0);
+  const WatertightRay wr(ray);
+  // One stamp per ray, not per voxel step: the only shared write on the ray path.
+  const uint64_t stamp = cache_ ? clock_.fetch_add(1, std::memory_order_relaxed) : 0;
+  for (;;) {
+    const float tExit = dda.tExit();
+    const uint32_t voxel = grid_.voxelIndex(dda.cell);
+    if (!grid_.contributors(voxel).empty()) {
+      intersectVoxel(voxel, wr, ray, stamp, kAnyHit, best);
+      if (kAnyHit && best.found) return;
+      if (best.found && best.t < tExit) return;
+    }
+    if (tExit > t1 || !dda.advance()) return;
+  }
+}
+
+std::optional<Hit> GridAccelerator::intersect(const Ray& ray) {
+  Best best;
+  traverse<false>(ray, best);
+  if (!best.found) return std::nullopt;
+  Hit hit;
+  hit.t = best.t;
+  hit.P = ray.origin + best.t * ray.direction;
+  const glm::vec3 ng = glm::cross(best.p[1] - best.p[0], best.p[2] - best.p[0]);
+  const float len = glm::length(ng);
+  hit.Ng = len > 0.0f && std::isfinite(len) ? ng / len : -glm::normalize(ray.direction);
+  const auto [m, t] = grid_.split(best.triangleId);
+  const Mesh& mesh = scene_.meshes[m];
+  const glm::vec2 b = best.hit.b0 * best.bary[0] + best.hit.b1 * best.bary[1] + best.hit.b2 * best.bary[2];
+  glm::vec2 st[3];
+  const glm::vec2 corner[3] = {{0, 0}, {1, 0}, {0, 1}};
+  for (int c = 0; c < 3; ++c) {
+    const uint32_t i = mesh.indices[3 * size_t(t) + c];
+    st[c] = !mesh.st.empty() ? mesh.st[i] : !mesh.uv.empty() ? mesh.uv[i] : corner[c];
+  }
+  hit.st = (1.0f - b.x - b.y) * st[0] + b.x * st[1] + b.y * st[2];
+  hit.meshIndex = m;
+  hit.triangleIndex = t;
+  hit.microIndex = best.microId;
+  return hit;
+}
+
+bool GridAccelerator::occluded(const Ray& ray) {
+  Best best;
+  traverse<true>(ray, best);
+  return best.found;
+}
+
+AccelStats GridAccelerator::stats() const {
+  AccelStats s;
+  if (cache_) {
+    const CacheStats c = cache_->stats();
+    s.accesses = c.accesses, s.hits = c.hits;
+    s.compulsoryMisses = c.compulsoryMisses, s.capacityMisses = c.capacityMisses;
+    s.displacedTrianglesCreated = c.createdTriangles;
+    s.peakResidentTriangles = c.peakResidentTriangles, s.residentTriangles = c.residentTriangles;
+  }
+  s.uniqueDisplacedTriangles = uniqueTriangles_.load(std::memory_order_relaxed);
+  s.shaderPoints = shaderPoints_.load(std::memory_order_relaxed);
+  const double displace = double(displaceNanos_.load(std::memory_order_relaxed)) * 1e-9;
+  s.displaceSeconds = displace;
+  s.subdivideSeconds = std::max(0.0, double(fillNanos_.load(std::memory_order_relaxed)) * 1e-9 - displace);
+  return s;
+}
+
+RlfStatus GridAccelerator::shaderStatus() const {
+  RlfStatus s{};
+  s.nonFinite = nonFinite_.load(), s.loopLimit = loopLimit_.load();
+  s.indexClamped = indexClamped_.load(), s.unknownSpace = unknownSpace_.load();
+  s.textureErrors = textureErrors_.load();
+  return s;
+}
+
+std::unique_ptr<Accelerator> makeGridAccelerator(const Scene& scene, const AccelOptions& options) {
+  return std::make_unique<GridAccelerator>(scene, options);
+}
+
+}  // namespace relief

@@ -1,0 +1,65 @@
+// The grid accelerator behind makeGridAccelerator (accel.h): 3D DDA through the contributor grid,
+// per-voxel geometry from the geometry cache, watertight intersection. Exposed beyond accel.h only
+// for tests and statistics; the integrator uses the Accelerator interface.
+//
+// Traversal and determinism: voxels are visited front to back and every hit found in a visited
+// voxel is a real intersection, so the nearest (t, key) over the visited voxels is kept; traversal
+// stops once that t lies before the current voxel's exit. This is rule 2 in its exact form: a far
+// hit in one voxel can never hide a nearer one in the next, since the next is still visited. As a
+// voxel's content is a pure function of the voxel, the visited set and the answer depend only on
+// the ray, never on the cache state, budget or threads. Ties in t go to the smaller key
+// (global input triangle id, micro-triangle index).
+#pragma once
+
+#include <atomic>
+#include <memory>
+#include <optional>
+#include <vector>
+
+#include "renderer/accel.h"
+#include "renderer/contributor_grid.h"
+#include "renderer/geometry_cache.h"
+#include "renderer/subdivide.h"
+
+namespace relief {
+
+class GridAccelerator final : public Accelerator {
+ public:
+  GridAccelerator(const Scene& scene, const AccelOptions& options);
+  ~GridAccelerator() override;
+
+  std::optional<Hit> intersect(const Ray& ray) override;
+  bool occluded(const Ray& ray) override;
+  AccelStats stats() const override;
+
+  const ContributorGrid& grid() const { return grid_; }
+  // Null when nothing is displaced (input triangles are intersected straight from the grid).
+  const GeometryCache* cache() const { return cache_.get(); }
+  // The largest triangle count of any voxel filled so far (bounds the budget overshoot).
+  uint64_t maxVoxelTriangles() const { return maxVoxelTriangles_.load(std::memory_order_relaxed); }
+  // Shader problems summed over all fills (for one-time warnings by the caller).
+  RlfStatus shaderStatus() const;
+
+ private:
+  struct Best;
+  template <bool kAnyHit>
+  void traverse(const Ray& ray, Best& best);
+  void intersectVoxel(uint32_t voxel, const struct WatertightRay& wr, const Ray& ray,
+                      uint64_t stamp, bool anyHit, Best& best);
+  std::unique_ptr<VoxelGeometry> buildVoxel(uint32_t voxel);
+  const MicroMesh& microMesh(uint32_t globalId);
+
+  const Scene& scene_;
+  AccelOptions options_;
+  ContributorGrid grid_;
+  std::unique_ptr<GeometryCache> cache_;
+  uint64_t instanceId_;  // keys the per-thread micro-mesh memo, so instances never share entries
+  std::atomic<uint64_t> clock_{1};
+  std::vector<std::atomic<uint8_t>> subdivided_;  // per input triangle: counted in uniqueTriangles_
+  std::atomic<uint64_t> uniqueTriangles_{0}, shaderPoints_{0}, fillNanos_{0}, displaceNanos_{0};
+  std::atomic<uint64_t> maxVoxelTriangles_{0};
+  std::atomic<uint32_t> nonFinite_{0}, loopLimit_{0}, indexClamped_{0}, unknownSpace_{0},
+      textureErrors_{0};
+};
+
+}  // namespace relief

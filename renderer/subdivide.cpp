@@ -1,0 +1,275 @@
+// Adaptive crack-free subdivision with batched displacement (see subdivide.h for the scheme).
+#include "renderer/subdivide.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <unordered_map>
+
+namespace relief {
+namespace {
+
+// Undisplaced attributes of the vertices of one subdivision, structure of arrays.
+struct Vertices {
+  std::vector<glm::vec3> P, N;
+  std::vector<glm::vec2> uv, st, bary;
+  std::vector<uint8_t> level;
+  std::vector<glm::vec3> displaced;
+  void clear() {
+    P.clear(), N.clear(), uv.clear(), st.clear(), bary.clear(), level.clear(), displaced.clear();
+  }
+  uint32_t size() const { return uint32_t(P.size()); }
+};
+
+struct Float3Soa {
+  std::vector<float> x, y, z;
+  void resize(size_t n) { x.resize(n), y.resize(n), z.resize(n); }
+  void set(size_t i, glm::vec3 v) { x[i] = v.x, y[i] = v.y, z[i] = v.z; }
+  glm::vec3 get(size_t i) const { return {x[i], y[i], z[i]}; }
+  RlfFloat3Array view() { return {x.data(), y.data(), z.data()}; }
+};
+
+// The SoA buffers of one shader batch, reused across calls on one thread.
+struct Batch {
+  Float3Soa P, N, Ng, dPdu, dPdv, Pout, Nout;
+  std::vector<float> u, v, s, t, du, dv;
+  void resize(size_t n) {
+    for (Float3Soa* a : {&P, &N, &Ng, &dPdu, &dPdv, &Pout, &Nout}) a->resize(n);
+    for (std::vector<float>* a : {&u, &v, &s, &t, &du, &dv}) a->resize(n);
+  }
+};
+
+struct Scratch {
+  Vertices vertices;
+  Batch batch;
+  std::vector<uint32_t> active, next;  // 3 indices per triangle
+  std::unordered_map<uint64_t, int64_t> edges;  // (min, max) vertex pair -> midpoint, or -1: kept
+};
+
+// Frame of the input triangle shared by all its vertices: geometric normal, dP/du and dP/dv of its
+// (u, v) parameterisation, and the parameter extents that set du/dv per level.
+struct TriangleFrame {
+  glm::vec3 Ng, dPdu, dPdv;
+  float uExtent, vExtent;
+};
+
+bool finite(glm::vec3 v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
+
+TriangleFrame makeFrame(const glm::vec3 p[3], const glm::vec3 n[3], const glm::vec2 uv[3]) {
+  TriangleFrame f;
+  glm::vec3 e1 = p[1] - p[0], e2 = p[2] - p[0];
+  glm::vec3 ng = glm::cross(e1, e2);
+  float len = glm::length(ng);
+  if (len > 0.0f && std::isfinite(len)) {
+    f.Ng = ng / len;
+  } else {
+    // Zero-area triangles (sphere poles): fall back to the shading normals so no NaN reaches the
+    // shader.
+    glm::vec3 sum = n[0] + n[1] + n[2];
+    float sl = glm::length(sum);
+    f.Ng = sl > 0.0f && std::isfinite(sl) ? sum / sl : glm::vec3(0, 0, 1);
+  }
+  glm::vec2 d1 = uv[1] - uv[0], d2 = uv[2] - uv[0];
+  float det = d1.x * d2.y - d1.y * d2.x;
+  if (std::fabs(det) > 1e-12f) {
+    f.dPdu = (e1 * d2.y - e2 * d1.y) / det;
+    f.dPdv = (e2 * d1.x - e1 * d2.x) / det;
+  } else {
+    glm::vec3 a = std::fabs(f.Ng.x) > 0.9f ? glm::vec3(0, 1, 0) : glm::vec3(1, 0, 0);
+    f.dPdu = glm::normalize(glm::cross(a, f.Ng));
+    f.dPdv = glm::cross(f.Ng, f.dPdu);
+  }
+  if (!finite(f.dPdu) || !finite(f.dPdv)) f.dPdu = f.dPdv = glm::vec3(0);
+  auto extent = [&](int c) {
+    float lo = std::min({uv[0][c], uv[1][c], uv[2][c]}), hi = std::max({uv[0][c], uv[1][c], uv[2][c]});
+    return hi - lo > 0.0f ? hi - lo : 1.0f;
+  };
+  f.uExtent = extent(0);
+  f.vExtent = extent(1);
+  return f;
+}
+
+// Displaces vertices [first, end) in one batch; falls back to the undisplaced P where the shader
+// returns a non-finite position.
+void displace(const Displacement& disp, const TriangleFrame& frame, Vertices& vs, uint32_t first,
+              Batch& batch, SubdivideCounters& counters) {
+  const uint32_t n = vs.size() - first;
+  if (n == 0) return;
+  batch.resize(n);
+  for (uint32_t i = 0; i < n; ++i) {
+    const uint32_t k = first + i;
+    batch.P.set(i, vs.P[k]);
+    batch.N.set(i, vs.N[k]);
+    batch.Ng.set(i, frame.Ng);
+    batch.dPdu.set(i, frame.dPdu);
+    batch.dPdv.set(i, frame.dPdv);
+    batch.u[i] = vs.uv[k].x, batch.v[i] = vs.uv[k].y;
+    batch.s[i] = vs.st[k].x, batch.t[i] = vs.st[k].y;
+    const float spacing = std::ldexp(1.0f, -int(vs.level[k]));
+    batch.du[i] = frame.uExtent * spacing, batch.dv[i] = frame.vExtent * spacing;
+    batch.Pout.set(i, vs.P[k]);
+    batch.Nout.set(i, vs.N[k]);
+  }
+  RlfShadingBatch b{};
+  b.count = n;
+  b.P = batch.P.view(), b.N = batch.N.view(), b.Ng = batch.Ng.view();
+  b.dPdu = batch.dPdu.view(), b.dPdv = batch.dPdv.view();
+  b.u = batch.u.data(), b.v = batch.v.data(), b.s = batch.s.data(), b.t = batch.t.data();
+  b.du = batch.du.data(), b.dv = batch.dv.data();
+  b.spaces = &disp.spaces;
+  b.services = nullptr;
+  b.Pout = batch.Pout.view(), b.Nout = batch.Nout.view();
+  RlfStatus status{};
+  auto start = std::chrono::steady_clock::now();
+  disp.shader->evaluate(b, status);
+  counters.displaceNanos += uint64_t(std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                         std::chrono::steady_clock::now() - start)
+                                         .count());
+  counters.shaderPoints += n;
+  counters.status.loopLimit += status.loopLimit;
+  counters.status.indexClamped += status.indexClamped;
+  counters.status.unknownSpace += status.unknownSpace;
+  counters.status.textureErrors += status.textureErrors;
+  counters.status.nonFinite += status.nonFinite;
+  for (uint32_t i = 0; i < n; ++i) {
+    glm::vec3 p = batch.Pout.get(i);
+    if (finite(p)) {
+      vs.displaced[first + i] = p;
+    } else {
+      vs.displaced[first + i] = vs.P[first + i];
+      ++counters.status.nonFinite;
+    }
+  }
+}
+
+// Appends the midpoint of edge (a, b). Every attribute is 0.5 * (x_a + x_b): addition commutes
+// exactly, so both triangles sharing the edge get the same bits whichever way round they see it.
+uint32_t addMidpoint(Vertices& vs, uint32_t a, uint32_t b) {
+  vs.P.push_back(0.5f * (vs.P[a] + vs.P[b]));
+  glm::vec3 n = vs.N[a] + vs.N[b];
+  float len = glm::length(n);
+  vs.N.push_back(len > 0.0f && std::isfinite(len) ? n / len : vs.N[std::min(a, b)]);
+  vs.uv.push_back(0.5f * (vs.uv[a] + vs.uv[b]));
+  vs.st.push_back(0.5f * (vs.st[a] + vs.st[b]));
+  vs.bary.push_back(0.5f * (vs.bary[a] + vs.bary[b]));
+  vs.level.push_back(uint8_t(std::max(vs.level[a], vs.level[b]) + 1));
+  vs.displaced.emplace_back(0.0f);
+  return vs.size() - 1;
+}
+
+void push(std::vector<uint32_t>& list, uint32_t a, uint32_t b, uint32_t c) {
+  list.push_back(a), list.push_back(b), list.push_back(c);
+}
+
+}  // namespace
+
+void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* displacement,
+                       MicroMesh& out, SubdivideCounters& counters) {
+  thread_local Scratch scratch;
+  Vertices& vs = scratch.vertices;
+  vs.clear();
+  glm::vec3 p[3], n[3];
+  glm::vec2 uv[3], st[3];
+  const glm::vec2 cornerBary[3] = {{0, 0}, {1, 0}, {0, 1}};
+  for (int c = 0; c < 3; ++c) {
+    const uint32_t i = mesh.indices[3 * size_t(triangle) + c];
+    p[c] = mesh.P[i];
+    uv[c] = mesh.uv.empty() ? cornerBary[c] : mesh.uv[i];
+    st[c] = mesh.st.empty() ? uv[c] : mesh.st[i];
+  }
+  glm::vec3 faceN = glm::cross(p[1] - p[0], p[2] - p[0]);
+  float faceLen = glm::length(faceN);
+  faceN = faceLen > 0.0f && std::isfinite(faceLen) ? faceN / faceLen : glm::vec3(0, 0, 1);
+  for (int c = 0; c < 3; ++c)
+    n[c] = mesh.N.empty() ? faceN : mesh.N[mesh.indices[3 * size_t(triangle) + c]];
+  for (int c = 0; c < 3; ++c) {
+    vs.P.push_back(p[c]), vs.N.push_back(n[c]), vs.uv.push_back(uv[c]), vs.st.push_back(st[c]);
+    vs.bary.push_back(cornerBary[c]), vs.level.push_back(0), vs.displaced.push_back(p[c]);
+  }
+
+  const bool displaced = displacement != nullptr && displacement->shader != nullptr;
+  out.indices.clear();
+  if (displaced) {
+    const Displacement& disp = *displacement;
+    const TriangleFrame frame = makeFrame(p, n, uv);
+    const int maxDepth = std::clamp(disp.maxDepth, 0, 255);
+    const float edgeLength2 = disp.edgeLength * disp.edgeLength;
+    displace(disp, frame, vs, 0, scratch.batch, counters);
+
+    std::vector<uint32_t>& active = scratch.active;
+    std::vector<uint32_t>& next = scratch.next;
+    auto& edges = scratch.edges;
+    active.assign({0, 1, 2});
+    edges.clear();
+    // Returns the midpoint of edge (a, b), creating it if the edge wants splitting; -1 if kept.
+    auto midpoint = [&](uint32_t a, uint32_t b) -> int64_t {
+      const uint64_t key = (uint64_t(std::min(a, b)) << 32) | std::max(a, b);
+      auto [it, inserted] = edges.try_emplace(key, -1);
+      if (inserted) {
+        const glm::vec3 d = vs.displaced[a] - vs.displaced[b];
+        const bool wants = glm::dot(d, d) > edgeLength2;
+        const bool allowed = std::max(vs.level[a], vs.level[b]) + 1 <= maxDepth;
+        if (wants && allowed) it->second = addMidpoint(vs, a, b);
+      }
+      return it->second;
+    };
+    while (!active.empty()) {
+      const uint32_t firstNew = vs.size();
+      for (size_t k = 0; k < active.size(); k += 3)
+        for (int e = 0; e < 3; ++e) midpoint(active[k + e], active[k + (e + 1) % 3]);
+      displace(disp, frame, vs, firstNew, scratch.batch, counters);
+      next.clear();
+      for (size_t k = 0; k < active.size(); k += 3) {
+        uint32_t v[3] = {active[k], active[k + 1], active[k + 2]};
+        int64_t m[3];  // m[e] on edge (v[e], v[e+1])
+        int numSplit = 0;
+        for (int e = 0; e < 3; ++e) {
+          m[e] = edges.find((uint64_t(std::min(v[e], v[(e + 1) % 3])) << 32) |
+                            std::max(v[e], v[(e + 1) % 3]))
+                     ->second;
+          numSplit += m[e] >= 0;
+        }
+        if (numSplit == 0) {
+          push(out.indices, v[0], v[1], v[2]);
+        } else if (numSplit == 3) {
+          const uint32_t m0 = uint32_t(m[0]), m1 = uint32_t(m[1]), m2 = uint32_t(m[2]);
+          push(next, v[0], m0, m2);
+          push(next, m0, v[1], m1);
+          push(next, m2, m1, v[2]);
+          push(next, m0, m1, m2);
+        } else if (numSplit == 1) {
+          // Rotate so the split edge is (a, b).
+          int e = m[0] >= 0 ? 0 : m[1] >= 0 ? 1 : 2;
+          uint32_t a = v[e], b = v[(e + 1) % 3], c = v[(e + 2) % 3], mab = uint32_t(m[e]);
+          push(next, a, mab, c);
+          push(next, mab, b, c);
+        } else {
+          // Rotate so the kept edge is (c, a); split edges are (a, b) and (b, c).
+          int kept = m[0] < 0 ? 0 : m[1] < 0 ? 1 : 2;
+          int e = (kept + 1) % 3;
+          uint32_t a = v[e], b = v[(e + 1) % 3], c = v[(e + 2) % 3];
+          uint32_t mab = uint32_t(m[e]), mbc = uint32_t(m[(e + 1) % 3]);
+          push(next, mab, b, mbc);
+          // The quad (a, mab, mbc, c) is interior to this triangle, so any diagonal keeps the
+          // mesh conforming; the shorter displaced one gives better-shaped triangles.
+          glm::vec3 d1 = vs.displaced[a] - vs.displaced[mbc], d2 = vs.displaced[mab] - vs.displaced[c];
+          if (glm::dot(d1, d1) <= glm::dot(d2, d2)) {
+            push(next, a, mab, mbc);
+            push(next, a, mbc, c);
+          } else {
+            push(next, a, mab, c);
+            push(next, mab, mbc, c);
+          }
+        }
+      }
+      std::swap(active, next);
+    }
+  } else {
+    push(out.indices, 0, 1, 2);
+  }
+  out.P = vs.displaced;
+  out.bary = vs.bary;
+  out.level = vs.level;
+}
+
+}  // namespace relief

@@ -1,0 +1,49 @@
+// Adaptive, crack-free subdivision and displacement of one input triangle into micro-triangles.
+// Used by the geometry cache (geometry_cache.*, grid_accelerator.cpp) and by geometry tests; reaches
+// the displacement shader only through runtime::ShaderInstance.
+//
+// The scheme (architecture.md, "Subdivision"): an edge is split when its two *displaced* end points
+// are farther apart than Displacement::edgeLength and its midpoint's level would not exceed
+// Displacement::maxDepth. The decision reads only the edge's two end vertices, and a midpoint's
+// attributes are 0.5 * (a + b), which is symmetric in IEEE arithmetic, so the two triangles sharing
+// an edge (also across input triangles, when the mesh shares the vertex) split it identically and
+// compute bit-identical midpoints. Only edges that want splitting are split: a triangle with one,
+// two or three split edges becomes two, three or four children, so neighbours share every vertex
+// (no T-junctions) and, with the watertight ray test of intersect.h, nothing leaks.
+//
+// Evaluation is breadth first: each round's new vertices are displaced in one shader batch.
+// Determinism rule 1: the result depends only on the input triangle, its shader and settings.
+// Known limit: a shader reading dPdu/dPdv, du/dv or Ng (which are per input triangle) may displace
+// a shared edge differently from its two sides; P, N, u, v, s, t are shared exactly.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "renderer/scene.h"
+
+namespace relief {
+
+// The displaced micro-mesh of one input triangle.
+struct MicroMesh {
+  std::vector<glm::vec3> P;       // displaced positions, world space
+  std::vector<glm::vec2> bary;    // (b1, b2): weights of input corners 1 and 2 (for st at a hit)
+  std::vector<uint8_t> level;     // subdivision level of each vertex (corners 0)
+  std::vector<uint32_t> indices;  // 3 per micro-triangle, wound as the input triangle
+  uint32_t numTriangles() const { return uint32_t(indices.size() / 3); }
+};
+
+struct SubdivideCounters {
+  uint64_t shaderPoints = 0;
+  uint64_t displaceNanos = 0;  // time spent inside the shader
+  RlfStatus status{};          // summed over batches; nonFinite also counts host replacements
+};
+
+// Subdivides and displaces triangle `triangle` of `mesh` with `displacement` (null, or a null
+// shader: the triangle itself, one micro-triangle). `out` is overwritten.
+void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* displacement,
+                       MicroMesh& out, SubdivideCounters& counters);
+
+}  // namespace relief

@@ -1,0 +1,121 @@
+// Tests of the grid accelerator: hits equal a brute-force search over every (displaced) triangle,
+// occlusion agrees with intersection, and hit attributes are consistent.
+#include "renderer/grid_accelerator.h"
+
+#include <gtest/gtest.h>
+
+#include "geometry_test_util.h"
+
+namespace relief {
+namespace {
+
+using testing::BruteForce;
+using testing::makeSphereScene;
+using testing::randomRays;
+using testing::SphereOptions;
+
+void expectMatchesBruteForce(const Scene& scene, const AccelOptions& options, int numRays,
+                             float jitter) {
+  auto accel = makeGridAccelerator(scene, options);
+  BruteForce reference(scene);
+  int numHits = 0;
+  for (const Ray& ray : randomRays(numRays, 7, 3.0f, jitter)) {
+    auto hit = accel->intersect(ray);
+    auto expected = reference.intersect(ray);
+    ASSERT_EQ(hit.has_value(), expected.has_value());
+    EXPECT_EQ(accel->occluded(ray), expected.has_value());
+    if (!hit) continue;
+    ++numHits;
+    EXPECT_EQ(hit->t, expected->t);  // bit-identical: the same triangles and the same test
+    EXPECT_EQ(hit->meshIndex, expected->mesh);
+    EXPECT_EQ(hit->triangleIndex, expected->triangle);
+    EXPECT_EQ(hit->microIndex, expected->micro);
+    EXPECT_NEAR(glm::length(hit->Ng), 1.0f, 1e-4f);
+    EXPECT_LT(glm::dot(hit->Ng, ray.direction), 0.0f);  // outward faces seen from outside
+    EXPECT_GE(hit->st.x, -1e-4f);
+    EXPECT_LE(hit->st.x, 1.0001f);
+    // The hit point lies at t along the ray.
+    const glm::vec3 p = ray.origin + hit->t * ray.direction;
+    EXPECT_LT(glm::length(p - hit->P), 1e-5f);
+  }
+  EXPECT_GT(numHits, numRays / 4);
+  const AccelStats stats = accel->stats();
+  EXPECT_EQ(stats.accesses, stats.hits + stats.compulsoryMisses + stats.capacityMisses);
+  if (scene.meshes[0].displacementIndex != UINT32_MAX && options.displace) {
+    EXPECT_GT(stats.uniqueDisplacedTriangles, 10 * scene.meshes[0].numTriangles());
+  }
+}
+
+TEST(GridAccelerator, UndisplacedMatchesBruteForce) {
+  SphereOptions o;
+  o.displaced = false;
+  expectMatchesBruteForce(makeSphereScene(o), AccelOptions{}, 500, 1.5f);
+}
+
+TEST(GridAccelerator, DisplaceFalseIgnoresShader) {
+  Scene scene = makeSphereScene(SphereOptions{});
+  AccelOptions options;
+  options.displace = false;
+  auto accel = makeGridAccelerator(scene, options);
+  Scene flat = scene;
+  flat.meshes[0].displacementIndex = UINT32_MAX;
+  BruteForce reference(flat);
+  for (const Ray& ray : randomRays(200, 3, 3.0f, 0.5f)) {
+    auto hit = accel->intersect(ray);
+    auto expected = reference.intersect(ray);
+    ASSERT_EQ(hit.has_value(), expected.has_value());
+    if (hit) {
+      EXPECT_EQ(hit->t, expected->t);
+    }
+  }
+  EXPECT_EQ(accel->stats().shaderPoints, 0u);
+}
+
+TEST(GridAccelerator, DisplacedMatchesBruteForce) {
+  SphereOptions o;
+  o.edgeLength = 0.08f;
+  expectMatchesBruteForce(makeSphereScene(o), AccelOptions{}, 300, 1.5f);
+}
+
+TEST(GridAccelerator, DisplacedMatchesBruteForceAtEveryResolution) {
+  SphereOptions o;
+  o.edgeLength = 0.1f;
+  for (int resolution : {1, 3, 7, 20}) {
+    AccelOptions options;
+    options.gridResolution = resolution;
+    expectMatchesBruteForce(makeSphereScene(o), options, 100, 1.5f);
+  }
+}
+
+TEST(GridAccelerator, RespectsRayInterval) {
+  SphereOptions o;
+  o.displaced = false;
+  Scene scene = makeSphereScene(o);
+  auto accel = makeGridAccelerator(scene, AccelOptions{});
+  Ray ray{{0, 0, -5}, {0, 0, 1}, 0.0f, 1e30f};
+  auto near = accel->intersect(ray);
+  ASSERT_TRUE(near);
+  EXPECT_NEAR(near->t, 4.0f, 1e-2f);
+  ray.tMin = near->t + 1e-3f;
+  auto far = accel->intersect(ray);
+  ASSERT_TRUE(far);
+  EXPECT_NEAR(far->t, 6.0f, 1e-2f);
+  ray.tMax = 5.5f;
+  EXPECT_FALSE(accel->intersect(ray));
+  EXPECT_FALSE(accel->occluded(ray));
+  // Rays that miss the grid entirely, and axis-parallel rays starting inside it.
+  EXPECT_FALSE(accel->intersect(Ray{{5, 5, 5}, {1, 0, 0}, 0.0f, 1e30f}));
+  auto inside = accel->intersect(Ray{{0, 0, 0}, {0, 1, 0}, 0.0f, 1e30f});
+  ASSERT_TRUE(inside);
+  EXPECT_NEAR(inside->t, 1.0f, 1e-2f);
+}
+
+TEST(GridAccelerator, EmptySceneNeverHits) {
+  Scene scene;
+  auto accel = makeGridAccelerator(scene, AccelOptions{});
+  EXPECT_FALSE(accel->intersect(Ray{{0, 0, -5}, {0, 0, 1}, 0.0f, 1e30f}));
+  EXPECT_FALSE(accel->occluded(Ray{{0, 0, -5}, {0, 0, 1}, 0.0f, 1e30f}));
+}
+
+}  // namespace
+}  // namespace relief

@@ -1,0 +1,153 @@
+// Shared helpers of the geometry tests (subdivide, watertight, cache, accel): a hand-written bumpy
+// displacement shader behind the real runtime::ShaderInstance interface (no JIT), a displaced sphere
+// scene, seeded ray sets and a brute-force reference intersector.
+#pragma once
+
+#include <cmath>
+#include <cstring>
+#include <memory>
+#include <numbers>
+#include <optional>
+#include <random>
+#include <vector>
+
+#include "renderer/accel.h"
+#include "renderer/contributor_grid.h"
+#include "renderer/intersect.h"
+#include "renderer/subdivide.h"
+#include "renderer/tessellate.h"
+#include "runtime/shader.h"
+
+namespace relief::testing {
+
+// The paper's test displacement: h = Km * sin(freq*2*pi*u) * sin(freq*pi*v), P += h * N.
+inline void bumpyEntry(const RlfShadingBatch* b, const void* params, RlfStatus*) {
+  float km, freq;
+  std::memcpy(&km, params, 4);
+  std::memcpy(&freq, static_cast<const char*>(params) + 4, 4);
+  const float pi = std::numbers::pi_v<float>;
+  for (uint32_t i = 0; i < b->count; ++i) {
+    const float h = km * std::sin(freq * 2 * pi * b->u[i]) * std::sin(freq * pi * b->v[i]);
+    b->Pout.x[i] = b->P.x[i] + h * b->N.x[i];
+    b->Pout.y[i] = b->P.y[i] + h * b->N.y[i];
+    b->Pout.z[i] = b->P.z[i] + h * b->N.z[i];
+    b->Nout.x[i] = b->N.x[i], b->Nout.y[i] = b->N.y[i], b->Nout.z[i] = b->N.z[i];
+  }
+}
+
+// Returns NaN for every point with u > 0.5 (exercises the non-finite fallback).
+inline void nanEntry(const RlfShadingBatch* b, const void*, RlfStatus*) {
+  for (uint32_t i = 0; i < b->count; ++i) {
+    const float x = b->u[i] > 0.5f ? std::nanf("") : b->P.x[i];
+    b->Pout.x[i] = x, b->Pout.y[i] = b->P.y[i], b->Pout.z[i] = b->P.z[i];
+    b->Nout.x[i] = b->N.x[i], b->Nout.y[i] = b->N.y[i], b->Nout.z[i] = b->N.z[i];
+  }
+}
+
+inline std::shared_ptr<const runtime::ShaderInstance> makeShader(RlfShaderEntry entry, float km,
+                                                                 float freq) {
+  std::vector<runtime::ParamInfo> params(2);
+  params[0].name = "Km", params[0].offset = 0, params[0].defaultNumbers = {km};
+  params[1].name = "freq", params[1].offset = 4, params[1].defaultNumbers = {freq};
+  auto compiled = std::make_shared<runtime::CompiledShader>("bumpy", entry, params, 8, nullptr);
+  return std::make_shared<runtime::ShaderInstance>(compiled);
+}
+
+struct SphereOptions {
+  float radius = 1.0f;
+  int nu = 16, nv = 8;
+  float km = 0.1f, freq = 4.0f;
+  float edgeLength = 0.05f;
+  int maxDepth = 8;
+  bool displaced = true;
+  RlfShaderEntry entry = bumpyEntry;
+};
+
+inline Scene makeSphereScene(const SphereOptions& o) {
+  Scene scene;
+  scene.meshes.push_back(tessellateSphere(o.radius, -o.radius, o.radius, 360.0f, o.nu, o.nv, glm::mat4(1.0f)));
+  if (o.displaced) {
+    Displacement d;
+    d.shader = makeShader(o.entry, o.km, o.freq);
+    d.boundWorld = o.km;
+    d.edgeLength = o.edgeLength;
+    d.maxDepth = o.maxDepth;
+    scene.displacements.push_back(d);
+    scene.meshes[0].displacementIndex = 0;
+  }
+  return scene;
+}
+
+inline glm::vec3 randomDirection(std::mt19937& rng) {
+  std::uniform_real_distribution<float> uni(0.0f, 1.0f);
+  const float z = 2.0f * uni(rng) - 1.0f, phi = 2.0f * std::numbers::pi_v<float> * uni(rng);
+  const float r = std::sqrt(std::max(0.0f, 1.0f - z * z));
+  return {r * std::cos(phi), r * std::sin(phi), z};
+}
+
+// Rays from a sphere of radius `distance` around the origin, aimed near the centre.
+inline std::vector<Ray> randomRays(int count, uint32_t seed, float distance, float jitter) {
+  std::mt19937 rng(seed);
+  std::vector<Ray> rays;
+  for (int i = 0; i < count; ++i) {
+    const glm::vec3 from = distance * randomDirection(rng);
+    const glm::vec3 to = jitter * randomDirection(rng);
+    rays.push_back(Ray{from, to - from, 0.0f, 1e30f});
+  }
+  return rays;
+}
+
+// Every displaced micro-triangle of the scene, intersected one by one.
+class BruteForce {
+ public:
+  explicit BruteForce(const Scene& scene) {
+    for (uint32_t m = 0; m < scene.meshes.size(); ++m) {
+      const Mesh& mesh = scene.meshes[m];
+      const Displacement* d = mesh.displacementIndex < scene.displacements.size()
+                                  ? &scene.displacements[mesh.displacementIndex]
+                                  : nullptr;
+      for (uint32_t t = 0; t < mesh.numTriangles(); ++t) {
+        MicroMesh mm;
+        SubdivideCounters counters;
+        subdivideTriangle(mesh, t, d, mm, counters);
+        meshes_.push_back({m, t, std::move(mm)});
+      }
+    }
+  }
+  struct Result {
+    float t;
+    uint32_t mesh, triangle, micro;
+  };
+  std::optional<Result> intersect(const Ray& ray) const {
+    const WatertightRay wr(ray);
+    std::optional<Result> best;
+    for (const Entry& e : meshes_) {
+      for (uint32_t i = 0; i < e.micro.numTriangles(); ++i) {
+        const uint32_t* tri = &e.micro.indices[3 * size_t(i)];
+        TriangleHit h;
+        if (!intersectTriangle(wr, e.micro.P[tri[0]], e.micro.P[tri[1]], e.micro.P[tri[2]], ray.tMin,
+                               ray.tMax, h))
+          continue;
+        if (!best || h.t < best->t ||
+            (h.t == best->t && std::tie(e.mesh, e.triangle, i) <
+                                   std::tie(best->mesh, best->triangle, best->micro)))
+          best = Result{h.t, e.mesh, e.triangle, i};
+      }
+    }
+    return best;
+  }
+  uint64_t numTriangles() const {
+    uint64_t n = 0;
+    for (const Entry& e : meshes_) n += e.micro.numTriangles();
+    return n;
+  }
+
+ private:
+  struct Entry {
+    uint32_t mesh, triangle;
+    MicroMesh micro;
+  };
+  std::vector<Entry> meshes_;
+};
+
+}  // namespace relief::testing
