@@ -998,17 +998,21 @@ bool RibParser::doSphere(const Call& call) {
     warn(call.line, "degenerate 'Sphere' skipped");
     return true;
   }
-  // Input triangles about 64 target edge lengths across (six 1-to-4 levels of subdivision), with
-  // enough facets that undisplaced spheres still look round and a cap on very large spheres.
+  // Displaced: input triangles about 64 target edge lengths across (six 1-to-4 levels of
+  // subdivision). Undisplaced: the facets are what gets shaded (face normals), so more of them.
+  // Both with a floor so spheres look round and a cap for very large ones.
+  const bool displaced = attr_.displacement != nullptr;
   const float worldRadius = std::fabs(radius) * maxScale(attr_.ctm);
-  const float target = 64.0f * attr_.edgeLength;
+  const float target = (displaced ? 64.0f : 4.0f) * attr_.edgeLength;
+  const int minU = displaced ? 64 : 128, minV = displaced ? 32 : 64;
   const float sweep = std::fabs(thetamax) / 360.0f;
   const float vFraction =
       (std::acos(zmin / std::fabs(radius)) - std::acos(zmax / std::fabs(radius))) / float(M_PI);
   const float arcU = 2.0f * float(M_PI) * worldRadius * sweep;
   const float arcV = float(M_PI) * worldRadius * std::fabs(vFraction);
-  const int nu = std::clamp(int(std::ceil(arcU / target)), std::max(4, int(64 * sweep)), 1024);
-  const int nv = std::clamp(int(std::ceil(arcV / target)), std::max(2, int(32 * vFraction)), 512);
+  const int nu = std::clamp(int(std::ceil(arcU / target)), std::max(4, int(float(minU) * sweep)), 1024);
+  const int nv =
+      std::clamp(int(std::ceil(arcV / target)), std::max(2, int(float(minV) * vFraction)), 512);
   Mesh mesh = tessellateSphere(radius, zmin, zmax, thetamax, nu, nv, attr_.ctm);
   return addMesh(std::move(mesh), call.line);
 }
