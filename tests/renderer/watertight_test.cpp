@@ -1,0 +1,107 @@
+// Watertightness of displaced geometry: a closed sphere displaced by the paper's bumpy shader, with
+// an edge length that makes neighbouring triangles subdivide to different depths, must stop every
+// ray that enters it, including rays aimed exactly at micro-vertices (where cracks would open).
+#include <map>
+#include <set>
+#include <utility>
+
+#include <gtest/gtest.h>
+
+#include "geometry_test_util.h"
+#include "renderer/grid_accelerator.h"
+
+namespace relief {
+namespace {
+
+using testing::makeSphereScene;
+using testing::SphereOptions;
+
+SphereOptions watertightOptions() {
+  SphereOptions o;
+  o.nu = 24, o.nv = 12;
+  o.km = 0.1f, o.freq = 4.0f;
+  o.edgeLength = 0.04f;
+  o.maxDepth = 10;
+  return o;
+}
+
+// The precondition that makes the test meaningful: some pairs of input triangles sharing an edge
+// are subdivided to different depths, so their shared edges see 1- and 2-edge splits.
+TEST(Watertight, NeighboursSubdivideToDifferentDepths) {
+  Scene scene = makeSphereScene(watertightOptions());
+  const Mesh& mesh = scene.meshes[0];
+  std::vector<int> depth(mesh.numTriangles());
+  for (uint32_t t = 0; t < mesh.numTriangles(); ++t) {
+    MicroMesh mm;
+    SubdivideCounters counters;
+    subdivideTriangle(mesh, t, &scene.displacements[0], mm, counters);
+    depth[t] = *std::max_element(mm.level.begin(), mm.level.end());
+  }
+  std::map<std::pair<uint32_t, uint32_t>, std::vector<uint32_t>> edgeTriangles;
+  for (uint32_t t = 0; t < mesh.numTriangles(); ++t)
+    for (int e = 0; e < 3; ++e) {
+      uint32_t a = mesh.indices[3 * t + e], b = mesh.indices[3 * t + (e + 1) % 3];
+      edgeTriangles[{std::min(a, b), std::max(a, b)}].push_back(t);
+    }
+  int differing = 0, shared = 0;
+  for (const auto& [edge, tris] : edgeTriangles) {
+    if (tris.size() != 2) continue;
+    ++shared;
+    differing += depth[tris[0]] != depth[tris[1]];
+  }
+  EXPECT_GT(shared, 300);
+  EXPECT_GT(differing, 10) << "of " << shared << " shared edges";
+}
+
+TEST(Watertight, TenThousandRaysAtTheCentreAllHit) {
+  Scene scene = makeSphereScene(watertightOptions());
+  auto accel = makeGridAccelerator(scene, AccelOptions{});
+  int misses = 0;
+  for (const Ray& ray : testing::randomRays(10000, 20261122, 3.0f, 0.0f)) {
+    auto hit = accel->intersect(ray);
+    // A ray slipping through a crack would still hit the far side from inside: count that too.
+    misses += !hit || glm::dot(ray.origin + hit->t * ray.direction, ray.direction) > 0.0f;
+    if (hit) {
+      // Outer surface, entered from outside: radius within the displacement bound of the
+      // tessellated sphere, less the sag of flat (micro-)triangles under the curved surface.
+      const float r = glm::length(ray.origin + hit->t * ray.direction);
+      EXPECT_GT(r, 0.88f);
+      EXPECT_LT(r, 1.1f + 1e-4f);
+    }
+  }
+  EXPECT_EQ(misses, 0);
+  EXPECT_GT(accel->stats().uniqueDisplacedTriangles, 40000u);
+}
+
+// Rays through micro-vertices and micro-edge midpoints: where neighbouring micro-triangles meet.
+TEST(Watertight, RaysThroughVerticesAndEdgesAllHit) {
+  Scene scene = makeSphereScene(watertightOptions());
+  auto accel = makeGridAccelerator(scene, AccelOptions{});
+  const Mesh& mesh = scene.meshes[0];
+  std::mt19937 rng(99);
+  int numRays = 0, misses = 0;
+  for (uint32_t t = 0; t < mesh.numTriangles(); t += 3) {
+    MicroMesh mm;
+    SubdivideCounters counters;
+    subdivideTriangle(mesh, t, &scene.displacements[0], mm, counters);
+    std::uniform_int_distribution<uint32_t> pick(0, mm.numTriangles() - 1);
+    for (int k = 0; k < 8; ++k) {
+      const uint32_t* tri = &mm.indices[3 * size_t(pick(rng))];
+      const glm::vec3 a = mm.P[tri[0]], b = mm.P[tri[1]];
+      for (glm::vec3 target : {a, 0.5f * (a + b)}) {
+        const glm::vec3 origin = 3.0f * target;  // radially outside: the surface is star-shaped
+        const Ray ray{origin, target - origin, 0.0f, 1e30f};
+        ++numRays;
+        auto hit = accel->intersect(ray);
+        // Slipping through would hit the far side, beyond the target (t = 1).
+        misses += !hit || hit->t > 1.01f;
+        misses += !accel->occluded(ray);
+      }
+    }
+  }
+  EXPECT_GT(numRays, 1000);
+  EXPECT_EQ(misses, 0);
+}
+
+}  // namespace
+}  // namespace relief
