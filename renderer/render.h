@@ -52,6 +52,10 @@ class Integrator {
   // Distance a shadow ray starts off the surface, scaled to the scene's extent.
   float shadowEpsilon() const { return epsilon_; }
 
+  // Cs at a hit: the per-vertex colour interpolated over the input triangle if the mesh has one,
+  // else the material's colour.
+  static glm::vec3 surfaceColor(const Mesh& mesh, const Material& material, const Hit& hit);
+
  private:
   const Scene& scene_;
   Accelerator& accel_;

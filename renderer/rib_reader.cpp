@@ -1078,6 +1078,18 @@ bool RibParser::doPolygons(const Call& call, std::vector<int> nverts, std::vecto
     } else if (p.name == "st") {
       if (!perVertex(p, 2, "float pair", &values)) return false;
       for (size_t i = 0; i < numPoints; ++i) mesh.st.emplace_back(values[2 * i], values[2 * i + 1]);
+    } else if (p.name == "Cs") {
+      if (!numbersParam(call, p, "color", 0, &values)) return false;
+      if (values.size() == 3 * numPoints) {
+        for (size_t i = 0; i < numPoints; ++i)
+          mesh.Cs.emplace_back(values[3 * i], values[3 * i + 1], values[3 * i + 2]);
+      } else if (values.size() == 3) {
+        mesh.Cs.assign(numPoints, glm::vec3(values[0], values[1], values[2]));
+      } else {
+        return fail(p.line, "'" + call.name + "': \"Cs\" needs one color per vertex (" +
+                                std::to_string(3 * numPoints) + " numbers) or one in all, got " +
+                                std::to_string(values.size()));
+      }
     } else if (p.name == "s") {
       if (!perVertex(p, 1, "float", &s)) return false;
     } else if (p.name == "t") {

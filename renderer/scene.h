@@ -53,6 +53,7 @@ struct Mesh {
   std::vector<glm::vec3> N;   // unit shading normals; empty: use the face normal
   std::vector<glm::vec2> uv;  // surface parameters (u, v); empty: barycentric-derived per face
   std::vector<glm::vec2> st;  // texture coordinates; empty: equal to uv
+  std::vector<glm::vec3> Cs;  // per-vertex colour (RIB "Cs"); empty: the material's colour
   std::vector<uint32_t> indices;  // 3 per triangle
   uint32_t materialIndex = 0;
   uint32_t displacementIndex = UINT32_MAX;  // into Scene::displacements; UINT32_MAX: none

@@ -76,6 +76,23 @@ TEST(RenderIntegrator, AmbientAndMaterialColour) {
   EXPECT_EQ(film.pixel(20, 20), glm::vec3(0.25f, 0.125f, 0.0625f));
 }
 
+TEST(RenderIntegrator, VertexColoursAreInterpolated) {
+  const Scene scene = load(
+      "Format 40 40 1\nProjection \"orthographic\"\nScreenWindow 0 1 0 1\nTranslate 0 0 5\n"
+      "WorldBegin\nLightSource \"ambientlight\" 1\n"
+      "Polygon \"P\" [0 0 0  1 0 0  0 1 0] \"Cs\" [1 0 0  0 1 0  0 0 1]\nWorldEnd\n");
+  const Film film = renderScene(scene);
+  const glm::vec3 nearOrigin = film.pixel(0, 39), nearX = film.pixel(38, 39), nearY = film.pixel(0, 1);
+  EXPECT_GT(nearOrigin.r, 0.9f);
+  EXPECT_GT(nearX.g, 0.9f);
+  EXPECT_GT(nearY.b, 0.9f);
+  const glm::vec3 mid = film.pixel(10, 29);  // about (0.26, 0.26): a mixture of all three
+  EXPECT_NEAR(mid.r + mid.g + mid.b, 1.0f, 1e-5f);
+  EXPECT_GT(mid.r, 0.3f);
+  EXPECT_GT(mid.g, 0.2f);
+  EXPECT_GT(mid.b, 0.2f);
+}
+
 TEST(RenderIntegrator, MissesAreBlack) {
   const Scene scene =
       load("Format 8 8 1\nTranslate 0 0 5\nWorldBegin\nLightSource \"ambientlight\" 1\n"

@@ -309,6 +309,19 @@ TEST(RibReader, PointsPolygonsTriangulatesAndReadsPrimvars) {
   EXPECT_NE(r.warnings.find("'Cq' is not supported"), std::string::npos) << r.warnings;
 }
 
+TEST(RibReader, VertexColours) {
+  ReadResult r = read(world("Polygon \"P\" [0 0 0  1 0 0  0 1 0] \"Cs\" [1 0 0  0 1 0  0 0 1]\n"
+                            "Polygon \"P\" [0 0 0  1 0 0  0 1 0] \"constant color Cs\" [0.5 0.5 0]"));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  ASSERT_EQ(r.scene->meshes[0].Cs.size(), 3u);
+  expectNear(r.scene->meshes[0].Cs[1], glm::vec3(0, 1, 0));
+  ASSERT_EQ(r.scene->meshes[1].Cs.size(), 3u);
+  expectNear(r.scene->meshes[1].Cs[2], glm::vec3(0.5f, 0.5f, 0));
+  r = read(world("Polygon \"P\" [0 0 0  1 0 0  0 1 0] \"Cs\" [1 0 0  0 1 0]"));
+  ASSERT_FALSE(r.scene);
+  EXPECT_NE(r.error.message.find("one color per vertex"), std::string::npos) << r.error.message;
+}
+
 TEST(RibReader, SeparateSAndTBecomeSt) {
   ReadResult r = read(world("Polygon \"P\" [0 0 0  1 0 0  0 1 0] \"s\" [0 1 0] \"t\" [0 0 1]"));
   ASSERT_TRUE(r.scene) << r.error.format();
