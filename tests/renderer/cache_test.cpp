@@ -1,0 +1,152 @@
+// Invariants of the geometry cache: answers independent of budget, order and threads; the
+// resident set bounded by the budget plus one voxel; statistics that add up.
+#include <algorithm>
+#include <thread>
+#include <tuple>
+
+#include <gtest/gtest.h>
+
+#include "geometry_test_util.h"
+#include "renderer/grid_accelerator.h"
+
+namespace relief {
+namespace {
+
+using testing::makeSphereScene;
+using testing::SphereOptions;
+
+using HitKey = std::tuple<bool, float, uint32_t, uint32_t, uint32_t>;
+
+HitKey key(const std::optional<Hit>& hit) {
+  if (!hit) return {false, 0.0f, 0, 0, 0};
+  return {true, hit->t, hit->meshIndex, hit->triangleIndex, hit->microIndex};
+}
+
+SphereOptions cacheOptions() {
+  SphereOptions o;
+  o.nu = 24, o.nv = 12;
+  o.edgeLength = 0.05f;
+  return o;
+}
+
+// Rays in a scattered order (each ray far from the previous one), so a small cache thrashes.
+std::vector<Ray> scatteredRays() { return testing::randomRays(3000, 5, 3.0f, 1.2f); }
+
+std::vector<HitKey> run(Accelerator& accel, const std::vector<Ray>& rays) {
+  std::vector<HitKey> keys;
+  for (const Ray& ray : rays) keys.push_back(key(accel.intersect(ray)));
+  return keys;
+}
+
+TEST(GeometryCache, HitsIndependentOfBudgetAndThreads) {
+  const Scene scene = makeSphereScene(cacheOptions());
+  const std::vector<Ray> rays = scatteredRays();
+
+  GridAccelerator unlimited(scene, AccelOptions{});
+  const std::vector<HitKey> expected = run(unlimited, rays);
+  const AccelStats full = unlimited.stats();
+  ASSERT_GT(full.residentTriangles, 10000u);
+  EXPECT_EQ(full.capacityMisses, 0u);
+  EXPECT_EQ(full.residentTriangles, full.displacedTrianglesCreated);
+
+  // A second pass over the same rays is served entirely from the cache.
+  EXPECT_EQ(run(unlimited, rays), expected);
+  const AccelStats again = unlimited.stats();
+  EXPECT_EQ(again.compulsoryMisses, full.compulsoryMisses);
+  EXPECT_EQ(again.hits - full.hits, again.accesses - full.accesses);
+
+  AccelOptions small;
+  small.cacheBudgetTriangles = full.residentTriangles / 20;  // 5%
+  GridAccelerator limited(scene, small);
+  EXPECT_EQ(run(limited, rays), expected);
+  const AccelStats ls = limited.stats();
+  EXPECT_GT(ls.capacityMisses, 0u);
+  EXPECT_EQ(ls.compulsoryMisses, full.compulsoryMisses);
+  EXPECT_EQ(ls.accesses, ls.hits + ls.compulsoryMisses + ls.capacityMisses);
+  EXPECT_GT(ls.displacedTrianglesCreated, full.displacedTrianglesCreated);
+  EXPECT_LE(ls.peakResidentTriangles, small.cacheBudgetTriangles + limited.maxVoxelTriangles());
+  EXPECT_LE(ls.residentTriangles, small.cacheBudgetTriangles);
+  EXPECT_EQ(ls.uniqueDisplacedTriangles, full.uniqueDisplacedTriangles);
+
+  // Two threads sharing one small cache, each taking every other ray.
+  GridAccelerator shared(scene, small);
+  std::vector<HitKey> threaded(rays.size());
+  auto worker = [&](size_t first) {
+    for (size_t i = first; i < rays.size(); i += 2) threaded[i] = key(shared.intersect(rays[i]));
+  };
+  std::thread a(worker, 0), b(worker, 1);
+  a.join(), b.join();
+  EXPECT_EQ(threaded, expected);
+  const AccelStats ts = shared.stats();
+  EXPECT_EQ(ts.accesses, ts.hits + ts.compulsoryMisses + ts.capacityMisses);
+  // Each thread pins at most one voxel at a time, so at most one voxel per thread overshoots.
+  EXPECT_LE(ts.peakResidentTriangles, small.cacheBudgetTriangles + 2 * shared.maxVoxelTriangles());
+}
+
+TEST(GeometryCache, OcclusionIndependentOfBudget) {
+  const Scene scene = makeSphereScene(cacheOptions());
+  const std::vector<Ray> rays = scatteredRays();
+  GridAccelerator unlimited(scene, AccelOptions{});
+  AccelOptions tiny;
+  tiny.cacheBudgetTriangles = 1;  // every fill evicts everything unpinned
+  GridAccelerator limited(scene, tiny);
+  for (const Ray& ray : rays) {
+    const bool expected = unlimited.intersect(ray).has_value();
+    EXPECT_EQ(unlimited.occluded(ray), expected);
+    EXPECT_EQ(limited.occluded(ray), expected);
+  }
+  EXPECT_LE(limited.stats().residentTriangles, limited.maxVoxelTriangles());
+}
+
+TEST(GeometryCache, StorageUsesNarrowIndicesAndSubGrids) {
+  const Scene scene = makeSphereScene(cacheOptions());
+  AccelOptions options;
+  options.gridResolution = 4;  // large voxels: dense enough for sub-voxel grids
+  GridAccelerator accel(scene, options);
+  auto expected = testing::BruteForce(scene);
+  for (const Ray& ray : testing::randomRays(200, 11, 3.0f, 1.2f)) {
+    auto hit = accel.intersect(ray);
+    auto ref = expected.intersect(ray);
+    ASSERT_EQ(hit.has_value(), ref.has_value());
+    if (hit) {
+      EXPECT_EQ(hit->t, ref->t);
+      EXPECT_EQ(hit->microIndex, ref->micro);
+    }
+  }
+  EXPECT_GT(accel.maxVoxelTriangles(), kSubGridThreshold);
+}
+
+// The cache on its own: lookup-or-fill, pins and eviction with a synthetic builder.
+TEST(GeometryCache, FillsOnceAndNeverEvictsPinnedVoxels) {
+  GeometryCache cache(8, 10);
+  int builds = 0;
+  auto build = [&](uint32_t voxel) {
+    ++builds;
+    auto g = std::make_unique<VoxelGeometry>();
+    for (uint32_t i = 0; i < 6; ++i) g->triangleIds.push_back(voxel), g->microIds.push_back(i);
+    return g;
+  };
+  const VoxelGeometry* g0 = cache.acquire(0, 1, build);
+  ASSERT_NE(g0, nullptr);
+  EXPECT_EQ(cache.acquire(0, 2, build), g0);  // second pin, no rebuild
+  EXPECT_EQ(builds, 1);
+  // Over budget while voxel 0 is pinned: it must survive.
+  const VoxelGeometry* g1 = cache.acquire(1, 3, build);
+  EXPECT_EQ(builds, 2);
+  EXPECT_EQ(g0->triangleIds[0], 0u);
+  EXPECT_EQ(g1->triangleIds[0], 1u);
+  cache.release(0), cache.release(0), cache.release(1);
+  // Now voxel 0 is the least recently used and unpinned: filling voxel 2 evicts it.
+  cache.acquire(2, 4, build);
+  cache.release(2);
+  const CacheStats s = cache.stats();
+  EXPECT_LE(s.residentTriangles, 10u);
+  EXPECT_EQ(s.compulsoryMisses, 3u);
+  cache.acquire(0, 5, build);
+  cache.release(0);
+  EXPECT_EQ(cache.stats().capacityMisses, 1u);
+  EXPECT_EQ(builds, 4);
+}
+
+}  // namespace
+}  // namespace relief
