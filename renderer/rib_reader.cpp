@@ -240,6 +240,7 @@ struct AttributeState {
   int displacementLine = 0;
   float boundRadius = 0.0f;
   std::string boundSpace = "object";
+  float boundNamedScale = 1.0f;  // for a boundSpace made by CoordinateSystem
   float edgeLength = 0.05f;
   float flatness = 0.0f;
 };
@@ -260,13 +261,7 @@ class RibParser {
 
   std::optional<Scene> parse(std::vector<RibToken> tokens, SceneError* error) {
     tokens_ = std::move(tokens);
-    Call call;
-    while (true) {
-      bool end = false;
-      if (!nextCall(&call, &end)) break;
-      if (end) break;
-      if (!execute(call)) break;
-    }
+    runCalls();
     if (failed_) {
       *error = error_;
       return std::nullopt;
@@ -292,6 +287,17 @@ class RibParser {
   }
 
  private:
+  // Executes the calls of tokens_ from pos_ to the end; false on the first error.
+  bool runCalls() {
+    Call call;
+    while (true) {
+      bool end = false;
+      if (!nextCall(&call, &end)) return false;
+      if (end) return true;
+      if (!execute(call)) return false;
+    }
+  }
+
   // call -> Request arg*        arg -> Number | String | '[' (Number* | String*) ']'
   bool nextCall(Call* call, bool* end) {
     const RibToken& t = tokens_[pos_];
@@ -530,6 +536,8 @@ class RibParser {
   bool doLight(const Call& call);
   bool doSphere(const Call& call);
   bool doPolygons(const Call& call, std::vector<int> nverts, std::vector<int> verts, size_t first);
+  bool doPatch(const Call& call);
+  bool doReadArchive(const Call& call);
   bool addMesh(Mesh mesh, int line);
 
   uint32_t materialIndex() {
@@ -552,8 +560,10 @@ class RibParser {
     d.shader = attr_.displacement;
     const glm::mat4& worldFromObject = attr_.ctm;
     const std::string& space = attr_.boundSpace;
-    float scale = 1.0f;
-    if (space == "object")
+    float scale = attr_.boundNamedScale;
+    if (space == "world" || space == "current")
+      scale = 1.0f;
+    else if (space == "object")
       scale = maxScale(worldFromObject);
     else if (space == "shader")
       scale = maxScale(attr_.worldFromShader);
@@ -604,6 +614,8 @@ class RibParser {
   std::set<std::string> warnedKeys_;
   bool inWorld_ = false, worldDone_ = false;
   int worldLine_ = 0;
+  int archiveDepth_ = 0;
+  std::map<std::string, glm::mat4> coordinateSystems_;  // name -> worldFromNamed (or camera)
   float frameAspect_ = 0.0f;
   float pixelAspect_ = 1.0f;
 };
@@ -779,6 +791,22 @@ bool RibParser::executeTransform(const Call& call, bool* handled) {
     if (!positionalNumbers(call, 3, &v, &next)) return false;
     if (v[0] == 0 || v[1] == 0 || v[2] == 0) return fail(call.line, "'Scale' by zero");
     attr_.ctm = glm::scale(attr_.ctm, glm::vec3(v[0], v[1], v[2]));
+  } else if (n == "CoordinateSystem" || n == "ScopedCoordinateSystem") {
+    std::string name;
+    if (!positionalString(call, 0, &name)) return false;
+    coordinateSystems_[name] = attr_.ctm;
+  } else if (n == "CoordSysTransform") {
+    std::string name;
+    if (!positionalString(call, 0, &name)) return false;
+    if (name == "world" && inWorld_) {
+      attr_.ctm = glm::mat4(1.0f);
+    } else if (name == "camera" && inWorld_) {
+      attr_.ctm = scene_.camera.worldFromCamera;
+    } else if (auto it = coordinateSystems_.find(name); it != coordinateSystems_.end()) {
+      attr_.ctm = it->second;
+    } else {
+      return fail(call.line, "unknown coordinate system '" + name + "'");
+    }
   } else if (n == "TransformBegin" || n == "AttributeBegin") {
     stack_.push_back(StackEntry{attr_, n == "AttributeBegin", call.line});
   } else if (n == "TransformEnd" || n == "AttributeEnd") {
@@ -841,9 +869,12 @@ bool RibParser::executeAttributes(const Call& call, bool* handled) {
       if (!floatParam(call, params, "sphere", &attr_.boundRadius)) return false;
       std::string space = "object";
       if (!stringParam(call, params, "coordinatesystem", &space)) return false;
-      if (space != "object" && space != "world" && space != "current" && space != "shader" &&
-          space != "camera")
+      if (auto named = coordinateSystems_.find(space); named != coordinateSystems_.end()) {
+        attr_.boundNamedScale = maxScale(named->second);
+      } else if (space != "object" && space != "world" && space != "current" &&
+                 space != "shader" && space != "camera") {
         return fail(call.line, "'displacementbound': unknown coordinate system '" + space + "'");
+      }
       if (attr_.boundRadius < 0) return fail(call.line, "'displacementbound' must be >= 0");
       attr_.boundSpace = space;
       warnUnusedParams(call, params, {"sphere", "coordinatesystem"});
@@ -979,6 +1010,11 @@ bool RibParser::executeGeometry(const Call& call, bool* handled) {
     if (!requireWorld(call)) return false;
     return doPolygons(call, {}, {}, 0);
   }
+  if (n == "Patch") {
+    if (!requireWorld(call)) return false;
+    return doPatch(call);
+  }
+  if (n == "ReadArchive") return doReadArchive(call);
   *handled = false;
   return true;
 }
@@ -1115,6 +1151,107 @@ bool RibParser::doPolygons(const Call& call, std::vector<int> nverts, std::vecto
   return addMesh(std::move(mesh), call.line);
 }
 
+bool RibParser::doPatch(const Call& call) {
+  std::string type;
+  if (!positionalString(call, 0, &type)) return false;
+  if (type != "bilinear") {
+    warnOnce(call.line, "patch/" + type, "'Patch \"" + type + "\"' is not supported; skipped");
+    return true;
+  }
+  std::vector<Param> params;
+  if (!parseParams(call, 1, &params)) return false;
+  // RenderMan's corner order: P0 (u0, v0), P1 (u1, v0), P2 (u0, v1), P3 (u1, v1).
+  auto corners = [&](const char* name, size_t components, const char* typeName,
+                     std::vector<float>* out) {
+    const Param* p = findParam(params, name);
+    if (!p) return true;
+    if (!numbersParam(call, *p, typeName, 4 * components, out)) return false;
+    return true;
+  };
+  std::vector<float> P, st, s, t, Cs;
+  if (!findParam(params, "P")) return fail(call.line, "'Patch' needs a \"P\" parameter");
+  if (!corners("P", 3, "point", &P) || !corners("st", 2, "float", &st) ||
+      !corners("s", 1, "float", &s) || !corners("t", 1, "float", &t) ||
+      !corners("Cs", 3, "color", &Cs))
+    return false;
+  warnUnusedParams(call, params, {"P", "st", "s", "t", "Cs"});
+  auto corner3 = [](const std::vector<float>& v, int i) {
+    return glm::vec3(v[3 * i], v[3 * i + 1], v[3 * i + 2]);
+  };
+  auto bilerp = [](auto a, auto b, auto c, auto d, float u, float v) {
+    return (1 - v) * ((1 - u) * a + u * b) + v * ((1 - u) * c + u * d);
+  };
+  const glm::vec3 p0 = corner3(P, 0), p1 = corner3(P, 1), p2 = corner3(P, 2), p3 = corner3(P, 3);
+  // A warped patch is sampled finely enough to follow its curvature; a flat one needs 2 triangles.
+  const float warp = std::fabs(glm::dot(p3 - p0, glm::cross(p1 - p0, p2 - p0)));
+  const float size = std::max(glm::length(p3 - p0), glm::length(p2 - p1));
+  const int n = warp > 1e-6f * size * size * size ? 16 : 1;
+  Mesh mesh;
+  for (int j = 0; j <= n; ++j)
+    for (int i = 0; i <= n; ++i) {
+      const float u = float(i) / float(n), v = float(j) / float(n);
+      const glm::vec3 pObject = bilerp(p0, p1, p2, p3, u, v);
+      mesh.P.push_back(glm::vec3(attr_.ctm * glm::vec4(pObject, 1.0f)));
+      mesh.uv.emplace_back(u, v);
+      glm::vec2 stValue(u, v);
+      if (!st.empty()) {
+        stValue = bilerp(glm::vec2(st[0], st[1]), glm::vec2(st[2], st[3]), glm::vec2(st[4], st[5]),
+                         glm::vec2(st[6], st[7]), u, v);
+      } else if (!s.empty() || !t.empty()) {
+        stValue = glm::vec2(s.empty() ? u : bilerp(s[0], s[1], s[2], s[3], u, v),
+                            t.empty() ? v : bilerp(t[0], t[1], t[2], t[3], u, v));
+      }
+      mesh.st.push_back(stValue);
+      if (!Cs.empty())
+        mesh.Cs.push_back(bilerp(corner3(Cs, 0), corner3(Cs, 1), corner3(Cs, 2), corner3(Cs, 3), u, v));
+    }
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < n; ++i) {
+      const uint32_t a = uint32_t(j * (n + 1) + i), b = a + 1, c = a + uint32_t(n + 1), d = c + 1;
+      mesh.indices.insert(mesh.indices.end(), {a, b, d, a, d, c});
+    }
+  return addMesh(std::move(mesh), call.line);
+}
+
+bool RibParser::doReadArchive(const Call& call) {
+  // Nesting guard: an archive that reads itself would otherwise recurse until the stack runs out.
+  constexpr int kMaxArchiveDepth = 32;
+  std::string name;
+  if (!positionalString(call, 0, &name)) return false;
+  if (archiveDepth_ >= kMaxArchiveDepth)
+    return fail(call.line, "'ReadArchive' nested more than " + std::to_string(kMaxArchiveDepth) +
+                               " deep (does an archive read itself?)");
+  const std::filesystem::path currentDir = std::filesystem::path(fileName_).parent_path();
+  const std::string path = std::filesystem::path(name).is_relative()
+                               ? (currentDir / name).lexically_normal().string()
+                               : name;
+  std::ifstream in(path, std::ios::binary);
+  if (!in || !std::filesystem::is_regular_file(path))
+    return fail(call.line, "cannot open archive '" + path + "'");
+  std::ostringstream buffer;
+  buffer << in.rdbuf();
+  std::vector<RibToken> tokens;
+  SceneError tokenError;
+  if (!tokenizeRib(buffer.str(), path, &tokens, &tokenError)) {
+    failed_ = true;
+    error_ = tokenError;
+    return false;
+  }
+  std::vector<RibToken> savedTokens = std::move(tokens_);
+  const size_t savedPos = pos_;
+  const std::string savedFile = fileName_;
+  tokens_ = std::move(tokens);
+  pos_ = 0;
+  fileName_ = path;
+  ++archiveDepth_;
+  const bool ok = runCalls();
+  --archiveDepth_;
+  tokens_ = std::move(savedTokens);
+  pos_ = savedPos;
+  fileName_ = savedFile;
+  return ok;
+}
+
 bool RibParser::addMesh(Mesh mesh, int line) {
   if (mesh.indices.empty()) return true;
   for (const glm::vec3& p : mesh.P)
@@ -1141,6 +1278,10 @@ std::optional<Scene> readRibFile(const std::string& path, const RibReadOptions& 
   std::ifstream in(path, std::ios::binary);
   if (!in) {
     *error = SceneError{path, 0, std::string("cannot open scene file: ") + std::strerror(errno)};
+    return std::nullopt;
+  }
+  if (std::filesystem::is_directory(path)) {
+    *error = SceneError{path, 0, "cannot open scene file: it is a directory"};
     return std::nullopt;
   }
   std::ostringstream buffer;

@@ -2,7 +2,11 @@
 // errors for malformed or truncated input.
 #include "renderer/rib_reader.h"
 
+#include <unistd.h>
+
 #include <cstring>
+#include <filesystem>
+#include <fstream>
 #include <sstream>
 
 #include <gtest/gtest.h>
@@ -429,6 +433,67 @@ TEST(RibReader, DeclareTypesLaterParameters) {
                       &shaders);
   ASSERT_FALSE(r.scene);  // declared a string, but the shader's Km is a float
   EXPECT_EQ(r.error.line, 3);
+}
+
+TEST(RibReader, BilinearPatch) {
+  ReadResult r = read(world("Patch \"bilinear\" \"P\" [0 0 0  2 0 0  0 1 0  2 1 0]"
+                            " \"st\" [0 0  1 0  0 0.5  1 0.5]\n"
+                            "Patch \"bilinear\" \"P\" [0 0 0  1 0 0  0 1 0  1 1 1]\n"
+                            "Patch \"bicubic\" \"P\" [0 0 0]"));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  ASSERT_EQ(r.scene->meshes.size(), 2u);
+  const Mesh& flat = r.scene->meshes[0];
+  EXPECT_EQ(flat.numTriangles(), 2u);
+  ASSERT_EQ(flat.uv.size(), 4u);
+  expectNear(flat.P[3], glm::vec3(2, 1, 0));
+  EXPECT_EQ(flat.uv[3], glm::vec2(1, 1));
+  EXPECT_EQ(flat.st[2], glm::vec2(0, 0.5f));
+  // Triangles wind like dPdu x dPdv.
+  const glm::vec3 n = glm::cross(flat.P[flat.indices[1]] - flat.P[flat.indices[0]],
+                                 flat.P[flat.indices[2]] - flat.P[flat.indices[0]]);
+  EXPECT_GT(n.z, 0.0f);
+  const Mesh& warped = r.scene->meshes[1];
+  EXPECT_GT(warped.numTriangles(), 2u);
+  for (size_t i = 0; i < warped.P.size(); ++i)  // the bilinear surface z = u v
+    EXPECT_NEAR(warped.P[i].z, warped.uv[i].x * warped.uv[i].y, 1e-5f);
+  EXPECT_NE(r.warnings.find("'Patch \"bicubic\"' is not supported"), std::string::npos);
+}
+
+TEST(RibReader, NamedCoordinateSystems) {
+  ReadResult r = read(world("TransformBegin\nTranslate 5 0 0\nScale 2 2 2\n"
+                            "CoordinateSystem \"lamp\"\nTransformEnd\n"
+                            "CoordSysTransform \"lamp\"\nPolygon \"P\" [0 0 0  1 0 0  0 1 0]\n"
+                            "CoordSysTransform \"world\"\nPolygon \"P\" [0 0 0  1 0 0  0 1 0]"));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  expectNear(r.scene->meshes[0].P[1], glm::vec3(7, 0, 0));
+  expectNear(r.scene->meshes[1].P[1], glm::vec3(1, 0, 0));
+  r = read(world("CoordSysTransform \"nowhere\""));
+  ASSERT_FALSE(r.scene);
+  EXPECT_EQ(r.error.message, "unknown coordinate system 'nowhere'");
+}
+
+TEST(RibReader, ReadArchiveIncludesFilesRelativeToTheReader) {
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("relief-archive-" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir / "parts");
+  std::ofstream(dir / "parts" / "tri.rib") << "Color [0 1 0]\nReadArchive \"more.rib\"\n";
+  std::ofstream(dir / "parts" / "more.rib") << "Polygon \"P\" [0 0 0  1 0 0  0 1 0]\n";
+  std::ofstream(dir / "parts" / "bad.rib") << "\n\nSphere 1\n";
+  std::ofstream(dir / "parts" / "loop.rib") << "ReadArchive \"loop.rib\"\n";
+  std::ofstream(dir / "main.rib") << "WorldBegin\nReadArchive \"parts/tri.rib\"\nWorldEnd\n";
+  std::ofstream(dir / "bad.rib") << "WorldBegin\nReadArchive \"parts/bad.rib\"\nWorldEnd\n";
+  std::ofstream(dir / "loop.rib") << "WorldBegin\nReadArchive \"parts/loop.rib\"\nWorldEnd\n";
+  SceneError error;
+  std::optional<Scene> scene = readRibFile((dir / "main.rib").string(), RibReadOptions{}, &error);
+  ASSERT_TRUE(scene) << error.format();
+  ASSERT_EQ(scene->meshes.size(), 1u);
+  expectNear(scene->materials[scene->meshes[0].materialIndex].color, glm::vec3(0, 1, 0));
+  EXPECT_FALSE(readRibFile((dir / "bad.rib").string(), RibReadOptions{}, &error));
+  EXPECT_EQ(error.file, (dir / "parts" / "bad.rib").string());
+  EXPECT_EQ(error.line, 3);
+  EXPECT_FALSE(readRibFile((dir / "loop.rib").string(), RibReadOptions{}, &error));
+  EXPECT_NE(error.message.find("nested more than"), std::string::npos) << error.message;
+  std::filesystem::remove_all(dir);
 }
 
 TEST(RibReader, MissingFileIsAnErrorNamingIt) {
