@@ -1,0 +1,138 @@
+// The syntax tree: nodes own their children through unique_ptr; the type checker annotates them in
+// place (types, resolved declarations, builtins). dump() prints a stable text form for tests and
+// `reliefc --emit-ast`.
+#pragma once
+
+#include <memory>
+#include <ostream>
+#include <string>
+#include <vector>
+
+#include "compiler/builtins.h"
+#include "compiler/source_manager.h"
+#include "compiler/token.h"
+#include "compiler/types.h"
+
+namespace relief::compiler {
+
+struct VarDecl;
+struct Stmt;
+struct Expr;
+using ExprPtr = std::unique_ptr<Expr>;
+using StmtPtr = std::unique_ptr<Stmt>;
+
+enum class ExprKind : uint8_t {
+  IntLiteral,     // intValue
+  FloatLiteral,   // floatValue
+  StringLiteral,  // text (decoded)
+  Identifier,     // text; sema: decl
+  Unary,          // op (Minus, Plus, Bang), operands[0]
+  PreIncDec,      // op (PlusPlus, MinusMinus), operands[0]
+  PostIncDec,     // op, operands[0]
+  Binary,         // op, operands[0..1]
+  Assign,         // op (Assign or a compound), operands[0] = target, [1] = value
+  Conditional,    // operands[0] ? [1] : [2]
+  Call,           // text = callee, operands = arguments; sema: builtin
+  Construct,      // constructType(operands) / cast; text = space literal (may be empty)
+  Index,          // operands[0][operands[1]]
+  Tuple,          // (a, b, c)
+};
+
+struct Expr {
+  ExprKind kind;
+  SourceRange range;  // whole expression
+  SourceLoc opLoc;    // operator / callee name / type keyword: where diagnostics point
+  SourceRange opRange;
+  Tok op = Tok::Eof;
+  int32_t intValue = 0;
+  float floatValue = 0;
+  std::string text;
+  TypeKind constructType = TypeKind::Error;
+  bool isCast = false;  // (T) e or prefix T e: numeric conversion
+  std::vector<ExprPtr> operands;
+
+  // Filled in by the type checker.
+  Type type;
+  VarDecl* decl = nullptr;
+  const BuiltinInfo* builtin = nullptr;
+  bool isVarying = true;
+
+  Expr(ExprKind k, SourceRange r) : kind(k), range(r), opLoc(r.begin) {}
+};
+
+enum class Storage : uint8_t { Global, Parameter, Local };
+
+// Globals of §5 in the order codegen loads them.
+enum class GlobalId : uint8_t { P, N, Ng, dPdu, dPdv, u, v, s, t, du, dv, PI, Count };
+
+struct VarDecl {
+  std::string name;
+  SourceRange nameRange;
+  Type type;
+  ExprPtr init;
+  Storage storage = Storage::Local;
+  GlobalId global = GlobalId::Count;
+  bool isOutput = false;
+  bool isUniform = false;  // explicitly declared uniform
+  bool writable = true;
+
+  // Filled in by the type checker.
+  unsigned reads = 0;
+  bool written = false;
+};
+
+enum class StmtKind : uint8_t {
+  Block,     // stmts
+  Decl,      // decls
+  ExprStmt,  // expr
+  If,        // cond, then, otherwise
+  While,     // cond, body
+  DoWhile,   // body, cond
+  For,       // init (Decl/ExprStmt/null), cond (may be null), step (may be null), body
+  Break,
+  Continue,
+  Return,  // expr (may be null)
+  Empty,
+};
+
+struct Stmt {
+  StmtKind kind;
+  SourceRange range;
+  SourceLoc keywordLoc;
+  std::vector<StmtPtr> stmts;
+  std::vector<std::unique_ptr<VarDecl>> decls;
+  ExprPtr expr;
+  ExprPtr cond;
+  ExprPtr step;
+  StmtPtr init;
+  StmtPtr then;
+  StmtPtr otherwise;
+  StmtPtr body;
+
+  Stmt(StmtKind k, SourceRange r) : kind(k), range(r), keywordLoc(r.begin) {}
+};
+
+struct ShaderDecl {
+  std::string name;
+  SourceLoc keywordLoc;
+  SourceRange nameRange;
+  std::vector<std::unique_ptr<VarDecl>> params;
+  StmtPtr body;
+
+  // Filled in by the type checker: host contract of §5 (append N = normalize(calculatenormal(P))).
+  bool assignsP = false;
+  bool assignsN = false;
+};
+
+struct TranslationUnit {
+  std::string fileName;
+  std::vector<std::unique_ptr<ShaderDecl>> shaders;
+  // The §5 globals, created by the type checker; identifiers resolve to these.
+  std::vector<std::unique_ptr<VarDecl>> globals;
+};
+
+void dump(std::ostream& out, const TranslationUnit& unit);
+void dump(std::ostream& out, const Expr& e, int indent = 0);
+void dump(std::ostream& out, const Stmt& s, int indent = 0);
+
+}  // namespace relief::compiler

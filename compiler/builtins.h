@@ -1,0 +1,57 @@
+// The built-in function library (language.md §6) as seen by the type checker and codegen: names,
+// ids and the runtime symbols generated code may call. No LLVM here.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <string_view>
+
+namespace relief::compiler {
+
+// How arguments and result relate, for the type checker (T = float or triple bound to the first
+// triple argument; S = spatial).
+enum class BuiltinShape : uint8_t {
+  UnaryT,      // T f(T)
+  BinaryT,     // T f(T, T)
+  PowT,        // T f(T, T) or T f(T, float)
+  MinMax,      // T f(T, T, ...), int forms
+  Clamp,       // T f(T, T, T), int form
+  Mix,         // T f(T, T, T|float)
+  Smoothstep,  // T f(T, T, T)
+  Linearstep,  // float f(float, float, float)
+  Dot,         // float f(S, S) or (color, color)
+  Cross,       // vector f(S, S)
+  Length,      // float f(S)
+  Normalize,   // S f(S)
+  Distance,    // float f(point, point)
+  Component,   // float f(S)
+  Deriv,       // float→float, S→vector, color→color
+  CalcNormal,  // vector f(point)
+  Area,        // float f(point)
+  Noise,       // context-typed: (float[, float]) or (point[, float])
+  Displace,    // void f(vector) | f(float) | f(string, float)
+  FBm,         // float f(point, int[, float, float])
+  FloatPred,   // int f(float)
+};
+
+enum class BuiltinId : uint8_t {
+#define RELIEF_BUILTIN(Id, Name, Shape) Id,
+#include "compiler/builtins.def"
+};
+
+struct BuiltinInfo {
+  BuiltinId id;
+  std::string_view name;
+  BuiltinShape shape;
+};
+
+const BuiltinInfo* findBuiltin(std::string_view name);
+
+// Extern "C" functions generated code may call, registered with the JIT explicitly.
+struct RuntimeSymbol {
+  const char* name;
+  void* address;
+};
+std::span<const RuntimeSymbol> runtimeSymbols();
+
+}  // namespace relief::compiler

@@ -1,0 +1,1323 @@
+// Codegen implementation (see codegen.h). Values are handled per component as dual numbers; a null
+// derivative lane means an exact zero, so uniform arithmetic costs nothing extra and LLVM's DCE
+// removes derivative lanes nobody reads.
+#include "compiler/codegen.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstddef>
+#include <map>
+
+#include <llvm/IR/Constants.h>
+#include <llvm/IR/DerivedTypes.h>
+#include <llvm/IR/Function.h>
+#include <llvm/IR/IRBuilder.h>
+#include <llvm/IR/Intrinsics.h>
+#include <llvm/IR/LLVMContext.h>
+#include <llvm/IR/Module.h>
+#include <llvm/IR/Verifier.h>
+
+#include "runtime/abi.h"
+
+namespace relief::compiler {
+
+namespace {
+
+using llvm::Value;
+
+struct Dual {
+  Value* v = nullptr;
+  Value* du = nullptr;  // null: zero
+  Value* dv = nullptr;
+};
+
+// A typed value: ints and strings use c[0].v only; floats c[0]; triples c[0..2].
+struct Val {
+  Type type;
+  Dual c[3];
+};
+
+// Storage of a variable: one alloca per component and lane.
+struct Slot {
+  Type type;
+  llvm::AllocaInst* v[3] = {};
+  llvm::AllocaInst* du[3] = {};
+  llvm::AllocaInst* dv[3] = {};
+};
+
+int numComponents(Type t) { return t.isTriple() ? 3 : 1; }
+
+runtime::ParamType paramTypeOf(TypeKind k) {
+  switch (k) {
+    case TypeKind::Int: return runtime::ParamType::Int;
+    case TypeKind::Point: return runtime::ParamType::Point;
+    case TypeKind::Vector: return runtime::ParamType::Vector;
+    case TypeKind::Normal: return runtime::ParamType::Normal;
+    case TypeKind::Color: return runtime::ParamType::Color;
+    case TypeKind::String: return runtime::ParamType::String;
+    case TypeKind::Matrix: return runtime::ParamType::Matrix;
+    default: return runtime::ParamType::Float;
+  }
+}
+
+class ShaderCodegen {
+ public:
+  ShaderCodegen(llvm::Module& module, const ShaderDecl& shader)
+      : ctx_(module.getContext()), module_(module), shader_(shader), b_(ctx_) {
+    f32_ = llvm::Type::getFloatTy(ctx_);
+    i32_ = llvm::Type::getInt32Ty(ctx_);
+    i64_ = llvm::Type::getInt64Ty(ctx_);
+    i8_ = llvm::Type::getInt8Ty(ctx_);
+    ptr_ = llvm::PointerType::get(ctx_, 0);
+  }
+
+  ShaderLayout generate() {
+    ShaderLayout layout;
+    layout.name = shader_.name;
+    layout.entrySymbol = "rlf_shader_" + shader_.name;
+    layout.defaultsSymbol = "rlf_defaults_" + shader_.name;
+    layoutParams(layout);
+    emitDefaults(layout);
+    emitEntry(layout);
+    return layout;
+  }
+
+ private:
+  // ---- Parameter block layout (runtime/shader.h): 4-byte scalars, strings 8-byte aligned.
+  void layoutParams(ShaderLayout& layout) {
+    uint32_t offset = 0;
+    for (const auto& p : shader_.params) {
+      runtime::ParamInfo info;
+      info.name = p->name;
+      info.type = paramTypeOf(p->type.kind);
+      info.isOutput = p->isOutput;
+      if (p->type.kind == TypeKind::String) {
+        offset = (offset + 7) & ~7u;
+        info.offset = offset;
+        offset += 8;
+      } else {
+        info.offset = offset;
+        offset += 4 * uint32_t(numComponents(p->type));
+      }
+      paramOffsets_[p.get()] = info.offset;
+      layout.params.push_back(std::move(info));
+    }
+    layout.blockSize = (offset + 7) & ~7u;
+  }
+
+  // ---- Small IR helpers.
+  Value* cf(float x) { return llvm::ConstantFP::get(f32_, x); }
+  Value* ci(int32_t x) { return llvm::ConstantInt::get(i32_, uint32_t(x), true); }
+  Value* bytePtr(Value* base, uint64_t offset) {
+    return b_.CreateConstInBoundsGEP1_64(i8_, base, offset);
+  }
+  Value* loadPtrField(Value* base, size_t offset) { return b_.CreateLoad(ptr_, bytePtr(base, offset)); }
+  llvm::AllocaInst* entryAlloca(llvm::Type* t, const char* name = "") {
+    llvm::IRBuilder<> eb(&fn_->getEntryBlock(), fn_->getEntryBlock().begin());
+    return eb.CreateAlloca(t, nullptr, name);
+  }
+  Value* intrinsic(llvm::Intrinsic::ID id, std::initializer_list<Value*> args) {
+    llvm::Function* f = llvm::Intrinsic::getDeclaration(&module_, id, {f32_});
+    return b_.CreateCall(f, llvm::ArrayRef<Value*>(args.begin(), args.size()));
+  }
+  Value* libcall(const char* name, std::initializer_list<Value*> args) {
+    std::vector<llvm::Type*> params(args.size(), f32_);
+    llvm::FunctionCallee f = module_.getOrInsertFunction(name, llvm::FunctionType::get(f32_, params, false));
+    if (auto* fn = llvm::dyn_cast<llvm::Function>(f.getCallee())) {
+      fn->setDoesNotThrow();
+      fn->setWillReturn();
+      fn->setDoesNotAccessMemory();
+    }
+    return b_.CreateCall(f, llvm::ArrayRef<Value*>(args.begin(), args.size()));
+  }
+  llvm::BasicBlock* newBlock(const char* name) { return llvm::BasicBlock::Create(ctx_, name, fn_); }
+  // After a terminator, later statements go to a fresh unreachable block LLVM deletes.
+  void startDeadBlock() { b_.SetInsertPoint(newBlock("dead")); }
+  bool terminated() { return b_.GetInsertBlock()->getTerminator() != nullptr; }
+
+  // ---- Dual arithmetic. Lanes are combined symbolically when one side is zero.
+  Value* lAdd(Value* a, Value* b) { return !a ? b : !b ? a : b_.CreateFAdd(a, b); }
+  Value* lSub(Value* a, Value* b) { return !b ? a : !a ? b_.CreateFNeg(b) : b_.CreateFSub(a, b); }
+  Value* lMul(Value* lane, Value* k) { return lane ? b_.CreateFMul(lane, k) : nullptr; }
+  Value* lSel(Value* c, Value* a, Value* b) {
+    if (!a && !b) return nullptr;
+    return b_.CreateSelect(c, a ? a : cf(0), b ? b : cf(0));
+  }
+  Dual dconst(float x) { return {cf(x), nullptr, nullptr}; }
+  Dual dadd(Dual a, Dual b) { return {b_.CreateFAdd(a.v, b.v), lAdd(a.du, b.du), lAdd(a.dv, b.dv)}; }
+  Dual dsub(Dual a, Dual b) { return {b_.CreateFSub(a.v, b.v), lSub(a.du, b.du), lSub(a.dv, b.dv)}; }
+  Dual dneg(Dual a) { return {b_.CreateFNeg(a.v), a.du ? b_.CreateFNeg(a.du) : nullptr, a.dv ? b_.CreateFNeg(a.dv) : nullptr}; }
+  Dual dmul(Dual a, Dual b) {
+    return {b_.CreateFMul(a.v, b.v), lAdd(lMul(a.du, b.v), lMul(b.du, a.v)),
+            lAdd(lMul(a.dv, b.v), lMul(b.dv, a.v))};
+  }
+  // Division by zero yields 0 (§4.1), derivatives included.
+  Dual ddiv(Dual a, Dual b) {
+    Value* zero = b_.CreateFCmpOEQ(b.v, cf(0));
+    Value* safeB = b_.CreateSelect(zero, cf(1), b.v);
+    Value* q = b_.CreateFDiv(a.v, safeB);
+    Dual r;
+    r.v = b_.CreateSelect(zero, cf(0), q);
+    auto lane = [&](Value* da, Value* db) -> Value* {
+      if (!da && !db) return nullptr;
+      Value* num = lSub(da, lMul(db, q));
+      return b_.CreateSelect(zero, cf(0), b_.CreateFDiv(num ? num : cf(0), safeB));
+    };
+    r.du = lane(a.du, b.du);
+    r.dv = lane(a.dv, b.dv);
+    return r;
+  }
+  // f(x) with derivative f'(x): chain rule.
+  Dual chain(Value* fx, Value* dfx, Dual x) { return {fx, lMul(x.du, dfx), lMul(x.dv, dfx)}; }
+  Dual dselect(Value* c, Dual a, Dual b) {
+    return {b_.CreateSelect(c, a.v, b.v), lSel(c, a.du, b.du), lSel(c, a.dv, b.dv)};
+  }
+  Dual dsqrtSafe(Dual x) {
+    Value* neg = b_.CreateFCmpOLT(x.v, cf(0));
+    Value* s = b_.CreateSelect(neg, cf(0), intrinsic(llvm::Intrinsic::sqrt, {b_.CreateSelect(neg, cf(0), x.v)}));
+    Value* pos = b_.CreateFCmpOGT(s, cf(0));
+    Value* d = b_.CreateSelect(pos, b_.CreateFDiv(cf(0.5f), b_.CreateSelect(pos, s, cf(1))), cf(0));
+    return chain(s, d, x);
+  }
+  Dual dfloorLike(llvm::Intrinsic::ID id, Dual x) { return {intrinsic(id, {x.v}), nullptr, nullptr}; }
+  Dual dmin(Dual a, Dual b) { return dselect(b_.CreateFCmpOLT(b.v, a.v), b, a); }
+  Dual dmax(Dual a, Dual b) { return dselect(b_.CreateFCmpOGT(b.v, a.v), b, a); }
+  Dual dlogSafe(Dual x, float scale) {
+    // log(x <= 0) = log(FLT_MIN) (§6.2); scale turns ln into log2/log10.
+    Value* pos = b_.CreateFCmpOGT(x.v, cf(0));
+    Value* safe = b_.CreateSelect(pos, x.v, cf(1.17549435e-38f));
+    Value* l = b_.CreateFMul(intrinsic(llvm::Intrinsic::log, {safe}), cf(scale));
+    Value* d = b_.CreateSelect(pos, b_.CreateFDiv(cf(scale), safe), cf(0));
+    return chain(l, d, x);
+  }
+  Dual dpowSafe(Dual a, Dual e) {
+    // Negative base with a non-integer exponent gives 0 (§6.2).
+    Value* isInt = b_.CreateFCmpOEQ(intrinsic(llvm::Intrinsic::floor, {e.v}), e.v);
+    Value* bad = b_.CreateAnd(b_.CreateFCmpOLT(a.v, cf(0)), b_.CreateNot(isInt));
+    Value* p = b_.CreateSelect(bad, cf(0), intrinsic(llvm::Intrinsic::pow, {a.v, e.v}));
+    Dual r{p, nullptr, nullptr};
+    if (a.du || a.dv) {
+      // d/da a^e = e * a^(e-1)
+      Value* k = b_.CreateSelect(bad, cf(0), b_.CreateFMul(e.v, intrinsic(llvm::Intrinsic::pow, {a.v, b_.CreateFSub(e.v, cf(1))})));
+      Value* finite = b_.CreateFCmpOLT(intrinsic(llvm::Intrinsic::fabs, {k}), cf(INFINITY));
+      k = b_.CreateSelect(finite, k, cf(0));
+      r.du = lMul(a.du, k);
+      r.dv = lMul(a.dv, k);
+    }
+    if (e.du || e.dv) {
+      Value* pos = b_.CreateFCmpOGT(a.v, cf(0));
+      Value* k = b_.CreateSelect(pos, b_.CreateFMul(p, intrinsic(llvm::Intrinsic::log, {b_.CreateSelect(pos, a.v, cf(1))})), cf(0));
+      r.du = lAdd(r.du, lMul(e.du, k));
+      r.dv = lAdd(r.dv, lMul(e.dv, k));
+    }
+    return r;
+  }
+  Dual dabs(Dual x) {
+    Value* neg = b_.CreateFCmpOLT(x.v, cf(0));
+    return dselect(neg, dneg(x), x);
+  }
+  Dual dclamp01(Dual x) { return dmin(dmax(x, dconst(0)), dconst(1)); }
+
+  // ---- Triples.
+  Val splat(Type t, Dual d) {
+    Val r;
+    r.type = t;
+    for (int k = 0; k < 3; ++k) r.c[k] = d;
+    return r;
+  }
+  Val makeTriple(Type t, Dual x, Dual y, Dual z) {
+    Val r;
+    r.type = t;
+    r.c[0] = x;
+    r.c[1] = y;
+    r.c[2] = z;
+    return r;
+  }
+  Val makeFloat(Dual d) {
+    Val r;
+    r.type = Type(TypeKind::Float);
+    r.c[0] = d;
+    return r;
+  }
+  Val makeInt(Value* v) {
+    Val r;
+    r.type = Type(TypeKind::Int);
+    r.c[0].v = v;
+    return r;
+  }
+  Dual dot3(const Val& a, const Val& b) {
+    return dadd(dadd(dmul(a.c[0], b.c[0]), dmul(a.c[1], b.c[1])), dmul(a.c[2], b.c[2]));
+  }
+  Val cross3(const Val& a, const Val& b) {
+    return makeTriple(Type(TypeKind::Vector), dsub(dmul(a.c[1], b.c[2]), dmul(a.c[2], b.c[1])),
+                      dsub(dmul(a.c[2], b.c[0]), dmul(a.c[0], b.c[2])),
+                      dsub(dmul(a.c[0], b.c[1]), dmul(a.c[1], b.c[0])));
+  }
+  Val normalize3(const Val& a) {
+    // Zero stays zero: ddiv by a zero length yields 0.
+    const Dual len = dsqrtSafe(dot3(a, a));
+    return makeTriple(a.type, ddiv(a.c[0], len), ddiv(a.c[1], len), ddiv(a.c[2], len));
+  }
+  template <typename F>
+  Val map(Type t, const Val& a, F f) {
+    Val r;
+    r.type = t;
+    for (int k = 0; k < numComponents(t); ++k) r.c[k] = f(a.c[k]);
+    return r;
+  }
+  template <typename F>
+  Val map2(Type t, const Val& a, const Val& b, F f) {
+    Val r;
+    r.type = t;
+    for (int k = 0; k < numComponents(t); ++k) r.c[k] = f(a.c[k], b.c[k]);
+    return r;
+  }
+  Val derivOf(const Val& a, bool wrtU) {
+    Val r;
+    r.type = a.type.isScalar() ? Type(TypeKind::Float) : a.type.kind == TypeKind::Color ? a.type : Type(TypeKind::Vector);
+    for (int k = 0; k < numComponents(a.type); ++k) {
+      Value* lane = wrtU ? a.c[k].du : a.c[k].dv;
+      r.c[k] = {lane ? lane : cf(0), nullptr, nullptr};
+    }
+    return r;
+  }
+  // calculatenormal(p) = o * (Du(p) ^ Dv(p)); o orients the undisplaced normal like Ng.
+  Val calculateNormal(const Val& p) {
+    Val n = cross3(derivOf(p, true), derivOf(p, false));
+    for (int k = 0; k < 3; ++k) n.c[k] = {b_.CreateFMul(n.c[k].v, orientation_), nullptr, nullptr};
+    return n;
+  }
+
+  // ---- Conversions (§2.1). Sema has already accepted every conversion requested here.
+  Value* floatToIntSafe(Value* f) {
+    Value* inRange = b_.CreateFCmpOLT(intrinsic(llvm::Intrinsic::fabs, {f}), cf(2147483520.0f));
+    return b_.CreateSelect(inRange, b_.CreateFPToSI(b_.CreateSelect(inRange, f, cf(0)), i32_), ci(0));
+  }
+  Val toFloatScalar(const Val& a) {
+    if (a.type.kind == TypeKind::Int) return makeFloat({b_.CreateSIToFP(a.c[0].v, f32_), nullptr, nullptr});
+    Val r = a;
+    r.type = Type(TypeKind::Float);
+    return r;
+  }
+  Val convert(const Val& a, Type to) {
+    if (a.type == to || to.isError()) return a;
+    if (to.kind == TypeKind::Int) {
+      if (a.type.kind == TypeKind::Int) return a;
+      return makeInt(floatToIntSafe(a.c[0].v));
+    }
+    if (to.kind == TypeKind::Float) return toFloatScalar(a);
+    if (to.isTriple()) {
+      if (a.type.isScalar()) return splat(to, toFloatScalar(a).c[0]);
+      Val r = a;
+      r.type = to;
+      return r;
+    }
+    return a;
+  }
+
+  // ---- Variables.
+  Slot& slotFor(const VarDecl* d) {
+    auto it = slots_.find(d);
+    if (it != slots_.end()) return it->second;
+    Slot s;
+    s.type = d->type;
+    llvm::Type* t = d->type.kind == TypeKind::Int ? i32_ : d->type.kind == TypeKind::String ? ptr_ : f32_;
+    const bool hasLanes = t == f32_;
+    for (int k = 0; k < numComponents(d->type); ++k) {
+      s.v[k] = entryAlloca(t, d->name.c_str());
+      if (hasLanes) {
+        s.du[k] = entryAlloca(f32_);
+        s.dv[k] = entryAlloca(f32_);
+      }
+    }
+    return slots_.emplace(d, s).first->second;
+  }
+  Val load(const Slot& s) {
+    Val r;
+    r.type = s.type;
+    for (int k = 0; k < numComponents(s.type); ++k) {
+      r.c[k].v = b_.CreateLoad(s.v[k]->getAllocatedType(), s.v[k]);
+      if (s.du[k]) {
+        r.c[k].du = b_.CreateLoad(f32_, s.du[k]);
+        r.c[k].dv = b_.CreateLoad(f32_, s.dv[k]);
+      }
+    }
+    return r;
+  }
+  void store(const Slot& s, const Val& a) {
+    for (int k = 0; k < numComponents(s.type); ++k) {
+      b_.CreateStore(a.c[k].v, s.v[k]);
+      if (s.du[k]) {
+        b_.CreateStore(a.c[k].du ? a.c[k].du : cf(0), s.du[k]);
+        b_.CreateStore(a.c[k].dv ? a.c[k].dv : cf(0), s.dv[k]);
+      }
+    }
+  }
+  Val zeroOf(Type t) {
+    if (t.kind == TypeKind::Int) return makeInt(ci(0));
+    if (t.kind == TypeKind::String) {
+      Val r;
+      r.type = t;
+      r.c[0].v = b_.CreateGlobalStringPtr("", "str");
+      return r;
+    }
+    return splat(t, dconst(0));
+  }
+
+  // ---- Parameters.
+  Val loadParam(const VarDecl& p, Value* block) {
+    const uint32_t off = paramOffsets_.at(&p);
+    Val r;
+    r.type = p.type;
+    if (p.type.kind == TypeKind::String) {
+      r.c[0].v = b_.CreateLoad(ptr_, bytePtr(block, off));
+    } else if (p.type.kind == TypeKind::Int) {
+      r.c[0].v = b_.CreateLoad(i32_, bytePtr(block, off));
+    } else {
+      for (int k = 0; k < numComponents(p.type); ++k)
+        r.c[k] = {b_.CreateLoad(f32_, bytePtr(block, off + 4 * k)), nullptr, nullptr};
+    }
+    return r;
+  }
+  void storeParam(const VarDecl& p, Value* block, const Val& a) {
+    const uint32_t off = paramOffsets_.at(&p);
+    for (int k = 0; k < numComponents(p.type); ++k) b_.CreateStore(a.c[k].v, bytePtr(block, off + 4 * k));
+  }
+
+  // void defaults(void* block): evaluates each default (which may use earlier parameters).
+  void emitDefaults(const ShaderLayout& layout) {
+    auto* fty = llvm::FunctionType::get(llvm::Type::getVoidTy(ctx_), {ptr_}, false);
+    fn_ = llvm::Function::Create(fty, llvm::Function::ExternalLinkage, layout.defaultsSymbol, module_);
+    b_.SetInsertPoint(llvm::BasicBlock::Create(ctx_, "entry", fn_));
+    Value* block = fn_->getArg(0);
+    orientation_ = cf(1);
+    slots_.clear();
+    for (const auto& p : shader_.params) {
+      Val v = p->init ? convert(gen(*p->init), p->type) : zeroOf(p->type);
+      store(slotFor(p.get()), v);
+      storeParam(*p, block, v);
+    }
+    b_.CreateRetVoid();
+  }
+
+  // ---- The batch entry.
+  void emitEntry(const ShaderLayout& layout) {
+    auto* fty = llvm::FunctionType::get(llvm::Type::getVoidTy(ctx_), {ptr_, ptr_, ptr_}, false);
+    fn_ = llvm::Function::Create(fty, llvm::Function::ExternalLinkage, layout.entrySymbol, module_);
+    fn_->setDoesNotThrow();
+    Value* batch = fn_->getArg(0);
+    Value* params = fn_->getArg(1);
+    Value* status = fn_->getArg(2);
+    llvm::BasicBlock* entry = llvm::BasicBlock::Create(ctx_, "entry", fn_);
+    b_.SetInsertPoint(entry);
+    slots_.clear();
+
+    zeroCell_ = entryAlloca(f32_, "zero");
+    b_.CreateStore(cf(0), zeroCell_);
+    nonFinite_ = entryAlloca(i32_, "nonfinite");
+    loopLimitHits_ = entryAlloca(i32_, "looplimit");
+    loopCounter_ = entryAlloca(i32_, "iterations");
+    b_.CreateStore(ci(0), nonFinite_);
+    b_.CreateStore(ci(0), loopLimitHits_);
+    llvm::AllocaInst* index = entryAlloca(i64_, "i");
+    b_.CreateStore(llvm::ConstantInt::get(i64_, 0), index);
+    Value* count = b_.CreateZExt(b_.CreateLoad(i32_, bytePtr(batch, offsetof(RlfShadingBatch, count))), i64_);
+
+    // Field pointers, loaded once per batch.
+    auto field = [&](size_t off) { return loadPtrField(batch, off); };
+    auto triple = [&](size_t off) {
+      return std::array<Value*, 3>{field(off), field(off + sizeof(float*)), field(off + 2 * sizeof(float*))};
+    };
+    const auto P = triple(offsetof(RlfShadingBatch, P));
+    const auto N = triple(offsetof(RlfShadingBatch, N));
+    const auto Ng = triple(offsetof(RlfShadingBatch, Ng));
+    const auto dPdu = triple(offsetof(RlfShadingBatch, dPdu));
+    const auto dPdv = triple(offsetof(RlfShadingBatch, dPdv));
+    const auto dNdu = triple(offsetof(RlfShadingBatch, dNdu));
+    const auto dNdv = triple(offsetof(RlfShadingBatch, dNdv));
+    const auto Pout = triple(offsetof(RlfShadingBatch, Pout));
+    const auto Nout = triple(offsetof(RlfShadingBatch, Nout));
+    Value* uPtr = field(offsetof(RlfShadingBatch, u));
+    Value* vPtr = field(offsetof(RlfShadingBatch, v));
+    Value* sPtr = field(offsetof(RlfShadingBatch, s));
+    Value* tPtr = field(offsetof(RlfShadingBatch, t));
+    Value* duPtr = field(offsetof(RlfShadingBatch, du));
+    Value* dvPtr = field(offsetof(RlfShadingBatch, dv));
+    Value* dsduPtr = field(offsetof(RlfShadingBatch, dsdu));
+    Value* dsdvPtr = field(offsetof(RlfShadingBatch, dsdv));
+    Value* dtduPtr = field(offsetof(RlfShadingBatch, dtdu));
+    Value* dtdvPtr = field(offsetof(RlfShadingBatch, dtdv));
+    spaces_ = field(offsetof(RlfShadingBatch, spaces));
+    Value* dNduPresent = b_.CreateIsNotNull(dNdu[0]);
+    Value* dNdvPresent = b_.CreateIsNotNull(dNdv[0]);
+
+    llvm::BasicBlock* header = newBlock("point.header");
+    llvm::BasicBlock* body = newBlock("point.body");
+    llvm::BasicBlock* exitPoint = newBlock("point.exit");
+    llvm::BasicBlock* abortPoint = newBlock("point.abort");
+    llvm::BasicBlock* latch = newBlock("point.latch");
+    llvm::BasicBlock* done = newBlock("done");
+    b_.CreateBr(header);
+
+    b_.SetInsertPoint(header);
+    Value* i = b_.CreateLoad(i64_, index, "i");
+    b_.CreateCondBr(b_.CreateICmpULT(i, count), body, done);
+
+    b_.SetInsertPoint(body);
+    auto at = [&](Value* base) { return b_.CreateInBoundsGEP(f32_, base, i); };
+    auto loadAt = [&](Value* base) -> Value* { return b_.CreateLoad(f32_, at(base)); };
+    // A nullable seed array reads as zero when absent (no load from null).
+    auto loadOpt = [&](Value* base, Value* present) -> Value* {
+      return b_.CreateLoad(f32_, b_.CreateSelect(present, at(base), zeroCell_));
+    };
+    auto loadTriple = [&](const std::array<Value*, 3>& a) {
+      return std::array<Value*, 3>{loadAt(a[0]), loadAt(a[1]), loadAt(a[2])};
+    };
+    const auto pIn = loadTriple(P);
+    const auto nIn = loadTriple(N);
+    const auto ngIn = loadTriple(Ng);
+    const auto dpduIn = loadTriple(dPdu);
+    const auto dpdvIn = loadTriple(dPdv);
+    auto global = [&](GlobalId g) -> const VarDecl* { return globals_[size_t(g)]; };
+    {
+      Val p;
+      p.type = Type(TypeKind::Point);
+      Val n;
+      n.type = Type(TypeKind::Normal);
+      Val ng, dpdu, dpdv;
+      ng.type = Type(TypeKind::Normal);
+      dpdu.type = dpdv.type = Type(TypeKind::Vector);
+      for (int k = 0; k < 3; ++k) {
+        p.c[k] = {pIn[k], dpduIn[k], dpdvIn[k]};
+        n.c[k] = {nIn[k], loadOpt(dNdu[k], dNduPresent), loadOpt(dNdv[k], dNdvPresent)};
+        ng.c[k] = {ngIn[k], nullptr, nullptr};
+        dpdu.c[k] = {dpduIn[k], nullptr, nullptr};
+        dpdv.c[k] = {dpdvIn[k], nullptr, nullptr};
+      }
+      store(slotFor(global(GlobalId::P)), p);
+      store(slotFor(global(GlobalId::N)), n);
+      store(slotFor(global(GlobalId::Ng)), ng);
+      store(slotFor(global(GlobalId::dPdu)), dpdu);
+      store(slotFor(global(GlobalId::dPdv)), dpdv);
+      store(slotFor(global(GlobalId::u)), makeFloat({loadAt(uPtr), cf(1), nullptr}));
+      store(slotFor(global(GlobalId::v)), makeFloat({loadAt(vPtr), nullptr, cf(1)}));
+      store(slotFor(global(GlobalId::s)),
+            makeFloat({loadAt(sPtr), loadOpt(dsduPtr, b_.CreateIsNotNull(dsduPtr)),
+                       loadOpt(dsdvPtr, b_.CreateIsNotNull(dsdvPtr))}));
+      store(slotFor(global(GlobalId::t)),
+            makeFloat({loadAt(tPtr), loadOpt(dtduPtr, b_.CreateIsNotNull(dtduPtr)),
+                       loadOpt(dtdvPtr, b_.CreateIsNotNull(dtdvPtr))}));
+      store(slotFor(global(GlobalId::du)), makeFloat({loadAt(duPtr), nullptr, nullptr}));
+      store(slotFor(global(GlobalId::dv)), makeFloat({loadAt(dvPtr), nullptr, nullptr}));
+      store(slotFor(global(GlobalId::PI)), makeFloat(dconst(3.14159265358979f)));
+      // Orientation of calculatenormal: the undisplaced dPdu ^ dPdv must face like Ng.
+      Val geo = cross3(dpdu, dpdv);
+      Value* facing = dot3(geo, ng).v;
+      orientation_ = b_.CreateSelect(b_.CreateFCmpOLT(facing, cf(0)), cf(-1), cf(1));
+    }
+    for (const auto& prm : shader_.params) store(slotFor(prm.get()), loadParam(*prm, params));
+    b_.CreateStore(ci(0), loopCounter_);
+
+    exitBlock_ = exitPoint;
+    abortBlock_ = abortPoint;
+    if (shader_.body) genStmt(*shader_.body);
+    if (!terminated()) b_.CreateBr(exitPoint);
+
+    // Host contract (§5): P assigned but N never → N = normalize(calculatenormal(P)).
+    b_.SetInsertPoint(exitPoint);
+    const Slot& pSlot = slotFor(global(GlobalId::P));
+    const Slot& nSlot = slotFor(global(GlobalId::N));
+    Val pOut = load(pSlot);
+    Val nOut = load(nSlot);
+    if (shader_.assignsP && !shader_.assignsN) nOut = normalize3(calculateNormal(pOut));
+    auto finite3 = [&](const Val& a) {
+      Value* ok = nullptr;
+      for (int k = 0; k < 3; ++k) {
+        Value* f = b_.CreateFCmpOLT(intrinsic(llvm::Intrinsic::fabs, {a.c[k].v}), cf(INFINITY));
+        ok = ok ? b_.CreateAnd(ok, f) : f;
+      }
+      return ok;
+    };
+    // Non-finite P: the undisplaced point and input normal; non-finite N: the input normal (§7).
+    Value* pOk = finite3(pOut);
+    Value* nOk = finite3(nOut);
+    Value* allOk = b_.CreateAnd(pOk, nOk);
+    for (int k = 0; k < 3; ++k) {
+      b_.CreateStore(b_.CreateSelect(pOk, pOut.c[k].v, pIn[k]), at(Pout[k]));
+      b_.CreateStore(b_.CreateSelect(allOk, nOut.c[k].v, nIn[k]), at(Nout[k]));
+    }
+    Value* nf = b_.CreateLoad(i32_, nonFinite_);
+    b_.CreateStore(b_.CreateAdd(nf, b_.CreateZExt(b_.CreateNot(allOk), i32_)), nonFinite_);
+    b_.CreateBr(latch);
+
+    // Loop limit exceeded: outputs revert to the inputs (§7).
+    b_.SetInsertPoint(abortPoint);
+    for (int k = 0; k < 3; ++k) {
+      b_.CreateStore(pIn[k], at(Pout[k]));
+      b_.CreateStore(nIn[k], at(Nout[k]));
+    }
+    b_.CreateStore(b_.CreateAdd(b_.CreateLoad(i32_, loopLimitHits_), ci(1)), loopLimitHits_);
+    b_.CreateBr(latch);
+
+    b_.SetInsertPoint(latch);
+    b_.CreateStore(b_.CreateAdd(i, llvm::ConstantInt::get(i64_, 1)), index);
+    b_.CreateBr(header);
+
+    b_.SetInsertPoint(done);
+    auto bump = [&](size_t off, llvm::AllocaInst* local) {
+      Value* p = bytePtr(status, off);
+      b_.CreateStore(b_.CreateAdd(b_.CreateLoad(i32_, p), b_.CreateLoad(i32_, local)), p);
+    };
+    bump(offsetof(RlfStatus, nonFinite), nonFinite_);
+    bump(offsetof(RlfStatus, loopLimit), loopLimitHits_);
+    b_.CreateRetVoid();
+  }
+
+ public:
+  void setGlobals(const TranslationUnit& unit) {
+    for (const auto& g : unit.globals) globals_[size_t(g->global)] = g.get();
+  }
+
+ private:
+  // ---- Statements.
+  void genScoped(const Stmt& s) { genStmt(s); }
+
+  void genStmt(const Stmt& s) {
+    if (terminated()) startDeadBlock();
+    switch (s.kind) {
+      case StmtKind::Block:
+        for (const StmtPtr& c : s.stmts) genStmt(*c);
+        break;
+      case StmtKind::Decl:
+        for (const auto& d : s.decls) {
+          const Slot& slot = slotFor(d.get());
+          // Locals are zero-initialized (§4) and re-initialized each time the declaration runs.
+          store(slot, d->init ? convert(gen(*d->init), d->type) : zeroOf(d->type));
+        }
+        break;
+      case StmtKind::ExprStmt: gen(*s.expr); break;
+      case StmtKind::If: {
+        Value* c = truth(gen(*s.cond));
+        llvm::BasicBlock* thenB = newBlock("if.then");
+        llvm::BasicBlock* elseB = s.otherwise ? newBlock("if.else") : nullptr;
+        llvm::BasicBlock* endB = newBlock("if.end");
+        b_.CreateCondBr(c, thenB, elseB ? elseB : endB);
+        b_.SetInsertPoint(thenB);
+        genStmt(*s.then);
+        if (!terminated()) b_.CreateBr(endB);
+        if (elseB) {
+          b_.SetInsertPoint(elseB);
+          genStmt(*s.otherwise);
+          if (!terminated()) b_.CreateBr(endB);
+        }
+        b_.SetInsertPoint(endB);
+        break;
+      }
+      case StmtKind::While:
+      case StmtKind::DoWhile:
+      case StmtKind::For: genLoop(s); break;
+      case StmtKind::Break:
+        b_.CreateBr(loops_.back().breakTarget);
+        break;
+      case StmtKind::Continue:
+        b_.CreateBr(loops_.back().continueTarget);
+        break;
+      case StmtKind::Return:
+        b_.CreateBr(exitBlock_);
+        break;
+      case StmtKind::Empty: break;
+    }
+  }
+
+  // Loops count iterations against kLoopIterationLimit on every back edge.
+  void genLoop(const Stmt& s) {
+    if (s.kind == StmtKind::For && s.init) genStmt(*s.init);
+    llvm::BasicBlock* condB = newBlock("loop.cond");
+    llvm::BasicBlock* bodyB = newBlock("loop.body");
+    llvm::BasicBlock* stepB = newBlock("loop.step");
+    llvm::BasicBlock* endB = newBlock("loop.end");
+    b_.CreateBr(s.kind == StmtKind::DoWhile ? bodyB : condB);
+
+    b_.SetInsertPoint(condB);
+    if (s.cond)
+      b_.CreateCondBr(truth(gen(*s.cond)), bodyB, endB);
+    else
+      b_.CreateBr(bodyB);
+
+    b_.SetInsertPoint(bodyB);
+    loops_.push_back({endB, stepB});
+    genStmt(*s.body);
+    loops_.pop_back();
+    if (!terminated()) b_.CreateBr(stepB);
+
+    b_.SetInsertPoint(stepB);
+    if (s.step) gen(*s.step);
+    Value* n = b_.CreateAdd(b_.CreateLoad(i32_, loopCounter_), ci(1));
+    b_.CreateStore(n, loopCounter_);
+    b_.CreateCondBr(b_.CreateICmpUGT(n, ci(int32_t(kLoopIterationLimit))), abortBlock_, condB);
+
+    b_.SetInsertPoint(endB);
+  }
+
+  Value* truth(const Val& a) {
+    if (a.type.kind == TypeKind::Int) return b_.CreateICmpNE(a.c[0].v, ci(0));
+    return b_.CreateFCmpUNE(a.c[0].v, cf(0));
+  }
+  Val boolToInt(Value* c) { return makeInt(b_.CreateZExt(c, i32_)); }
+
+  // ---- Expressions.
+  Val gen(const Expr& e) {
+    switch (e.kind) {
+      case ExprKind::IntLiteral: return makeInt(ci(e.intValue));
+      case ExprKind::FloatLiteral: return makeFloat(dconst(e.floatValue));
+      case ExprKind::StringLiteral: {
+        Val r;
+        r.type = Type(TypeKind::String);
+        r.c[0].v = b_.CreateGlobalStringPtr(e.text, "str");
+        return r;
+      }
+      case ExprKind::Identifier: return load(slotFor(e.decl));
+      case ExprKind::Unary: {
+        Val a = gen(*e.operands[0]);
+        if (e.op == Tok::Bang) return boolToInt(b_.CreateNot(truth(a)));
+        if (e.op == Tok::Plus) return a;
+        if (a.type.kind == TypeKind::Int) return makeInt(b_.CreateSub(ci(0), a.c[0].v));
+        return map(a.type, a, [&](Dual d) { return dneg(d); });
+      }
+      case ExprKind::PreIncDec:
+      case ExprKind::PostIncDec: {
+        const Expr& target = *e.operands[0];
+        Val old = gen(target);
+        Val nv = old;
+        const bool inc = e.op == Tok::PlusPlus;
+        if (old.type.kind == TypeKind::Int)
+          nv.c[0].v = inc ? b_.CreateAdd(old.c[0].v, ci(1)) : b_.CreateSub(old.c[0].v, ci(1));
+        else
+          nv.c[0].v = inc ? b_.CreateFAdd(old.c[0].v, cf(1)) : b_.CreateFSub(old.c[0].v, cf(1));
+        assignTo(target, nv);
+        return e.kind == ExprKind::PreIncDec ? nv : old;
+      }
+      case ExprKind::Binary: return genBinary(e);
+      case ExprKind::Assign: {
+        const Expr& target = *e.operands[0];
+        Val value = gen(*e.operands[1]);
+        if (e.op != Tok::Assign) {
+          Tok base = e.op == Tok::PlusAssign    ? Tok::Plus
+                     : e.op == Tok::MinusAssign ? Tok::Minus
+                     : e.op == Tok::StarAssign  ? Tok::Star
+                     : e.op == Tok::SlashAssign ? Tok::Slash
+                                                : Tok::Percent;
+          Val old = gen(target);
+          value = arith(base, old, value);
+        }
+        value = convert(value, target.type);
+        assignTo(target, value);
+        return value;
+      }
+      case ExprKind::Conditional: {
+        Value* c = truth(gen(*e.operands[0]));
+        llvm::BasicBlock* aB = newBlock("cond.true");
+        llvm::BasicBlock* bB = newBlock("cond.false");
+        llvm::BasicBlock* endB = newBlock("cond.end");
+        temps_.push_back(std::make_unique<VarDecl>());
+        temps_.back()->name = "cond";
+        temps_.back()->type = e.type;
+        const Slot& slot = slotFor(temps_.back().get());
+        b_.CreateCondBr(c, aB, bB);
+        b_.SetInsertPoint(aB);
+        store(slot, convert(gen(*e.operands[1]), e.type));
+        b_.CreateBr(endB);
+        b_.SetInsertPoint(bB);
+        store(slot, convert(gen(*e.operands[2]), e.type));
+        b_.CreateBr(endB);
+        b_.SetInsertPoint(endB);
+        return load(slot);
+      }
+      case ExprKind::Call: return genCall(e);
+      case ExprKind::Construct: return genConstruct(e);
+      case ExprKind::Index: {
+        Val base = gen(*e.operands[0]);
+        Val index = gen(*e.operands[1]);
+        return makeFloat(component(base, index.c[0].v));
+      }
+      case ExprKind::Tuple: {
+        Val x = toFloatScalar(gen(*e.operands[0]));
+        Val y = toFloatScalar(gen(*e.operands[1]));
+        Val z = toFloatScalar(gen(*e.operands[2]));
+        return makeTriple(e.type, x.c[0], y.c[0], z.c[0]);
+      }
+    }
+    return zeroOf(Type(TypeKind::Float));
+  }
+
+  // Run-time component index, clamped into 0..2.
+  Dual component(const Val& base, Value* index) {
+    if (auto* k = llvm::dyn_cast<llvm::ConstantInt>(index)) {
+      const int64_t i = std::clamp<int64_t>(k->getSExtValue(), 0, 2);
+      return base.c[i];
+    }
+    Dual r = base.c[2];
+    r = dselect(b_.CreateICmpEQ(index, ci(1)), base.c[1], r);
+    r = dselect(b_.CreateICmpSLE(index, ci(0)), base.c[0], r);
+    return r;
+  }
+
+  void assignTo(const Expr& target, const Val& value) {
+    if (target.kind == ExprKind::Identifier) {
+      store(slotFor(target.decl), convert(value, target.decl->type));
+      return;
+    }
+    // v[i] = x
+    const Expr& baseExpr = *target.operands[0];
+    const Slot& slot = slotFor(baseExpr.decl);
+    Val base = load(slot);
+    Val idx = gen(*target.operands[1]);
+    const Dual x = toFloatScalar(value).c[0];
+    Value* index = idx.c[0].v;
+    for (int k = 0; k < 3; ++k) {
+      Value* hit = k == 0   ? b_.CreateICmpSLE(index, ci(0))
+                   : k == 1 ? b_.CreateICmpEQ(index, ci(1))
+                            : b_.CreateICmpSGE(index, ci(2));
+      base.c[k] = dselect(hit, x, base.c[k]);
+    }
+    store(slot, base);
+  }
+
+  Val arith(Tok op, const Val& a0, const Val& b0) {
+    const Type rt = resultType(op, a0.type, b0.type);
+    if (rt.kind == TypeKind::Int) {
+      Value* a = a0.c[0].v;
+      Value* b = b0.c[0].v;
+      switch (op) {
+        case Tok::Plus: return makeInt(b_.CreateAdd(a, b));
+        case Tok::Minus: return makeInt(b_.CreateSub(a, b));
+        case Tok::Star: return makeInt(b_.CreateMul(a, b));
+        default: {
+          // Division or remainder by 0 is 0; INT_MIN / -1 wraps instead of trapping.
+          Value* zero = b_.CreateICmpEQ(b, ci(0));
+          Value* overflow = b_.CreateAnd(b_.CreateICmpEQ(a, ci(INT32_MIN)), b_.CreateICmpEQ(b, ci(-1)));
+          Value* safeB = b_.CreateSelect(b_.CreateOr(zero, overflow), ci(1), b);
+          Value* q = op == Tok::Slash ? b_.CreateSDiv(a, safeB) : b_.CreateSRem(a, safeB);
+          if (op == Tok::Percent) q = b_.CreateSelect(overflow, ci(0), q);
+          return makeInt(b_.CreateSelect(zero, ci(0), q));
+        }
+      }
+    }
+    const Val a = convert(a0, rt);
+    const Val b = convert(b0, rt);
+    switch (op) {
+      case Tok::Plus: return map2(rt, a, b, [&](Dual x, Dual y) { return dadd(x, y); });
+      case Tok::Minus: return map2(rt, a, b, [&](Dual x, Dual y) { return dsub(x, y); });
+      case Tok::Star: return map2(rt, a, b, [&](Dual x, Dual y) { return dmul(x, y); });
+      default: return map2(rt, a, b, [&](Dual x, Dual y) { return ddiv(x, y); });
+    }
+  }
+
+  // Mirrors the type checker's arithmetic typing for values whose types are already checked.
+  static Type resultType(Tok op, Type a, Type b) {
+    if (a.isScalar() && b.isScalar())
+      return a.kind == TypeKind::Int && b.kind == TypeKind::Int ? Type(TypeKind::Int) : Type(TypeKind::Float);
+    if (a.isScalar()) return b;
+    if (b.isScalar()) return a;
+    if (a.kind == TypeKind::Color) return a;
+    if (op == Tok::Plus || op == Tok::Minus) return Type(spatialSum(a.kind, b.kind, op == Tok::Minus));
+    return a.kind == b.kind ? a : Type(TypeKind::Vector);
+  }
+
+  Val genBinary(const Expr& e) {
+    if (e.op == Tok::AmpAmp || e.op == Tok::PipePipe) {
+      // Short-circuit: the right operand runs only when needed.
+      Value* l = truth(gen(*e.operands[0]));
+      llvm::BasicBlock* from = b_.GetInsertBlock();
+      llvm::BasicBlock* rhsB = newBlock("logic.rhs");
+      llvm::BasicBlock* endB = newBlock("logic.end");
+      if (e.op == Tok::AmpAmp)
+        b_.CreateCondBr(l, rhsB, endB);
+      else
+        b_.CreateCondBr(l, endB, rhsB);
+      b_.SetInsertPoint(rhsB);
+      Value* r = truth(gen(*e.operands[1]));
+      llvm::BasicBlock* rhsEnd = b_.GetInsertBlock();
+      b_.CreateBr(endB);
+      b_.SetInsertPoint(endB);
+      llvm::PHINode* phi = b_.CreatePHI(b_.getInt1Ty(), 2);
+      phi->addIncoming(e.op == Tok::AmpAmp ? b_.getFalse() : b_.getTrue(), from);
+      phi->addIncoming(r, rhsEnd);
+      return boolToInt(phi);
+    }
+    Val a = gen(*e.operands[0]);
+    Val b = gen(*e.operands[1]);
+    switch (e.op) {
+      case Tok::Plus:
+      case Tok::Minus:
+      case Tok::Star:
+      case Tok::Slash:
+      case Tok::Percent: return arith(e.op, a, b);
+      case Tok::Dot: return makeFloat(dot3(a, b));
+      case Tok::Caret: return cross3(a, b);
+      case Tok::Less:
+      case Tok::LessEq:
+      case Tok::Greater:
+      case Tok::GreaterEq: {
+        if (a.type.kind == TypeKind::Int && b.type.kind == TypeKind::Int) {
+          const auto pred = e.op == Tok::Less     ? llvm::CmpInst::ICMP_SLT
+                            : e.op == Tok::LessEq ? llvm::CmpInst::ICMP_SLE
+                            : e.op == Tok::Greater ? llvm::CmpInst::ICMP_SGT
+                                                   : llvm::CmpInst::ICMP_SGE;
+          return boolToInt(b_.CreateICmp(pred, a.c[0].v, b.c[0].v));
+        }
+        const auto pred = e.op == Tok::Less     ? llvm::CmpInst::FCMP_OLT
+                          : e.op == Tok::LessEq ? llvm::CmpInst::FCMP_OLE
+                          : e.op == Tok::Greater ? llvm::CmpInst::FCMP_OGT
+                                                 : llvm::CmpInst::FCMP_OGE;
+        return boolToInt(b_.CreateFCmp(pred, toFloatScalar(a).c[0].v, toFloatScalar(b).c[0].v));
+      }
+      case Tok::EqEq:
+      case Tok::NotEq: {
+        Value* eq = nullptr;
+        if (a.type.kind == TypeKind::String) {
+          llvm::FunctionCallee strcmpFn = module_.getOrInsertFunction(
+              "strcmp", llvm::FunctionType::get(i32_, {ptr_, ptr_}, false));
+          eq = b_.CreateICmpEQ(b_.CreateCall(strcmpFn, {a.c[0].v, b.c[0].v}), ci(0));
+        } else if (a.type.kind == TypeKind::Int && b.type.kind == TypeKind::Int) {
+          eq = b_.CreateICmpEQ(a.c[0].v, b.c[0].v);
+        } else {
+          const Type t = a.type.isTriple() ? a.type : b.type.isTriple() ? b.type : Type(TypeKind::Float);
+          const Val x = convert(a, t);
+          const Val y = convert(b, t);
+          for (int k = 0; k < numComponents(t); ++k) {
+            Value* ck = b_.CreateFCmpOEQ(x.c[k].v, y.c[k].v);
+            eq = eq ? b_.CreateAnd(eq, ck) : ck;
+          }
+        }
+        return boolToInt(e.op == Tok::EqEq ? eq : b_.CreateNot(eq));
+      }
+      default: return zeroOf(Type(TypeKind::Float));
+    }
+  }
+
+  // ---- Coordinate spaces: row vectors, p' = p * M (abi.h). M is read from batch->spaces.
+  Value* matrixElement(size_t matrixOffset, int index) {
+    return b_.CreateLoad(f32_, bytePtr(spaces_, matrixOffset + 4 * size_t(index)));
+  }
+  // kind: 0 point (w = 1), 1 vector (w = 0), 2 normal (uses the inverse, transposed).
+  Val transformBy(const Val& a, size_t matrixOffset, size_t inverseOffset, int kind) {
+    Val r;
+    r.type = a.type;
+    for (int j = 0; j < 3; ++j) {
+      Dual acc = dconst(0);
+      for (int i = 0; i < 3; ++i) {
+        Value* m = kind == 2 ? matrixElement(inverseOffset, j * 4 + i) : matrixElement(matrixOffset, i * 4 + j);
+        acc = dadd(acc, dmul(a.c[i], {m, nullptr, nullptr}));
+      }
+      if (kind == 0) acc = dadd(acc, {matrixElement(matrixOffset, 12 + j), nullptr, nullptr});
+      r.c[j] = acc;
+    }
+    return r;
+  }
+  // From `space` to current.
+  Val toCurrent(const Val& a, const std::string& space) {
+    const int kind = a.type.kind == TypeKind::Point ? 0 : a.type.kind == TypeKind::Normal ? 2 : 1;
+    if (space == "object")
+      return transformBy(a, offsetof(RlfSpaces, currentFromObject), offsetof(RlfSpaces, objectFromCurrent), kind);
+    if (space == "shader")
+      return transformBy(a, offsetof(RlfSpaces, currentFromShader), offsetof(RlfSpaces, shaderFromCurrent), kind);
+    if (space == "camera")
+      return transformBy(a, offsetof(RlfSpaces, currentFromCamera), offsetof(RlfSpaces, cameraFromCurrent), kind);
+    return a;
+  }
+  // From current to `space`.
+  Val fromCurrent(const Val& a, const std::string& space) {
+    const int kind = a.type.kind == TypeKind::Point ? 0 : a.type.kind == TypeKind::Normal ? 2 : 1;
+    if (space == "object")
+      return transformBy(a, offsetof(RlfSpaces, objectFromCurrent), offsetof(RlfSpaces, currentFromObject), kind);
+    if (space == "shader")
+      return transformBy(a, offsetof(RlfSpaces, shaderFromCurrent), offsetof(RlfSpaces, currentFromShader), kind);
+    if (space == "camera")
+      return transformBy(a, offsetof(RlfSpaces, cameraFromCurrent), offsetof(RlfSpaces, currentFromCamera), kind);
+    return a;
+  }
+
+  Val genConstruct(const Expr& e) {
+    const Type t(e.constructType);
+    size_t first = 0;
+    if (!e.operands.empty() && e.operands[0]->type.kind == TypeKind::String) first = 1;
+    std::vector<Val> args;
+    for (size_t i = first; i < e.operands.size(); ++i) args.push_back(gen(*e.operands[i]));
+    if (t.isScalar()) return convert(args[0], t);
+    Val r;
+    if (args.size() == 1) {
+      r = args[0].type.isTriple() ? args[0] : splat(t, toFloatScalar(args[0]).c[0]);
+      r.type = t;
+    } else {
+      r = makeTriple(t, toFloatScalar(args[0]).c[0], toFloatScalar(args[1]).c[0], toFloatScalar(args[2]).c[0]);
+    }
+    if (!e.text.empty() && t.kind != TypeKind::Color) r = toCurrent(r, e.text);
+    return r;
+  }
+
+  // ---- Built-in calls.
+  static Type bindT(const std::vector<Val>& args, bool allowInt) {
+    for (const Val& a : args)
+      if (a.type.isTriple()) return a.type;
+    if (allowInt) {
+      bool allInt = true;
+      for (const Val& a : args) allInt &= a.type.kind == TypeKind::Int;
+      if (allInt) return Type(TypeKind::Int);
+    }
+    return Type(TypeKind::Float);
+  }
+
+  Dual unaryMath(BuiltinId id, Dual x) {
+    using llvm::Intrinsic::ID;
+    switch (id) {
+      case BuiltinId::Sin: return chain(intrinsic(llvm::Intrinsic::sin, {x.v}), intrinsic(llvm::Intrinsic::cos, {x.v}), x);
+      case BuiltinId::Cos:
+        return chain(intrinsic(llvm::Intrinsic::cos, {x.v}), b_.CreateFNeg(intrinsic(llvm::Intrinsic::sin, {x.v})), x);
+      case BuiltinId::Tan: {
+        Value* c = intrinsic(llvm::Intrinsic::cos, {x.v});
+        return chain(libcall("tanf", {x.v}), b_.CreateFDiv(cf(1), b_.CreateFMul(c, c)), x);
+      }
+      case BuiltinId::Asin:
+      case BuiltinId::Acos: {
+        Value* cl = b_.CreateSelect(b_.CreateFCmpOGT(x.v, cf(1)), cf(1), b_.CreateSelect(b_.CreateFCmpOLT(x.v, cf(-1)), cf(-1), x.v));
+        Value* r = libcall(id == BuiltinId::Asin ? "asinf" : "acosf", {cl});
+        Value* k2 = b_.CreateFSub(cf(1), b_.CreateFMul(cl, cl));
+        Value* inside = b_.CreateFCmpOGT(k2, cf(0));
+        Value* d = b_.CreateSelect(inside, b_.CreateFDiv(cf(id == BuiltinId::Asin ? 1.f : -1.f), intrinsic(llvm::Intrinsic::sqrt, {b_.CreateSelect(inside, k2, cf(1))})), cf(0));
+        return chain(r, d, x);
+      }
+      case BuiltinId::Atan:
+        return chain(libcall("atanf", {x.v}), b_.CreateFDiv(cf(1), b_.CreateFAdd(cf(1), b_.CreateFMul(x.v, x.v))), x);
+      case BuiltinId::Exp: {
+        Value* r = intrinsic(llvm::Intrinsic::exp, {x.v});
+        return chain(r, r, x);
+      }
+      case BuiltinId::Exp2: {
+        Value* r = intrinsic(llvm::Intrinsic::exp2, {x.v});
+        return chain(r, b_.CreateFMul(r, cf(0.693147181f)), x);
+      }
+      case BuiltinId::Log: return dlogSafe(x, 1.0f);
+      case BuiltinId::Log2: return dlogSafe(x, 1.44269504f);
+      case BuiltinId::Log10: return dlogSafe(x, 0.434294482f);
+      case BuiltinId::Sqrt: return dsqrtSafe(x);
+      case BuiltinId::InverseSqrt: {
+        const Dual s = dsqrtSafe(x);
+        return ddiv(dconst(1), s);
+      }
+      case BuiltinId::Abs:
+      case BuiltinId::Fabs: return dabs(x);
+      case BuiltinId::Sign: {
+        Value* r = b_.CreateSelect(b_.CreateFCmpOGT(x.v, cf(0)), cf(1), b_.CreateSelect(b_.CreateFCmpOLT(x.v, cf(0)), cf(-1), cf(0)));
+        return {r, nullptr, nullptr};
+      }
+      case BuiltinId::Floor: return dfloorLike(llvm::Intrinsic::floor, x);
+      case BuiltinId::Ceil: return dfloorLike(llvm::Intrinsic::ceil, x);
+      case BuiltinId::Round: return dfloorLike(llvm::Intrinsic::round, x);
+      case BuiltinId::Trunc: return dfloorLike(llvm::Intrinsic::trunc, x);
+      case BuiltinId::Radians: return dmul(x, dconst(0.0174532925f));
+      case BuiltinId::Degrees: return dmul(x, dconst(57.2957795f));
+      default: return x;
+    }
+  }
+
+  Dual modDual(Dual a, Dual b, bool cStyle) {
+    // mod: a - b*floor(a/b); fmod: a - b*trunc(a/b); by 0: 0.
+    Value* zero = b_.CreateFCmpOEQ(b.v, cf(0));
+    Value* q = b_.CreateFDiv(a.v, b_.CreateSelect(zero, cf(1), b.v));
+    Value* k = intrinsic(cStyle ? llvm::Intrinsic::trunc : llvm::Intrinsic::floor, {q});
+    Dual r = dsub(a, dmul(b, {k, nullptr, nullptr}));
+    return dselect(zero, dconst(0), r);
+  }
+
+  Dual noiseCall(const std::vector<Dual>& in, float offset) {
+    static const char* kNames[] = {"rlf_noise1", "rlf_noise2", "rlf_noise3", "rlf_noise4"};
+    const size_t d = in.size();
+    std::vector<llvm::Type*> params(d, f32_);
+    params.push_back(ptr_);
+    llvm::FunctionCallee fnc =
+        module_.getOrInsertFunction(kNames[d - 1], llvm::FunctionType::get(f32_, params, false));
+    if (auto* fn = llvm::dyn_cast<llvm::Function>(fnc.getCallee())) {
+      fn->setDoesNotThrow();
+      fn->setWillReturn();
+      fn->setMemoryEffects(llvm::MemoryEffects::argMemOnly(llvm::ModRefInfo::Mod));
+    }
+    if (!gradient_) gradient_ = entryAlloca(llvm::ArrayType::get(f32_, 4), "grad");
+    std::vector<Value*> args;
+    for (size_t i = 0; i < d; ++i) args.push_back(offset != 0 ? b_.CreateFAdd(in[i].v, cf(offset * float(i + 1))) : in[i].v);
+    args.push_back(gradient_);
+    Dual r;
+    r.v = b_.CreateCall(fnc, args);
+    for (size_t i = 0; i < d; ++i) {
+      if (!in[i].du && !in[i].dv) continue;
+      Value* g = b_.CreateLoad(f32_, b_.CreateConstInBoundsGEP2_32(gradient_->getAllocatedType(), gradient_, 0, unsigned(i)));
+      r.du = lAdd(r.du, lMul(in[i].du, g));
+      r.dv = lAdd(r.dv, lMul(in[i].dv, g));
+    }
+    return r;
+  }
+
+  Val noiseOf(const std::vector<Val>& args, Type result, bool isSigned) {
+    std::vector<Dual> in;
+    for (const Val& a : args) {
+      if (a.type.isTriple())
+        for (int k = 0; k < 3; ++k) in.push_back(a.c[k]);
+      else
+        in.push_back(toFloatScalar(a).c[0]);
+    }
+    // Triple results: three decorrelated channels from shifted domains.
+    static constexpr float kChannelOffsets[3] = {0.0f, 37.719f, -61.137f};
+    Val r;
+    r.type = result;
+    for (int k = 0; k < numComponents(result); ++k) {
+      Dual n = noiseCall(in, kChannelOffsets[k]);
+      if (isSigned) n = dsub(dmul(n, dconst(2)), dconst(1));
+      r.c[k] = n;
+    }
+    return r;
+  }
+
+  Val fbm(const std::vector<Val>& args, bool turbulence) {
+    // Σ_{i<octaves} gain^i * snoise(p * lacunarity^i), as an IR loop over the octave count.
+    Val p = args[0];
+    Value* octaves = args[1].type.kind == TypeKind::Int ? args[1].c[0].v : floatToIntSafe(args[1].c[0].v);
+    Value* lac = args.size() > 2 ? toFloatScalar(args[2]).c[0].v : cf(2);
+    Value* gain = args.size() > 3 ? toFloatScalar(args[3]).c[0].v : cf(0.5f);
+    temps_.push_back(std::make_unique<VarDecl>());
+    temps_.back()->name = "fbm";
+    temps_.back()->type = Type(TypeKind::Float);
+    const Slot& sum = slotFor(temps_.back().get());
+    llvm::AllocaInst* amp = entryAlloca(f32_, "amp");
+    llvm::AllocaInst* freq = entryAlloca(f32_, "freq");
+    llvm::AllocaInst* i = entryAlloca(i32_, "octave");
+    store(sum, makeFloat(dconst(0)));
+    b_.CreateStore(cf(1), amp);
+    b_.CreateStore(cf(1), freq);
+    b_.CreateStore(ci(0), i);
+    llvm::BasicBlock* condB = newBlock("fbm.cond");
+    llvm::BasicBlock* bodyB = newBlock("fbm.body");
+    llvm::BasicBlock* endB = newBlock("fbm.end");
+    b_.CreateBr(condB);
+    b_.SetInsertPoint(condB);
+    // Octaves are capped so a wild parameter cannot stall the renderer.
+    Value* iv = b_.CreateLoad(i32_, i);
+    b_.CreateCondBr(b_.CreateAnd(b_.CreateICmpSLT(iv, octaves), b_.CreateICmpSLT(iv, ci(64))), bodyB, endB);
+    b_.SetInsertPoint(bodyB);
+    Value* a = b_.CreateLoad(f32_, amp);
+    Value* f = b_.CreateLoad(f32_, freq);
+    Val q = map(p.type, p, [&](Dual d) { return dmul(d, {f, nullptr, nullptr}); });
+    Dual n = noiseOf({q}, Type(TypeKind::Float), true).c[0];
+    if (turbulence) n = dabs(n);
+    store(sum, makeFloat(dadd(load(sum).c[0], dmul(n, {a, nullptr, nullptr}))));
+    b_.CreateStore(b_.CreateFMul(a, gain), amp);
+    b_.CreateStore(b_.CreateFMul(f, lac), freq);
+    b_.CreateStore(b_.CreateAdd(iv, ci(1)), i);
+    b_.CreateBr(condB);
+    b_.SetInsertPoint(endB);
+    return load(sum);
+  }
+
+  void displaceBy(const Val& offset) {
+    const Slot& pSlot = slotFor(globals_[size_t(GlobalId::P)]);
+    const Slot& nSlot = slotFor(globals_[size_t(GlobalId::N)]);
+    Val p = load(pSlot);
+    Val np = map2(p.type, p, convert(offset, p.type), [&](Dual x, Dual y) { return dadd(x, y); });
+    store(pSlot, np);
+    Val n = normalize3(calculateNormal(np));
+    n.type = Type(TypeKind::Normal);
+    store(nSlot, n);
+  }
+
+  Val genCall(const Expr& e) {
+    std::vector<Val> args;
+    for (const ExprPtr& a : e.operands) args.push_back(gen(*a));
+    const BuiltinId id = e.builtin->id;
+    const Type rt = e.type;
+    switch (e.builtin->shape) {
+      case BuiltinShape::UnaryT: {
+        if (id == BuiltinId::Atan && args.size() == 2) {
+          const Type t = bindT(args, false);
+          const Val y = convert(args[0], t), x = convert(args[1], t);
+          return map2(t, y, x, [&](Dual a, Dual b) {
+            // d atan2(y, x) = (x dy - y dx) / (x² + y²)
+            Value* r = libcall("atan2f", {a.v, b.v});
+            const Dual den = dadd(dmul(a, a), dmul(b, b));
+            Dual num = dsub(dmul(b, a), dmul(a, b));
+            Dual q = ddiv({cf(0), num.du, num.dv}, {den.v, nullptr, nullptr});
+            return Dual{r, q.du, q.dv};
+          });
+        }
+        if (rt.kind == TypeKind::Int) {
+          Value* x = args[0].c[0].v;
+          if (id == BuiltinId::Abs) return makeInt(b_.CreateSelect(b_.CreateICmpSLT(x, ci(0)), b_.CreateSub(ci(0), x), x));
+          return makeInt(b_.CreateSelect(b_.CreateICmpSGT(x, ci(0)), ci(1), b_.CreateSelect(b_.CreateICmpSLT(x, ci(0)), ci(-1), ci(0))));
+        }
+        return map(rt, convert(args[0], rt), [&](Dual x) { return unaryMath(id, x); });
+      }
+      case BuiltinShape::BinaryT: {
+        if (rt.kind == TypeKind::Int) return arith(Tok::Percent, args[0], args[1]);  // int mod
+        const Val a = convert(args[0], rt), b = convert(args[1], rt);
+        return map2(rt, a, b, [&](Dual x, Dual y) -> Dual {
+          if (id == BuiltinId::Step) return {b_.CreateSelect(b_.CreateFCmpOLT(y.v, x.v), cf(0), cf(1)), nullptr, nullptr};
+          return modDual(x, y, id == BuiltinId::Fmod);
+        });
+      }
+      case BuiltinShape::PowT: {
+        const Val a = convert(args[0], rt);
+        const Val b = args[1].type.isScalar() ? splat(rt, toFloatScalar(args[1]).c[0]) : convert(args[1], rt);
+        return map2(rt, a, b, [&](Dual x, Dual y) { return dpowSafe(x, y); });
+      }
+      case BuiltinShape::MinMax: {
+        Val r = convert(args[0], rt);
+        for (size_t i = 1; i < args.size(); ++i) {
+          const Val b = convert(args[i], rt);
+          if (rt.kind == TypeKind::Int) {
+            Value* less = b_.CreateICmpSLT(b.c[0].v, r.c[0].v);
+            r.c[0].v = id == BuiltinId::Min ? b_.CreateSelect(less, b.c[0].v, r.c[0].v) : b_.CreateSelect(less, r.c[0].v, b.c[0].v);
+          } else {
+            r = map2(rt, r, b, [&](Dual x, Dual y) { return id == BuiltinId::Min ? dmin(x, y) : dmax(x, y); });
+          }
+        }
+        return r;
+      }
+      case BuiltinShape::Clamp: {
+        const Val x = convert(args[0], rt), lo = convert(args[1], rt), hi = convert(args[2], rt);
+        if (rt.kind == TypeKind::Int) {
+          Value* v = b_.CreateSelect(b_.CreateICmpSLT(x.c[0].v, lo.c[0].v), lo.c[0].v, x.c[0].v);
+          return makeInt(b_.CreateSelect(b_.CreateICmpSGT(v, hi.c[0].v), hi.c[0].v, v));
+        }
+        Val r;
+        r.type = rt;
+        for (int k = 0; k < numComponents(rt); ++k) r.c[k] = dmin(dmax(x.c[k], lo.c[k]), hi.c[k]);
+        return r;
+      }
+      case BuiltinShape::Mix: {
+        const Val a = convert(args[0], rt), b = convert(args[1], rt);
+        const Val x = args[2].type.isScalar() ? splat(rt, toFloatScalar(args[2]).c[0]) : convert(args[2], rt);
+        Val r;
+        r.type = rt;
+        for (int k = 0; k < numComponents(rt); ++k)
+          r.c[k] = dadd(dmul(a.c[k], dsub(dconst(1), x.c[k])), dmul(b.c[k], x.c[k]));
+        return r;
+      }
+      case BuiltinShape::Smoothstep:
+      case BuiltinShape::Linearstep: {
+        const Type t = rt;
+        const Val e0 = convert(args[0], t), e1 = convert(args[1], t), x = convert(args[2], t);
+        Val r;
+        r.type = t;
+        for (int k = 0; k < numComponents(t); ++k) {
+          const Dual tt = dclamp01(ddiv(dsub(x.c[k], e0.c[k]), dsub(e1.c[k], e0.c[k])));
+          Dual s = e.builtin->shape == BuiltinShape::Linearstep ? tt : dmul(dmul(tt, tt), dsub(dconst(3), dmul(dconst(2), tt)));
+          // e0 >= e1 degenerates to step(e1, x).
+          Value* degenerate = b_.CreateFCmpOGE(e0.c[k].v, e1.c[k].v);
+          const Dual st{b_.CreateSelect(b_.CreateFCmpOLT(x.c[k].v, e1.c[k].v), cf(0), cf(1)), nullptr, nullptr};
+          r.c[k] = dselect(degenerate, st, s);
+        }
+        return r;
+      }
+      case BuiltinShape::Dot: return makeFloat(dot3(args[0], args[1]));
+      case BuiltinShape::Cross: return cross3(args[0], args[1]);
+      case BuiltinShape::Length: return makeFloat(dsqrtSafe(dot3(args[0], args[0])));
+      case BuiltinShape::Normalize: return normalize3(args[0]);
+      case BuiltinShape::Distance: {
+        Val d = map2(Type(TypeKind::Vector), args[0], args[1], [&](Dual x, Dual y) { return dsub(x, y); });
+        return makeFloat(dsqrtSafe(dot3(d, d)));
+      }
+      case BuiltinShape::Component:
+        return makeFloat(args[0].c[id == BuiltinId::Xcomp ? 0 : id == BuiltinId::Ycomp ? 1 : 2]);
+      case BuiltinShape::Deriv: {
+        Val a = args[0].type.isScalar() ? toFloatScalar(args[0]) : args[0];
+        return derivOf(a, id == BuiltinId::Du);
+      }
+      case BuiltinShape::CalcNormal: return calculateNormal(args[0]);
+      case BuiltinShape::Area: {
+        const Val du = load(slotFor(globals_[size_t(GlobalId::du)]));
+        const Val dv = load(slotFor(globals_[size_t(GlobalId::dv)]));
+        Val a = map(Type(TypeKind::Vector), derivOf(args[0], true), [&](Dual x) { return dmul(x, du.c[0]); });
+        Val b = map(Type(TypeKind::Vector), derivOf(args[0], false), [&](Dual x) { return dmul(x, dv.c[0]); });
+        Val c = cross3(a, b);
+        return makeFloat(dsqrtSafe(dot3(c, c)));
+      }
+      case BuiltinShape::Noise: return noiseOf(args, rt, id == BuiltinId::Snoise);
+      case BuiltinShape::FBm: return fbm(args, id == BuiltinId::Turbulence);
+      case BuiltinShape::Displace: {
+        if (args.size() == 1 && args[0].type.isTriple()) {
+          displaceBy(args[0]);
+        } else {
+          const Val n = normalize3(load(slotFor(globals_[size_t(GlobalId::N)])));
+          Dual amp = toFloatScalar(args.back()).c[0];
+          if (args.size() == 2) {
+            // Amplitude in `space` units: scale by the length of the unit normal seen there.
+            Val nn = n;
+            nn.type = Type(TypeKind::Normal);
+            const Val ns = fromCurrent(nn, e.operands[0]->text);
+            Dual len = dsqrtSafe(dot3(ns, ns));
+            // Guard the degenerate (singular) transform: a zero length would divide by 0.
+            amp = ddiv(amp, len);
+            amp = dselect(b_.CreateFCmpOEQ(len.v, cf(0)), dconst(0), amp);
+          }
+          displaceBy(map(Type(TypeKind::Vector), n, [&](Dual x) { return dmul(x, amp); }));
+        }
+        Val r;
+        r.type = Type(TypeKind::Void);
+        return r;
+      }
+      case BuiltinShape::FloatPred: {
+        Value* x = toFloatScalar(args[0]).c[0].v;
+        Value* a = intrinsic(llvm::Intrinsic::fabs, {x});
+        Value* r = id == BuiltinId::Isnan ? b_.CreateFCmpUNO(x, x)
+                   : id == BuiltinId::Isinf ? b_.CreateFCmpOEQ(a, cf(INFINITY))
+                                            : b_.CreateFCmpOLT(a, cf(INFINITY));
+        return boolToInt(r);
+      }
+    }
+    return zeroOf(Type(TypeKind::Float));
+  }
+
+  struct LoopTargets {
+    llvm::BasicBlock* breakTarget;
+    llvm::BasicBlock* continueTarget;
+  };
+
+  llvm::LLVMContext& ctx_;
+  llvm::Module& module_;
+  const ShaderDecl& shader_;
+  llvm::IRBuilder<> b_;
+  llvm::Type* f32_;
+  llvm::Type* i32_;
+  llvm::Type* i64_;
+  llvm::Type* i8_;
+  llvm::PointerType* ptr_;
+  llvm::Function* fn_ = nullptr;
+  std::map<const VarDecl*, uint32_t> paramOffsets_;
+  std::map<const VarDecl*, Slot> slots_;
+  std::vector<std::unique_ptr<VarDecl>> temps_;
+  const VarDecl* globals_[size_t(GlobalId::Count)] = {};
+  std::vector<LoopTargets> loops_;
+  llvm::BasicBlock* exitBlock_ = nullptr;
+  llvm::BasicBlock* abortBlock_ = nullptr;
+  llvm::AllocaInst* zeroCell_ = nullptr;
+  llvm::AllocaInst* nonFinite_ = nullptr;
+  llvm::AllocaInst* loopLimitHits_ = nullptr;
+  llvm::AllocaInst* loopCounter_ = nullptr;
+  llvm::AllocaInst* gradient_ = nullptr;
+  Value* spaces_ = nullptr;
+  Value* orientation_ = nullptr;
+};
+
+}  // namespace
+
+std::unique_ptr<llvm::Module> generateModule(const TranslationUnit& unit, llvm::LLVMContext& context,
+                                             std::vector<ShaderLayout>& layouts) {
+  auto module = std::make_unique<llvm::Module>(unit.fileName, context);
+  for (const auto& shader : unit.shaders) {
+    ShaderCodegen cg(*module, *shader);
+    cg.setGlobals(unit);
+    layouts.push_back(cg.generate());
+  }
+  return module;
+}
+
+}  // namespace relief::compiler

@@ -1,0 +1,146 @@
+// The compile pipeline: parse → type check → codegen → optimize → JIT → reflection (compiler.h).
+// Each stage runs only if no error was recorded before it.
+#include "compiler/compiler.h"
+
+#include <cstring>
+#include <sstream>
+
+#include <llvm/IR/LLVMContext.h>
+#include <llvm/IR/Module.h>
+
+#include "compiler/codegen.h"
+#include "compiler/jit.h"
+#include "compiler/lexer.h"
+#include "compiler/parser.h"
+#include "compiler/typecheck.h"
+
+namespace relief::compiler {
+
+namespace {
+
+MacroTable makeMacros(SourceManager& sm, DiagnosticsEngine& diags, const CompileOptions& options) {
+  std::vector<std::pair<std::string, std::string>> defs = {
+      {"__DISP__", "1"},          {"M_PI", "3.14159265358979323846"}, {"M_PI_2", "1.57079632679489661923"},
+      {"M_2PI", "6.28318530717958647692"}, {"M_E", "2.71828182845904523536"}, {"M_SQRT2", "1.41421356237309504880"}};
+  for (const auto& d : options.defines) defs.push_back(d);
+  MacroTable table;
+  for (const auto& [name, value] : defs) {
+    const auto id = sm.addBuffer("<command line>", value.empty() ? "1" : value);
+    std::vector<Token> toks = Lexer(sm, id, diags).lexAll();
+    toks.pop_back();  // Eof
+    table[name] = std::move(toks);
+  }
+  return table;
+}
+
+void compileBuffer(CompileResult& result, SourceManager::FileId file, const CompileOptions& options,
+                   const CompileFlags& flags) {
+  DiagnosticsEngine& diags = *result.diagnostics;
+  const MacroTable macros = makeMacros(*result.sources, diags, options);
+  Parser parser(*result.sources, file, diags, &macros);
+  std::unique_ptr<TranslationUnit> unit = parser.parseTranslationUnit();
+  typeCheck(*unit, diags);
+  if (unit->shaders.empty() && !diags.hasErrors())
+    diags.report(DiagId::ErrNoShader, SourceLoc{}).inFile(result.sources->name(file));
+  if (diags.hasErrors()) {
+    if (flags.keepAst) result.ast = std::move(unit);
+    return;
+  }
+
+  auto context = std::make_unique<llvm::LLVMContext>();
+  std::vector<ShaderLayout> layouts;
+  std::unique_ptr<llvm::Module> module = generateModule(*unit, *context, layouts);
+  if (flags.keepAst) result.ast = std::move(unit);
+  if (!optimizeModule(*module, options.optLevel, &result.internalError)) return;
+  if (flags.emitLlvm) result.llvmIr = moduleText(*module);
+  if (!flags.jit) return;
+
+  std::unique_ptr<ShaderJit> jit = ShaderJit::create(&result.internalError);
+  if (!jit) return;
+  if (!jit->addModule(std::move(module), std::move(context), &result.internalError)) return;
+  std::shared_ptr<ShaderJit> keepAlive(std::move(jit));
+  for (ShaderLayout& layout : layouts) {
+    void* entry = keepAlive->lookup(layout.entrySymbol, &result.internalError);
+    void* defaults = keepAlive->lookup(layout.defaultsSymbol, &result.internalError);
+    if (!entry || !defaults) return;
+    // Run the defaults function once to learn the default values (reflection).
+    std::vector<uint64_t> block((layout.blockSize + 7) / 8 + 1, 0);
+    reinterpret_cast<void (*)(void*)>(defaults)(block.data());
+    const auto* bytes = reinterpret_cast<const unsigned char*>(block.data());
+    for (runtime::ParamInfo& p : layout.params) {
+      if (p.type == runtime::ParamType::String) {
+        const char* s = nullptr;
+        std::memcpy(&s, bytes + p.offset, sizeof s);
+        p.defaultStrings.push_back(s ? s : "");
+        continue;
+      }
+      const int n = runtime::paramComponents(p.type);
+      for (int k = 0; k < n; ++k) {
+        if (p.type == runtime::ParamType::Int) {
+          int32_t v;
+          std::memcpy(&v, bytes + p.offset + 4 * k, 4);
+          p.defaultNumbers.push_back(float(v));
+        } else {
+          float v;
+          std::memcpy(&v, bytes + p.offset + 4 * k, 4);
+          p.defaultNumbers.push_back(v);
+        }
+      }
+    }
+    result.shaders.push_back(std::make_shared<runtime::CompiledShader>(
+        layout.name, reinterpret_cast<RlfShaderEntry>(entry), std::move(layout.params), layout.blockSize,
+        keepAlive));
+  }
+}
+
+CompileResult makeResult(const CompileOptions& options, const CompileFlags& flags) {
+  CompileResult r;
+  r.sources = std::make_shared<SourceManager>();
+  DiagnosticOptions dopts;
+  dopts.warningsAsErrors = options.warningsAsErrors;
+  dopts.noWarnings = options.noWarnings;
+  dopts.errorLimit = flags.errorLimit;
+  r.diagnostics = std::make_unique<DiagnosticsEngine>(dopts);
+  return r;
+}
+
+}  // namespace
+
+std::shared_ptr<const runtime::CompiledShader> CompileResult::find(std::string_view name) const {
+  for (const auto& s : shaders)
+    if (s->name() == name) return s;
+  return nullptr;
+}
+
+CompileResult compileSource(std::string name, std::string text, const CompileOptions& options,
+                            const CompileFlags& flags) {
+  CompileResult r = makeResult(options, flags);
+  const auto file = r.sources->addBuffer(std::move(name), std::move(text));
+  compileBuffer(r, file, options, flags);
+  return r;
+}
+
+CompileResult compileFile(const std::string& path, const CompileOptions& options, const CompileFlags& flags) {
+  CompileResult r = makeResult(options, flags);
+  SourceManager::FileId file = 0;
+  std::string error;
+  if (!r.sources->addFile(path, &file, &error)) {
+    r.ioError = true;
+    r.diagnostics->report(DiagId::ErrCannotOpen, SourceLoc{}).arg(error);
+    return r;
+  }
+  compileBuffer(r, file, options, flags);
+  return r;
+}
+
+std::string renderDiagnostics(const CompileResult& result, bool color) {
+  std::ostringstream out;
+  TextDiagnosticOptions opts;
+  opts.color = color;
+  renderAllText(out, *result.sources, *result.diagnostics, opts);
+  const std::string summary = summaryLine(result.diagnostics->numWarnings(), result.diagnostics->numErrors());
+  if (!summary.empty()) out << summary << '\n';
+  return out.str();
+}
+
+}  // namespace relief::compiler

@@ -1,0 +1,46 @@
+// Lower-level compile API (used by reliefc, ShaderLibrary and tests): one source file in, its
+// diagnostics and every shader it defines out, JIT-compiled. No LLVM here.
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "compiler/ast.h"
+#include "compiler/diagnostics.h"
+#include "compiler/shader_library.h"
+#include "compiler/source_manager.h"
+#include "runtime/shader.h"
+
+namespace relief::compiler {
+
+struct CompileFlags {
+  bool jit = true;         // false: stop after the optimized IR (reliefc --emit-llvm without --eval)
+  bool emitLlvm = false;   // keep the optimized IR text in CompileResult::llvmIr
+  bool keepAst = false;    // keep the checked AST in CompileResult::ast
+  unsigned errorLimit = 20;
+};
+
+struct CompileResult {
+  std::shared_ptr<SourceManager> sources;
+  std::unique_ptr<DiagnosticsEngine> diagnostics;
+  std::unique_ptr<TranslationUnit> ast;
+  std::string llvmIr;
+  // Every shader of the file, in source order; empty unless compilation succeeded.
+  std::vector<std::shared_ptr<const runtime::CompiledShader>> shaders;
+  bool ioError = false;       // the input could not be read (diagnostic recorded)
+  std::string internalError;  // LLVM/JIT failure: a compiler bug, not a user error
+
+  bool success() const { return !ioError && internalError.empty() && !diagnostics->hasErrors(); }
+  std::shared_ptr<const runtime::CompiledShader> find(std::string_view name) const;
+};
+
+CompileResult compileSource(std::string name, std::string text, const CompileOptions& options = {},
+                            const CompileFlags& flags = {});
+CompileResult compileFile(const std::string& path, const CompileOptions& options = {},
+                          const CompileFlags& flags = {});
+
+// All diagnostics, clang-style and sorted, followed by the summary line if there is anything to sum.
+std::string renderDiagnostics(const CompileResult& result, bool color = false);
+
+}  // namespace relief::compiler

@@ -1,0 +1,262 @@
+// Diagnostics engine and its text/JSON consumers (see diagnostics.h).
+#include "compiler/diagnostics.h"
+
+#include <algorithm>
+
+namespace relief::compiler {
+
+namespace {
+struct DiagInfo {
+  Severity severity;
+  const char* flag;
+  const char* format;
+};
+constexpr DiagInfo kDiagInfos[] = {
+#define DIAG(Id, Sev, Flag, Format) {Severity::Sev, Flag, Format},
+#include "compiler/diagnostic_kinds.def"
+};
+}  // namespace
+
+const char* DiagnosticsEngine::formatOf(DiagId id) { return kDiagInfos[size_t(id)].format; }
+Severity DiagnosticsEngine::defaultSeverity(DiagId id) { return kDiagInfos[size_t(id)].severity; }
+
+std::string DiagnosticsEngine::format(DiagId id, const std::vector<std::string>& args) {
+  std::string out;
+  for (const char* p = formatOf(id); *p; ++p) {
+    if (*p == '%' && p[1] >= '0' && p[1] <= '9') {
+      const size_t i = size_t(p[1] - '0');
+      if (i < args.size()) out += args[i];
+      ++p;
+    } else {
+      out += *p;
+    }
+  }
+  return out;
+}
+
+DiagnosticsEngine::Builder::Builder(DiagnosticsEngine* engine, DiagId id, SourceLoc loc)
+    : engine_(engine), id_(id), loc_(loc) {}
+
+DiagnosticsEngine::Builder::Builder(Builder&& other) noexcept
+    : engine_(other.engine_),
+      id_(other.id_),
+      loc_(other.loc_),
+      args_(std::move(other.args_)),
+      ranges_(std::move(other.ranges_)),
+      notes_(std::move(other.notes_)),
+      file_(std::move(other.file_)) {
+  other.engine_ = nullptr;
+}
+
+DiagnosticsEngine::Builder& DiagnosticsEngine::Builder::note(DiagId id, SourceLoc loc,
+                                                              SourceRange r) {
+  Diagnostic n;
+  n.id = id;
+  n.severity = Severity::Note;
+  n.loc = loc;
+  if (r.isValid()) n.ranges.push_back(r);
+  n.message = format(id, {});
+  notes_.push_back(std::move(n));
+  return *this;
+}
+
+DiagnosticsEngine::Builder::~Builder() {
+  if (!engine_) return;
+  Diagnostic d;
+  d.id = id_;
+  d.severity = defaultSeverity(id_);
+  d.loc = loc_;
+  d.ranges = std::move(ranges_);
+  d.message = format(id_, args_);
+  d.flag = kDiagInfos[size_t(id_)].flag;
+  d.notes = std::move(notes_);
+  d.file = std::move(file_);
+  engine_->record(std::move(d));
+}
+
+void DiagnosticsEngine::record(Diagnostic d) {
+  if (limitReached_) return;
+  if (d.severity == Severity::Warning) {
+    if (options_.noWarnings) return;
+    if (options_.warningsAsErrors) d.severity = Severity::Error;
+  }
+  if (d.severity >= Severity::Error) {
+    if (options_.errorLimit && numErrors_ >= options_.errorLimit) {
+      limitReached_ = true;
+      Diagnostic fatal;
+      fatal.id = DiagId::FatalTooManyErrors;
+      fatal.severity = Severity::Fatal;
+      fatal.message = format(fatal.id, {});
+      fatal.order = uint32_t(diags_.size());
+      diags_.push_back(std::move(fatal));
+      ++numErrors_;
+      return;
+    }
+    ++numErrors_;
+  } else if (d.severity == Severity::Warning) {
+    ++numWarnings_;
+  }
+  d.order = uint32_t(diags_.size());
+  diags_.push_back(std::move(d));
+}
+
+std::vector<Diagnostic> DiagnosticsEngine::sorted() const {
+  std::vector<Diagnostic> out = diags_;
+  auto key = [](const Diagnostic& d) {
+    // The error-limit notice closes the list wherever it was raised.
+    return d.id == DiagId::FatalTooManyErrors ? UINT32_MAX : d.loc.offset;
+  };
+  std::stable_sort(out.begin(), out.end(), [&](const Diagnostic& a, const Diagnostic& b) {
+    return key(a) < key(b);
+  });
+  return out;
+}
+
+namespace {
+const char* severityName(Severity s) {
+  switch (s) {
+    case Severity::Note: return "note";
+    case Severity::Warning: return "warning";
+    case Severity::Error: return "error";
+    case Severity::Fatal: return "fatal error";
+  }
+  return "error";
+}
+const char* severityColor(Severity s) {
+  switch (s) {
+    case Severity::Note: return "\033[1;30m";
+    case Severity::Warning: return "\033[1;35m";
+    default: return "\033[1;31m";
+  }
+}
+constexpr const char* kBold = "\033[1m";
+constexpr const char* kGreen = "\033[1;32m";
+constexpr const char* kReset = "\033[0m";
+
+void renderOne(std::ostream& out, const SourceManager& sm, const Diagnostic& d,
+               const TextDiagnosticOptions& opt) {
+  const PresumedLoc p = sm.presumed(d.loc);
+  if (opt.color) out << kBold;
+  if (p.isValid())
+    out << p.file << ':' << p.line << ':' << p.column << ": ";
+  else if (!d.file.empty())
+    out << d.file << ": ";
+  if (opt.color) out << severityColor(d.severity);
+  out << severityName(d.severity) << ": ";
+  if (opt.color) out << kReset << kBold;
+  out << d.message;
+  if (!d.flag.empty() && d.severity != Severity::Note) {
+    out << " [-W";
+    if (d.severity == Severity::Error) out << "error,";
+    out << d.flag << ']';
+  }
+  if (opt.color) out << kReset;
+  out << '\n';
+  if (!p.isValid()) return;
+
+  const std::string_view line = sm.lineText(d.loc);
+  out << line << '\n';
+  // Column arithmetic in bytes of this line; ranges on other lines are not drawn.
+  const uint32_t lineStart = d.loc.offset - (p.column - 1);
+  const uint32_t lineEnd = lineStart + uint32_t(line.size());
+  std::string caret(line.size() + 1, ' ');
+  for (const SourceRange& r : d.ranges) {
+    uint32_t b = std::max(r.begin.offset, lineStart);
+    uint32_t e = std::min(r.end.offset, lineEnd);
+    if (sm.fileOf(r.begin) != sm.fileOf(d.loc)) continue;
+    for (uint32_t o = b; o < e; ++o) caret[o - lineStart] = '~';
+  }
+  caret[p.column - 1] = '^';
+  for (size_t i = 0; i < line.size() && i < caret.size(); ++i)
+    if (line[i] == '\t' && caret[i] == ' ') caret[i] = '\t';
+  while (!caret.empty() && (caret.back() == ' ' || caret.back() == '\t')) caret.pop_back();
+  if (opt.color) out << kGreen;
+  out << caret;
+  if (opt.color) out << kReset;
+  out << '\n';
+}
+
+void jsonString(std::ostream& out, std::string_view s) {
+  out << '"';
+  for (char c : s) {
+    switch (c) {
+      case '"': out << "\\\""; break;
+      case '\\': out << "\\\\"; break;
+      case '\n': out << "\\n"; break;
+      case '\t': out << "\\t"; break;
+      default:
+        if (static_cast<unsigned char>(c) < 0x20) {
+          static const char* hex = "0123456789abcdef";
+          out << "\\u00" << hex[(c >> 4) & 15] << hex[c & 15];
+        } else {
+          out << c;
+        }
+    }
+  }
+  out << '"';
+}
+
+void jsonBody(std::ostream& out, const SourceManager& sm, const Diagnostic& d) {
+  const PresumedLoc p = sm.presumed(d.loc);
+  out << "{\"severity\":\"" << severityName(d.severity) << "\"";
+  if (p.isValid()) {
+    out << ",\"file\":";
+    jsonString(out, p.file);
+    out << ",\"line\":" << p.line << ",\"column\":" << p.column;
+  } else if (!d.file.empty()) {
+    out << ",\"file\":";
+    jsonString(out, d.file);
+  }
+  out << ",\"message\":";
+  jsonString(out, d.message);
+  if (!d.flag.empty()) out << ",\"flag\":\"-W" << d.flag << "\"";
+  if (!d.ranges.empty()) {
+    out << ",\"ranges\":[";
+    for (size_t i = 0; i < d.ranges.size(); ++i) {
+      const PresumedLoc b = sm.presumed(d.ranges[i].begin);
+      const PresumedLoc e = sm.presumed(d.ranges[i].end);
+      out << (i ? "," : "") << "{\"begin\":[" << b.line << ',' << b.column << "],\"end\":["
+          << e.line << ',' << e.column << "]}";
+    }
+    out << ']';
+  }
+  if (!d.notes.empty()) {
+    out << ",\"notes\":[";
+    for (size_t i = 0; i < d.notes.size(); ++i) {
+      if (i) out << ',';
+      jsonBody(out, sm, d.notes[i]);
+    }
+    out << ']';
+  }
+  out << '}';
+}
+}  // namespace
+
+void renderText(std::ostream& out, const SourceManager& sm, const Diagnostic& d,
+                const TextDiagnosticOptions& options) {
+  renderOne(out, sm, d, options);
+  for (const Diagnostic& n : d.notes) renderOne(out, sm, n, options);
+}
+
+void renderAllText(std::ostream& out, const SourceManager& sm, const DiagnosticsEngine& engine,
+                   const TextDiagnosticOptions& options) {
+  for (const Diagnostic& d : engine.sorted()) renderText(out, sm, d, options);
+}
+
+std::string summaryLine(unsigned numWarnings, unsigned numErrors) {
+  auto plural = [](unsigned n, const char* word) {
+    return std::to_string(n) + " " + word + (n == 1 ? "" : "s");
+  };
+  if (numWarnings && numErrors)
+    return plural(numWarnings, "warning") + " and " + plural(numErrors, "error") + " generated.";
+  if (numWarnings) return plural(numWarnings, "warning") + " generated.";
+  if (numErrors) return plural(numErrors, "error") + " generated.";
+  return {};
+}
+
+void renderJson(std::ostream& out, const SourceManager& sm, const Diagnostic& d) {
+  jsonBody(out, sm, d);
+  out << '\n';
+}
+
+}  // namespace relief::compiler

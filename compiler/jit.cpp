@@ -1,0 +1,137 @@
+// ORC LLJIT wrapper and the optimization pipeline (see jit.h).
+#include "compiler/jit.h"
+
+#include <mutex>
+
+#include <llvm/ExecutionEngine/Orc/LLJIT.h>
+#include <llvm/ExecutionEngine/Orc/ThreadSafeModule.h>
+#include <llvm/IR/LLVMContext.h>
+#include <llvm/IR/Module.h>
+#include <llvm/IR/Verifier.h>
+#include <llvm/Passes/PassBuilder.h>
+#include <llvm/Support/TargetSelect.h>
+#include <llvm/Support/raw_ostream.h>
+#include <llvm/Target/TargetMachine.h>
+
+#include "compiler/builtins.h"
+
+namespace relief::compiler {
+
+namespace {
+void initializeLlvm() {
+  static std::once_flag once;
+  std::call_once(once, [] {
+    llvm::InitializeNativeTarget();
+    llvm::InitializeNativeTargetAsmPrinter();
+  });
+}
+
+std::string errorText(llvm::Error e) { return llvm::toString(std::move(e)); }
+}  // namespace
+
+bool optimizeModule(llvm::Module& module, int optLevel, std::string* error) {
+  initializeLlvm();
+  auto jtmb = llvm::orc::JITTargetMachineBuilder::detectHost();
+  if (!jtmb) {
+    *error = errorText(jtmb.takeError());
+    return false;
+  }
+  auto tm = jtmb->createTargetMachine();
+  if (!tm) {
+    *error = errorText(tm.takeError());
+    return false;
+  }
+  module.setDataLayout((*tm)->createDataLayout());
+  module.setTargetTriple((*tm)->getTargetTriple().str());
+
+  std::string verifyMessage;
+  llvm::raw_string_ostream vs(verifyMessage);
+  if (llvm::verifyModule(module, &vs)) {
+    *error = "generated invalid LLVM IR: " + vs.str();
+    return false;
+  }
+
+  llvm::LoopAnalysisManager lam;
+  llvm::FunctionAnalysisManager fam;
+  llvm::CGSCCAnalysisManager cgam;
+  llvm::ModuleAnalysisManager mam;
+  llvm::PassBuilder pb(tm->get());
+  pb.registerModuleAnalyses(mam);
+  pb.registerCGSCCAnalyses(cgam);
+  pb.registerFunctionAnalyses(fam);
+  pb.registerLoopAnalyses(lam);
+  pb.crossRegisterProxies(lam, fam, cgam, mam);
+  const llvm::OptimizationLevel level = optLevel <= 0   ? llvm::OptimizationLevel::O0
+                                        : optLevel == 1 ? llvm::OptimizationLevel::O1
+                                        : optLevel == 2 ? llvm::OptimizationLevel::O2
+                                                        : llvm::OptimizationLevel::O3;
+  llvm::ModulePassManager mpm = level == llvm::OptimizationLevel::O0
+                                    ? pb.buildO0DefaultPipeline(level)
+                                    : pb.buildPerModuleDefaultPipeline(level);
+  mpm.run(module, mam);
+  return true;
+}
+
+std::string moduleText(const llvm::Module& module) {
+  std::string text;
+  llvm::raw_string_ostream os(text);
+  module.print(os, nullptr);
+  return os.str();
+}
+
+struct ShaderJit::Impl {
+  std::unique_ptr<llvm::orc::LLJIT> jit;
+};
+
+ShaderJit::ShaderJit(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+ShaderJit::~ShaderJit() = default;
+
+std::unique_ptr<ShaderJit> ShaderJit::create(std::string* error) {
+  initializeLlvm();
+  auto jtmb = llvm::orc::JITTargetMachineBuilder::detectHost();
+  if (!jtmb) {
+    *error = errorText(jtmb.takeError());
+    return nullptr;
+  }
+  // No process symbols and no platform runtime: generated code may call only what we register.
+  auto jit = llvm::orc::LLJITBuilder()
+                 .setJITTargetMachineBuilder(std::move(*jtmb))
+                 .setLinkProcessSymbolsByDefault(false)
+                 .setPlatformSetUp(llvm::orc::setUpInactivePlatform)
+                 .create();
+  if (!jit) {
+    *error = errorText(jit.takeError());
+    return nullptr;
+  }
+  llvm::orc::SymbolMap symbols;
+  for (const RuntimeSymbol& s : runtimeSymbols())
+    symbols[(*jit)->mangleAndIntern(s.name)] = {llvm::orc::ExecutorAddr::fromPtr(s.address),
+                                                llvm::JITSymbolFlags::Exported | llvm::JITSymbolFlags::Callable};
+  if (llvm::Error e = (*jit)->getMainJITDylib().define(llvm::orc::absoluteSymbols(std::move(symbols)))) {
+    *error = errorText(std::move(e));
+    return nullptr;
+  }
+  auto impl = std::make_unique<Impl>();
+  impl->jit = std::move(*jit);
+  return std::unique_ptr<ShaderJit>(new ShaderJit(std::move(impl)));
+}
+
+bool ShaderJit::addModule(std::unique_ptr<llvm::Module> module, std::unique_ptr<llvm::LLVMContext> context,
+                          std::string* error) {
+  if (llvm::Error e = impl_->jit->addIRModule(llvm::orc::ThreadSafeModule(std::move(module), std::move(context)))) {
+    *error = errorText(std::move(e));
+    return false;
+  }
+  return true;
+}
+
+void* ShaderJit::lookup(const std::string& name, std::string* error) {
+  auto addr = impl_->jit->lookup(name);
+  if (!addr) {
+    *error = errorText(addr.takeError());
+    return nullptr;
+  }
+  return addr->toPtr<void*>();
+}
+
+}  // namespace relief::compiler

@@ -1,0 +1,38 @@
+// Lexer of .disp source (language.md §1): comments, identifiers/keywords, numbers, strings,
+// punctuators. Reports lexical errors to the diagnostics engine and keeps going.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "compiler/diagnostics.h"
+#include "compiler/source_manager.h"
+#include "compiler/token.h"
+
+namespace relief::compiler {
+
+class Lexer {
+ public:
+  Lexer(const SourceManager& sm, SourceManager::FileId file, DiagnosticsEngine& diags);
+  Token next();
+  // Lexes the whole buffer; the last token is Eof.
+  std::vector<Token> lexAll();
+  // Decoded contents of a string literal token (escapes resolved; bad escapes already reported).
+  static std::string stringValue(const Token& token);
+
+ private:
+  void skipWhitespaceAndComments();
+  Token make(Tok kind, const char* start);
+  Token lexNumber(const char* start);
+  Token lexString(const char* start);
+  SourceLoc locOf(const char* p) const { return base_.advanced(uint32_t(p - begin_)); }
+
+  DiagnosticsEngine& diags_;
+  const char* begin_;
+  const char* cur_;
+  const char* end_;
+  SourceLoc base_;
+  bool atLineStart_ = true;
+};
+
+}  // namespace relief::compiler

@@ -1,0 +1,751 @@
+// Parser implementation (see parser.h). Each parse function carries its production. On a syntax
+// error a function reports once and returns null; statement and top-level loops resynchronize.
+#include "compiler/parser.h"
+
+#include "compiler/lexer.h"
+
+namespace relief::compiler {
+
+namespace {
+// Binary operator precedence, higher binds tighter (language.md §4.1 rows 3..10); 0: not binary.
+int binaryPrecedence(Tok k) {
+  switch (k) {
+    case Tok::Dot: return 9;
+    case Tok::Star:
+    case Tok::Slash:
+    case Tok::Percent: return 8;
+    case Tok::Caret: return 7;
+    case Tok::Plus:
+    case Tok::Minus: return 6;
+    case Tok::Less:
+    case Tok::LessEq:
+    case Tok::Greater:
+    case Tok::GreaterEq: return 5;
+    case Tok::EqEq:
+    case Tok::NotEq: return 4;
+    case Tok::AmpAmp: return 3;
+    case Tok::PipePipe: return 2;
+    default: return 0;
+  }
+}
+bool isAssignOp(Tok k) {
+  return k == Tok::Assign || k == Tok::PlusAssign || k == Tok::MinusAssign ||
+         k == Tok::StarAssign || k == Tok::SlashAssign || k == Tok::PercentAssign;
+}
+SourceRange join(SourceLoc b, SourceLoc e) { return {b, e}; }
+}  // namespace
+
+Parser::Parser(const SourceManager& sm, SourceManager::FileId file, DiagnosticsEngine& diags,
+               const MacroTable* macros)
+    : sm_(sm), diags_(diags) {
+  Lexer lexer(sm, file, diags);
+  std::vector<Token> raw = lexer.lexAll();
+  if (!macros || macros->empty()) {
+    toks_ = std::move(raw);
+  } else {
+    // Expanded tokens sit at the macro use (language.md §1.1); one level, no recursion.
+    for (const Token& t : raw) {
+      auto it = t.is(Tok::Identifier) ? macros->find(std::string(t.text)) : macros->end();
+      if (it == macros->end()) {
+        toks_.push_back(t);
+        continue;
+      }
+      for (Token r : it->second) {
+        r.loc = t.loc;
+        r.length = t.length;
+        toks_.push_back(r);
+      }
+    }
+  }
+  unit_ = std::make_unique<TranslationUnit>();
+  unit_->fileName = sm.name(file);
+}
+
+bool Parser::accept(Tok k) {
+  if (!tok().is(k)) return false;
+  consume();
+  return true;
+}
+
+bool Parser::expectAfterPrev(Tok k, const char* context) {
+  if (accept(k)) return true;
+  const SourceLoc at = pos_ ? prev().end() : tok().loc;
+  if (context)
+    diags_.report(DiagId::ErrExpectedAfter, at).arg(tokDescription(k)).arg(context);
+  else
+    diags_.report(DiagId::ErrExpected, at).arg(tokDescription(k));
+  return false;
+}
+
+bool Parser::expectClosing(Tok k, const Token& opener) {
+  if (accept(k)) return true;
+  const SourceLoc at = pos_ ? prev().end() : tok().loc;
+  diags_.report(DiagId::ErrExpected, at)
+      .arg(tokDescription(k))
+      .note(DiagId::NoteToMatch, opener.loc)
+      .arg(tokSpelling(opener.kind));
+  return false;
+}
+
+void Parser::errorExpectedExpression() {
+  if (tok().is(Tok::ReservedWord) || tok().is(Tok::ShaderKindWord))
+    diags_.report(DiagId::ErrReservedWord, tok().loc).arg(tok().text).range(tok().range());
+  else
+    diags_.report(DiagId::ErrExpectedExpression, tok().loc).range(tok().range());
+}
+
+// Skips to just after the next ';' at this nesting level, or to (not past) a '}' closing the
+// current block or a top-level keyword; nested braces are skipped whole.
+void Parser::syncStatement() {
+  int depth = 0;
+  while (!tok().is(Tok::Eof)) {
+    if (tok().is(Tok::LBrace)) {
+      ++depth;
+    } else if (tok().is(Tok::RBrace)) {
+      if (depth == 0) return;
+      --depth;
+      if (depth == 0) {
+        consume();
+        return;
+      }
+    } else if (tok().is(Tok::Semi) && depth == 0) {
+      consume();
+      return;
+    } else if (tok().is(Tok::KwDisplacement) || tok().is(Tok::ShaderKindWord)) {
+      return;
+    }
+    consume();
+  }
+}
+
+void Parser::syncTopLevel() {
+  while (!tok().is(Tok::Eof) && !tok().is(Tok::KwDisplacement) && !tok().is(Tok::ShaderKindWord))
+    consume();
+}
+
+bool Parser::isTypeKeyword(Tok k) const {
+  switch (k) {
+    case Tok::KwFloat:
+    case Tok::KwInt:
+    case Tok::KwPoint:
+    case Tok::KwVector:
+    case Tok::KwNormal:
+    case Tok::KwColor:
+    case Tok::KwMatrix:
+    case Tok::KwString: return true;
+    default: return false;
+  }
+}
+
+TypeKind Parser::typeOf(Tok k) const {
+  switch (k) {
+    case Tok::KwFloat: return TypeKind::Float;
+    case Tok::KwInt: return TypeKind::Int;
+    case Tok::KwPoint: return TypeKind::Point;
+    case Tok::KwVector: return TypeKind::Vector;
+    case Tok::KwNormal: return TypeKind::Normal;
+    case Tok::KwColor: return TypeKind::Color;
+    case Tok::KwMatrix: return TypeKind::Matrix;
+    case Tok::KwString: return TypeKind::String;
+    case Tok::KwVoid: return TypeKind::Void;
+    default: return TypeKind::Error;
+  }
+}
+
+bool Parser::startsDeclaration() const {
+  if (tok().is(Tok::KwUniform) || tok().is(Tok::KwVarying)) return true;
+  return isTypeKeyword(tok().kind) && peek().is(Tok::Identifier);
+}
+
+// file := { shader | function }
+std::unique_ptr<TranslationUnit> Parser::parseTranslationUnit() {
+  while (!tok().is(Tok::Eof)) {
+    if (tok().is(Tok::KwDisplacement)) {
+      parseShader();
+    } else if (tok().is(Tok::ShaderKindWord)) {
+      diags_.report(DiagId::ErrOnlyDisplacement, tok().loc).arg(tok().text).range(tok().range());
+      consume();
+      syncTopLevel();
+    } else if ((isTypeKeyword(tok().kind) || tok().is(Tok::KwVoid)) && peek().is(Tok::Identifier)) {
+      parseUnsupportedFunction();
+    } else {
+      diags_.report(DiagId::ErrExpectedTopLevel, tok().loc).range(tok().range());
+      consume();
+      syncTopLevel();
+    }
+  }
+  return std::move(unit_);
+}
+
+// function := (type | "void") IDENT "(" [formals] ")" block   (parsed, then rejected for now)
+void Parser::parseUnsupportedFunction() {
+  consume();
+  const Token name = consume();
+  diags_.report(DiagId::ErrUnsupported, name.loc).arg("user-defined function").range(name.range());
+  // Skip the signature and the body as a whole.
+  while (!tok().is(Tok::Eof) && !tok().is(Tok::LBrace) && !tok().is(Tok::KwDisplacement)) consume();
+  if (tok().is(Tok::LBrace)) {
+    int depth = 0;
+    do {
+      if (tok().is(Tok::LBrace)) ++depth;
+      if (tok().is(Tok::RBrace)) --depth;
+      consume();
+    } while (depth > 0 && !tok().is(Tok::Eof));
+  }
+}
+
+// shader := "displacement" IDENT "(" [formals] ")" block
+void Parser::parseShader() {
+  auto shader = std::make_unique<ShaderDecl>();
+  shader->keywordLoc = consume().loc;
+  if (!tok().is(Tok::Identifier)) {
+    diags_.report(DiagId::ErrExpectedAfter, pos_ ? prev().end() : tok().loc)
+        .arg("shader name")
+        .arg("'displacement'");
+    syncTopLevel();
+    return;
+  }
+  const Token name = consume();
+  shader->name = std::string(name.text);
+  shader->nameRange = name.range();
+  if (!tok().is(Tok::LParen)) {
+    expectAfterPrev(Tok::LParen, "shader name");
+    syncTopLevel();
+    return;
+  }
+  const Token open = consume();
+  if (!tok().is(Tok::RParen)) {
+    if (!parseFormals(shader->params)) {
+      // Skip to the body so its errors are still found.
+      while (!tok().is(Tok::Eof) && !tok().is(Tok::LBrace) && !tok().is(Tok::KwDisplacement))
+        consume();
+      if (!tok().is(Tok::LBrace)) return;
+      shader->body = parseBlock();
+      return;  // not added: the signature is broken
+    }
+  }
+  if (!expectClosing(Tok::RParen, open)) {
+    while (!tok().is(Tok::Eof) && !tok().is(Tok::LBrace) && !tok().is(Tok::KwDisplacement))
+      consume();
+  }
+  if (!tok().is(Tok::LBrace)) {
+    expectAfterPrev(Tok::LBrace);
+    syncTopLevel();
+    return;
+  }
+  shader->body = parseBlock();
+  unit_->shaders.push_back(std::move(shader));
+}
+
+// formals := group { (";" | ",") group } [";"]
+// group   := ["output"] ["uniform"|"varying"] type decltor { "," decltor }
+bool Parser::parseFormals(std::vector<std::unique_ptr<VarDecl>>& params) {
+  for (;;) {
+    const bool isOutput = accept(Tok::KwOutput);
+    bool isUniform = false;
+    if (tok().is(Tok::KwUniform)) {
+      isUniform = true;
+      consume();
+    } else {
+      accept(Tok::KwVarying);
+    }
+    if (!isTypeKeyword(tok().kind)) {
+      diags_.report(DiagId::ErrExpectedType, tok().loc).range(tok().range());
+      return false;
+    }
+    const Type type(typeOf(consume().kind));
+    if (!parseDeclarators(params, type, isOutput, isUniform, Storage::Parameter)) return false;
+    if (tok().is(Tok::Semi)) {
+      consume();
+      if (tok().is(Tok::RParen)) return true;
+      continue;
+    }
+    if (tok().is(Tok::Comma)) {  // `, type` starts a new group (OSL style)
+      consume();
+      continue;
+    }
+    return true;
+  }
+}
+
+// decltor := IDENT ["[" [int-const] "]"] ["=" init]; a ',' followed by an identifier continues.
+bool Parser::parseDeclarators(std::vector<std::unique_ptr<VarDecl>>& out, Type type, bool isOutput,
+                              bool isUniform, Storage storage) {
+  for (;;) {
+    if (!tok().is(Tok::Identifier)) {
+      if (tok().is(Tok::ReservedWord) || tok().is(Tok::ShaderKindWord))
+        diags_.report(DiagId::ErrReservedWord, tok().loc).arg(tok().text).range(tok().range());
+      else
+        diags_.report(DiagId::ErrExpected, tok().loc).arg("identifier").range(tok().range());
+      return false;
+    }
+    const Token name = consume();
+    auto decl = std::make_unique<VarDecl>();
+    decl->name = std::string(name.text);
+    decl->nameRange = name.range();
+    decl->type = type;
+    decl->isOutput = isOutput;
+    decl->isUniform = isUniform;
+    decl->storage = storage;
+    if (tok().is(Tok::LBracket)) {
+      diags_.report(DiagId::ErrUnsupported, tok().loc).arg("array").range(tok().range());
+      return false;
+    }
+    if (accept(Tok::Assign)) {
+      if (tok().is(Tok::LBrace)) {
+        diags_.report(DiagId::ErrUnsupported, tok().loc).arg("array initializer");
+        return false;
+      }
+      decl->init = parseAssignment();
+      if (!decl->init) return false;
+    }
+    out.push_back(std::move(decl));
+    if (tok().is(Tok::Comma) && peek().is(Tok::Identifier)) {
+      consume();
+      continue;
+    }
+    return true;
+  }
+}
+
+// stmt := block | decl ";" | expr ";" | ";" | if | while | do | for | break | continue | return
+StmtPtr Parser::parseStatement() {
+  const Token& t = tok();
+  switch (t.kind) {
+    case Tok::LBrace: return parseBlock();
+    case Tok::KwIf: return parseIf();
+    case Tok::KwWhile: return parseWhile();
+    case Tok::KwDo: return parseDoWhile();
+    case Tok::KwFor: return parseFor();
+    case Tok::KwReturn: return parseReturn();
+    case Tok::KwBreak:
+    case Tok::KwContinue: {
+      const Token kw = consume();
+      auto s = std::make_unique<Stmt>(kw.is(Tok::KwBreak) ? StmtKind::Break : StmtKind::Continue,
+                                      kw.range());
+      if (!expectAfterPrev(Tok::Semi, kw.is(Tok::KwBreak) ? "'break'" : "'continue'")) return nullptr;
+      return s;
+    }
+    case Tok::Semi: {
+      const Token semi = consume();
+      return std::make_unique<Stmt>(StmtKind::Empty, semi.range());
+    }
+    case Tok::KwExtern:
+      diags_.report(DiagId::ErrUnsupported, t.loc).arg("'extern'").range(t.range());
+      return nullptr;
+    default: break;
+  }
+  if (startsDeclaration()) {
+    if (peek(2).is(Tok::LParen) && isTypeKeyword(t.kind)) {
+      diags_.report(DiagId::ErrUnsupported, peek().loc).arg("user-defined function").range(peek().range());
+      return nullptr;
+    }
+    auto s = parseDeclaration();
+    if (!s) return nullptr;
+    if (!expectAfterPrev(Tok::Semi, "declaration")) return nullptr;
+    s->range.end = prev().end();
+    return s;
+  }
+  const SourceLoc start = t.loc;
+  ExprPtr e = parseExpression();
+  if (!e) return nullptr;
+  if (!expectAfterPrev(Tok::Semi, "expression")) return nullptr;
+  auto s = std::make_unique<Stmt>(StmtKind::ExprStmt, join(start, prev().end()));
+  s->expr = std::move(e);
+  return s;
+}
+
+// block := "{" { stmt } "}"
+StmtPtr Parser::parseBlock() {
+  const Token open = consume();
+  auto block = std::make_unique<Stmt>(StmtKind::Block, open.range());
+  while (!tok().is(Tok::RBrace) && !tok().is(Tok::Eof) && !tok().is(Tok::KwDisplacement) &&
+         !tok().is(Tok::ShaderKindWord)) {
+    const size_t before = pos_;
+    StmtPtr s = parseStatement();
+    if (s) {
+      block->stmts.push_back(std::move(s));
+    } else {
+      syncStatement();
+      if (pos_ == before) consume();  // always make progress
+    }
+  }
+  expectClosing(Tok::RBrace, open);
+  block->range.end = prev().end();
+  return block;
+}
+
+// decl := ["uniform"|"varying"] type decltor { "," decltor }
+StmtPtr Parser::parseDeclaration() {
+  const SourceLoc start = tok().loc;
+  bool isUniform = false;
+  if (tok().is(Tok::KwUniform)) {
+    isUniform = true;
+    consume();
+  } else {
+    accept(Tok::KwVarying);
+  }
+  if (!isTypeKeyword(tok().kind)) {
+    diags_.report(DiagId::ErrExpectedType, tok().loc).range(tok().range());
+    return nullptr;
+  }
+  const Type type(typeOf(consume().kind));
+  auto s = std::make_unique<Stmt>(StmtKind::Decl, join(start, prev().end()));
+  if (!parseDeclarators(s->decls, type, false, isUniform, Storage::Local)) return nullptr;
+  s->range.end = prev().end();
+  return s;
+}
+
+// if := "if" "(" expr ")" stmt ["else" stmt]
+StmtPtr Parser::parseIf() {
+  const Token kw = consume();
+  auto s = std::make_unique<Stmt>(StmtKind::If, kw.range());
+  if (!tok().is(Tok::LParen)) {
+    expectAfterPrev(Tok::LParen, "'if'");
+    return nullptr;
+  }
+  const Token open = consume();
+  s->cond = parseExpression();
+  if (!s->cond || !expectClosing(Tok::RParen, open)) return nullptr;
+  s->then = parseStatement();
+  if (!s->then) return nullptr;
+  if (accept(Tok::KwElse)) {
+    s->otherwise = parseStatement();
+    if (!s->otherwise) return nullptr;
+  }
+  s->range.end = prev().end();
+  return s;
+}
+
+// while := "while" "(" expr ")" stmt
+StmtPtr Parser::parseWhile() {
+  const Token kw = consume();
+  auto s = std::make_unique<Stmt>(StmtKind::While, kw.range());
+  if (!tok().is(Tok::LParen)) {
+    expectAfterPrev(Tok::LParen, "'while'");
+    return nullptr;
+  }
+  const Token open = consume();
+  s->cond = parseExpression();
+  if (!s->cond || !expectClosing(Tok::RParen, open)) return nullptr;
+  s->body = parseStatement();
+  if (!s->body) return nullptr;
+  s->range.end = prev().end();
+  return s;
+}
+
+// do := "do" stmt "while" "(" expr ")" ";"
+StmtPtr Parser::parseDoWhile() {
+  const Token kw = consume();
+  auto s = std::make_unique<Stmt>(StmtKind::DoWhile, kw.range());
+  s->body = parseStatement();
+  if (!s->body) return nullptr;
+  if (!tok().is(Tok::KwWhile)) {
+    expectAfterPrev(Tok::KwWhile, "'do' statement");
+    return nullptr;
+  }
+  consume();
+  if (!tok().is(Tok::LParen)) {
+    expectAfterPrev(Tok::LParen, "'while'");
+    return nullptr;
+  }
+  const Token open = consume();
+  s->cond = parseExpression();
+  if (!s->cond || !expectClosing(Tok::RParen, open)) return nullptr;
+  if (!expectAfterPrev(Tok::Semi, "do/while loop")) return nullptr;
+  s->range.end = prev().end();
+  return s;
+}
+
+// for := "for" "(" (decl | [expr]) ";" [expr] ";" [expr] ")" stmt
+StmtPtr Parser::parseFor() {
+  const Token kw = consume();
+  auto s = std::make_unique<Stmt>(StmtKind::For, kw.range());
+  if (!tok().is(Tok::LParen)) {
+    expectAfterPrev(Tok::LParen, "'for'");
+    return nullptr;
+  }
+  const Token open = consume();
+  if (startsDeclaration()) {
+    s->init = parseDeclaration();
+    if (!s->init) return nullptr;
+  } else if (!tok().is(Tok::Semi)) {
+    const SourceLoc start = tok().loc;
+    ExprPtr e = parseExpression();
+    if (!e) return nullptr;
+    s->init = std::make_unique<Stmt>(StmtKind::ExprStmt, join(start, prev().end()));
+    s->init->expr = std::move(e);
+  }
+  if (!expectAfterPrev(Tok::Semi)) return nullptr;
+  if (!tok().is(Tok::Semi)) {
+    s->cond = parseExpression();
+    if (!s->cond) return nullptr;
+  }
+  if (!expectAfterPrev(Tok::Semi)) return nullptr;
+  if (!tok().is(Tok::RParen)) {
+    s->step = parseExpression();
+    if (!s->step) return nullptr;
+  }
+  if (!expectClosing(Tok::RParen, open)) return nullptr;
+  s->body = parseStatement();
+  if (!s->body) return nullptr;
+  s->range.end = prev().end();
+  return s;
+}
+
+// return := "return" [expr] ";"
+StmtPtr Parser::parseReturn() {
+  const Token kw = consume();
+  auto s = std::make_unique<Stmt>(StmtKind::Return, kw.range());
+  if (!tok().is(Tok::Semi)) {
+    s->expr = parseExpression();
+    if (!s->expr) return nullptr;
+  }
+  if (!expectAfterPrev(Tok::Semi, "return statement")) return nullptr;
+  s->range.end = prev().end();
+  return s;
+}
+
+ExprPtr Parser::parseStandaloneExpression() {
+  ExprPtr e = parseExpression();
+  if (e && !tok().is(Tok::Eof)) {
+    diags_.report(DiagId::ErrUnexpectedToken, tok().loc).arg(tokDescription(tok().kind));
+    return nullptr;
+  }
+  return e;
+}
+
+ExprPtr Parser::parseExpression() { return parseAssignment(); }
+
+// assign := cond [("=" | "+=" | "-=" | "*=" | "/=" | "%=") assign]
+ExprPtr Parser::parseAssignment() {
+  ExprPtr lhs = parseConditional();
+  if (!lhs || !isAssignOp(tok().kind)) return lhs;
+  const Token op = consume();
+  ExprPtr rhs = parseAssignment();
+  if (!rhs) return nullptr;
+  auto e = std::make_unique<Expr>(ExprKind::Assign, join(lhs->range.begin, rhs->range.end));
+  e->op = op.kind;
+  e->opLoc = op.loc;
+  e->opRange = op.range();
+  e->operands.push_back(std::move(lhs));
+  e->operands.push_back(std::move(rhs));
+  return e;
+}
+
+// cond := binary ["?" expr ":" cond]
+ExprPtr Parser::parseConditional() {
+  ExprPtr c = parseBinary(1);
+  if (!c || !tok().is(Tok::Question)) return c;
+  const Token q = consume();
+  ExprPtr a = parseExpression();
+  if (!a) return nullptr;
+  if (!tok().is(Tok::Colon)) {
+    diags_.report(DiagId::ErrExpected, prev().end())
+        .arg("':'")
+        .note(DiagId::NoteToMatch, q.loc)
+        .arg("?");
+    return nullptr;
+  }
+  consume();
+  ExprPtr b = parseConditional();
+  if (!b) return nullptr;
+  auto e = std::make_unique<Expr>(ExprKind::Conditional, join(c->range.begin, b->range.end));
+  e->opLoc = q.loc;
+  e->opRange = q.range();
+  e->operands.push_back(std::move(c));
+  e->operands.push_back(std::move(a));
+  e->operands.push_back(std::move(b));
+  return e;
+}
+
+// binary := unary { binop unary }, by precedence climbing (all binary operators are left-assoc.)
+ExprPtr Parser::parseBinary(int minPrec) {
+  ExprPtr lhs = parseUnary();
+  if (!lhs) return nullptr;
+  for (;;) {
+    const int prec = binaryPrecedence(tok().kind);
+    if (prec == 0 || prec < minPrec) return lhs;
+    const Token op = consume();
+    ExprPtr rhs = parseBinary(prec + 1);
+    if (!rhs) return nullptr;
+    auto e = std::make_unique<Expr>(ExprKind::Binary, join(lhs->range.begin, rhs->range.end));
+    e->op = op.kind;
+    e->opLoc = op.loc;
+    e->opRange = op.range();
+    e->operands.push_back(std::move(lhs));
+    e->operands.push_back(std::move(rhs));
+    lhs = std::move(e);
+  }
+}
+
+// unary := ("-" | "+" | "!" | "++" | "--") unary | "(" type ")" unary | type unary | postfix
+ExprPtr Parser::parseUnary() {
+  const Token t = tok();
+  if (t.is(Tok::Minus) || t.is(Tok::Plus) || t.is(Tok::Bang) || t.is(Tok::PlusPlus) ||
+      t.is(Tok::MinusMinus)) {
+    consume();
+    ExprPtr operand = parseUnary();
+    if (!operand) return nullptr;
+    const bool incDec = t.is(Tok::PlusPlus) || t.is(Tok::MinusMinus);
+    auto e = std::make_unique<Expr>(incDec ? ExprKind::PreIncDec : ExprKind::Unary,
+                                    join(t.loc, operand->range.end));
+    e->op = t.kind;
+    e->opLoc = t.loc;
+    e->opRange = t.range();
+    e->operands.push_back(std::move(operand));
+    return e;
+  }
+  if (t.is(Tok::LParen) && isTypeKeyword(peek().kind) && peek(2).is(Tok::RParen)) {
+    consume();
+    const Token type = consume();
+    consume();
+    ExprPtr operand = parseUnary();
+    if (!operand) return nullptr;
+    auto e = std::make_unique<Expr>(ExprKind::Construct, join(t.loc, operand->range.end));
+    e->constructType = typeOf(type.kind);
+    e->isCast = true;
+    e->opLoc = t.loc;
+    e->opRange = join(t.loc, type.end().advanced(1));
+    e->operands.push_back(std::move(operand));
+    return e;
+  }
+  return parsePostfix();
+}
+
+// postfix := primary { "[" expr "]" | "++" | "--" }
+ExprPtr Parser::parsePostfix() {
+  ExprPtr e = parsePrimary();
+  if (!e) return nullptr;
+  for (;;) {
+    if (tok().is(Tok::LBracket)) {
+      const Token open = consume();
+      ExprPtr index = parseExpression();
+      if (!index) return nullptr;
+      if (!expectClosing(Tok::RBracket, open)) return nullptr;
+      auto ix = std::make_unique<Expr>(ExprKind::Index, join(e->range.begin, prev().end()));
+      ix->opLoc = open.loc;
+      ix->opRange = open.range();
+      ix->operands.push_back(std::move(e));
+      ix->operands.push_back(std::move(index));
+      e = std::move(ix);
+    } else if (tok().is(Tok::PlusPlus) || tok().is(Tok::MinusMinus)) {
+      const Token op = consume();
+      auto inc = std::make_unique<Expr>(ExprKind::PostIncDec, join(e->range.begin, op.end()));
+      inc->op = op.kind;
+      inc->opLoc = op.loc;
+      inc->opRange = op.range();
+      inc->operands.push_back(std::move(e));
+      e = std::move(inc);
+    } else {
+      return e;
+    }
+  }
+}
+
+bool Parser::parseArguments(std::vector<ExprPtr>& args, const Token& open) {
+  if (accept(Tok::RParen)) return true;
+  for (;;) {
+    ExprPtr a = parseAssignment();
+    if (!a) return false;
+    args.push_back(std::move(a));
+    if (accept(Tok::Comma)) continue;
+    return expectClosing(Tok::RParen, open);
+  }
+}
+
+// constructor := type ["space-string"] "(" args ")" | type unary   (prefix cast, e.g. float noise(P))
+ExprPtr Parser::parseConstructor() {
+  const Token type = consume();
+  auto e = std::make_unique<Expr>(ExprKind::Construct, type.range());
+  e->constructType = typeOf(type.kind);
+  e->opLoc = type.loc;
+  e->opRange = type.range();
+  if (tok().is(Tok::StringLiteral) && peek().is(Tok::LParen)) {
+    const Token space = consume();
+    auto lit = std::make_unique<Expr>(ExprKind::StringLiteral, space.range());
+    lit->text = Lexer::stringValue(space);
+    e->operands.push_back(std::move(lit));
+  }
+  if (tok().is(Tok::LParen)) {
+    const Token open = consume();
+    if (!parseArguments(e->operands, open)) return nullptr;
+    e->range.end = prev().end();
+    return e;
+  }
+  ExprPtr operand = parseUnary();
+  if (!operand) return nullptr;
+  e->isCast = true;
+  e->range.end = operand->range.end;
+  e->operands.push_back(std::move(operand));
+  return e;
+}
+
+// primary := number | string | IDENT | IDENT "(" args ")" | "(" expr ")" | "(" expr "," ... ")"
+//          | constructor
+ExprPtr Parser::parsePrimary() {
+  const Token t = tok();
+  switch (t.kind) {
+    case Tok::IntLiteral: {
+      consume();
+      auto e = std::make_unique<Expr>(ExprKind::IntLiteral, t.range());
+      e->intValue = t.intValue;
+      return e;
+    }
+    case Tok::FloatLiteral: {
+      consume();
+      auto e = std::make_unique<Expr>(ExprKind::FloatLiteral, t.range());
+      e->floatValue = t.floatValue;
+      return e;
+    }
+    case Tok::StringLiteral: {
+      consume();
+      auto e = std::make_unique<Expr>(ExprKind::StringLiteral, t.range());
+      e->text = Lexer::stringValue(t);
+      return e;
+    }
+    case Tok::Identifier: {
+      consume();
+      if (tok().is(Tok::LParen)) {
+        const Token open = consume();
+        auto e = std::make_unique<Expr>(ExprKind::Call, t.range());
+        e->text = std::string(t.text);
+        e->opRange = t.range();
+        if (!parseArguments(e->operands, open)) return nullptr;
+        e->range.end = prev().end();
+        return e;
+      }
+      auto e = std::make_unique<Expr>(ExprKind::Identifier, t.range());
+      e->text = std::string(t.text);
+      e->opRange = t.range();
+      return e;
+    }
+    case Tok::LParen: {
+      const Token open = consume();
+      ExprPtr first = parseExpression();
+      if (!first) return nullptr;
+      if (tok().is(Tok::Comma)) {
+        auto tuple = std::make_unique<Expr>(ExprKind::Tuple, open.range());
+        tuple->operands.push_back(std::move(first));
+        while (accept(Tok::Comma)) {
+          ExprPtr next = parseAssignment();
+          if (!next) return nullptr;
+          tuple->operands.push_back(std::move(next));
+        }
+        if (!expectClosing(Tok::RParen, open)) return nullptr;
+        tuple->range.end = prev().end();
+        return tuple;
+      }
+      if (!expectClosing(Tok::RParen, open)) return nullptr;
+      // Parentheses leave no node; widen the range so carets cover them.
+      first->range = join(open.loc, prev().end());
+      return first;
+    }
+    default:
+      if (isTypeKeyword(t.kind)) return parseConstructor();
+      errorExpectedExpression();
+      return nullptr;
+  }
+}
+
+}  // namespace relief::compiler

@@ -1,0 +1,77 @@
+// Recursive-descent parser with precedence climbing for .disp files (language.md §3, §4). Reports
+// syntax errors and resynchronizes at ';', '}' or a top-level keyword, so one run reports several.
+#pragma once
+
+#include <memory>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "compiler/ast.h"
+#include "compiler/diagnostics.h"
+#include "compiler/source_manager.h"
+#include "compiler/token.h"
+
+namespace relief::compiler {
+
+// Object-like macros (from -D and the predefined set): name → replacement tokens. The preprocessor
+// proper (language.md §1.1) is not written yet; this covers `-D NAME=value` and M_PI & co.
+using MacroTable = std::unordered_map<std::string, std::vector<Token>>;
+
+class Parser {
+ public:
+  Parser(const SourceManager& sm, SourceManager::FileId file, DiagnosticsEngine& diags,
+         const MacroTable* macros = nullptr);
+  std::unique_ptr<TranslationUnit> parseTranslationUnit();
+  // Parses a single expression (tests); null after an error.
+  ExprPtr parseStandaloneExpression();
+
+ private:
+  const Token& tok() const { return toks_[pos_]; }
+  const Token& peek(size_t n = 1) const { return toks_[std::min(pos_ + n, toks_.size() - 1)]; }
+  const Token& prev() const { return toks_[pos_ ? pos_ - 1 : 0]; }
+  Token consume() { return toks_[pos_ < toks_.size() - 1 ? pos_++ : pos_]; }
+  bool accept(Tok k);
+  // Reports "expected X" one column past the previous token (missing closers and ';').
+  bool expectAfterPrev(Tok k, const char* context = nullptr);
+  bool expectClosing(Tok k, const Token& opener);
+  void errorExpectedExpression();
+  void syncStatement();
+  void syncTopLevel();
+  bool isTypeKeyword(Tok k) const;
+  bool startsDeclaration() const;
+  TypeKind typeOf(Tok k) const;
+
+  void parseShader();
+  void parseUnsupportedFunction();
+  bool parseFormals(std::vector<std::unique_ptr<VarDecl>>& params);
+  bool parseDeclarators(std::vector<std::unique_ptr<VarDecl>>& out, Type type, bool isOutput,
+                        bool isUniform, Storage storage);
+
+  StmtPtr parseStatement();
+  StmtPtr parseBlock();
+  StmtPtr parseDeclaration();
+  StmtPtr parseIf();
+  StmtPtr parseWhile();
+  StmtPtr parseDoWhile();
+  StmtPtr parseFor();
+  StmtPtr parseReturn();
+
+  ExprPtr parseExpression();
+  ExprPtr parseAssignment();
+  ExprPtr parseConditional();
+  ExprPtr parseBinary(int minPrec);
+  ExprPtr parseUnary();
+  ExprPtr parsePostfix();
+  ExprPtr parsePrimary();
+  ExprPtr parseConstructor();
+  bool parseArguments(std::vector<ExprPtr>& args, const Token& open);
+
+  const SourceManager& sm_;
+  DiagnosticsEngine& diags_;
+  std::vector<Token> toks_;
+  size_t pos_ = 0;
+  std::unique_ptr<TranslationUnit> unit_;
+};
+
+}  // namespace relief::compiler

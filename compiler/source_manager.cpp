@@ -1,0 +1,82 @@
+// Buffer ownership and lazy line tables for SourceLoc → file:line:col (see source_manager.h).
+#include "compiler/source_manager.h"
+
+#include <algorithm>
+#include <fstream>
+#include <sstream>
+
+namespace relief::compiler {
+
+SourceManager::FileId SourceManager::addBuffer(std::string name, std::string text) {
+  auto f = std::make_unique<File>();
+  f->name = std::move(name);
+  f->text = std::move(text);
+  f->base = next_;
+  // One extra offset for the end-of-file position, one more as a gap so buffers never touch.
+  next_ += uint32_t(f->text.size()) + 2;
+  files_.push_back(std::move(f));
+  return FileId(files_.size() - 1);
+}
+
+bool SourceManager::addFile(const std::string& path, FileId* id, std::string* error) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) {
+    *error = "cannot open '" + path + "'";
+    return false;
+  }
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  if (in.bad()) {
+    *error = "cannot read '" + path + "'";
+    return false;
+  }
+  *id = addBuffer(path, ss.str());
+  return true;
+}
+
+SourceManager::FileId SourceManager::fileOf(SourceLoc loc) const {
+  auto it = std::upper_bound(files_.begin(), files_.end(), loc.offset,
+                             [](uint32_t off, const std::unique_ptr<File>& f) { return off < f->base; });
+  return FileId(it == files_.begin() ? 0 : (it - files_.begin()) - 1);
+}
+
+void SourceManager::computeLines(const File& f) const {
+  if (!f.lineStarts.empty()) return;
+  f.lineStarts.push_back(0);
+  const std::string& t = f.text;
+  for (uint32_t i = 0; i < t.size(); ++i) {
+    if (t[i] == '\n') {
+      f.lineStarts.push_back(i + 1);
+    } else if (t[i] == '\r') {
+      if (i + 1 < t.size() && t[i + 1] == '\n') ++i;
+      f.lineStarts.push_back(i + 1);
+    }
+  }
+}
+
+PresumedLoc SourceManager::presumed(SourceLoc loc) const {
+  if (!loc.isValid() || files_.empty()) return {};
+  const File& f = file(loc);
+  computeLines(f);
+  const uint32_t off = std::min<uint32_t>(loc.offset - f.base, uint32_t(f.text.size()));
+  auto it = std::upper_bound(f.lineStarts.begin(), f.lineStarts.end(), off);
+  const uint32_t line = uint32_t(it - f.lineStarts.begin());
+  return {f.name, line, off - f.lineStarts[line - 1] + 1};
+}
+
+std::string_view SourceManager::lineText(SourceLoc loc) const {
+  if (!loc.isValid() || files_.empty()) return {};
+  const File& f = file(loc);
+  const PresumedLoc p = presumed(loc);
+  const uint32_t start = f.lineStarts[p.line - 1];
+  uint32_t end = start;
+  while (end < f.text.size() && f.text[end] != '\n' && f.text[end] != '\r') ++end;
+  return std::string_view(f.text).substr(start, end - start);
+}
+
+const char* SourceManager::character(SourceLoc loc) const {
+  const File& f = file(loc);
+  return f.text.c_str() + std::min<size_t>(loc.offset - f.base, f.text.size());
+}
+
+}  // namespace relief::compiler

@@ -1,0 +1,71 @@
+// Owns every source buffer of a compilation and maps 32-bit SourceLocs to file, line and column.
+// Used by the lexer (to create locations) and by diagnostics (to render them); no LLVM here.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace relief::compiler {
+
+// An offset into the concatenation of all buffers; 0 is "no location". Cheap to copy and compare,
+// and ordered by (buffer, offset), which is the order diagnostics are printed in.
+struct SourceLoc {
+  uint32_t offset = 0;
+  bool isValid() const { return offset != 0; }
+  SourceLoc advanced(uint32_t n) const { return {offset + n}; }
+  friend bool operator==(SourceLoc a, SourceLoc b) = default;
+  friend auto operator<=>(SourceLoc a, SourceLoc b) = default;
+};
+
+// Half-open [begin, end).
+struct SourceRange {
+  SourceLoc begin;
+  SourceLoc end;
+  bool isValid() const { return begin.isValid(); }
+};
+
+struct PresumedLoc {
+  std::string_view file;
+  uint32_t line = 0;    // 1-based
+  uint32_t column = 0;  // 1-based byte offset in the line (a tab counts 1)
+  bool isValid() const { return line != 0; }
+};
+
+class SourceManager {
+ public:
+  using FileId = uint32_t;
+
+  // Adds a buffer named `name` (what diagnostics print) and returns its id.
+  FileId addBuffer(std::string name, std::string text);
+  // Reads a file from disk; returns false and sets *error on failure.
+  bool addFile(const std::string& path, FileId* id, std::string* error);
+
+  std::string_view text(FileId id) const { return files_[id]->text; }
+  const std::string& name(FileId id) const { return files_[id]->name; }
+  SourceLoc startOf(FileId id) const { return {files_[id]->base}; }
+  FileId fileOf(SourceLoc loc) const;
+
+  PresumedLoc presumed(SourceLoc loc) const;
+  // The full text of the line holding `loc`, without its terminator.
+  std::string_view lineText(SourceLoc loc) const;
+  // Pointer to the character at `loc` (the buffers are NUL-terminated).
+  const char* character(SourceLoc loc) const;
+
+ private:
+  struct File {
+    std::string name;
+    std::string text;
+    uint32_t base = 0;                      // SourceLoc offset of text[0]
+    mutable std::vector<uint32_t> lineStarts;  // filled on first query
+  };
+  const File& file(SourceLoc loc) const { return *files_[fileOf(loc)]; }
+  void computeLines(const File& f) const;
+
+  std::vector<std::unique_ptr<File>> files_;
+  uint32_t next_ = 1;  // 0 stays invalid
+};
+
+}  // namespace relief::compiler

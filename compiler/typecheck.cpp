@@ -1,0 +1,839 @@
+// Type checker implementation (see typecheck.h). One pass per shader: parameters, then the body.
+// Context-typed calls (noise, §6.1) receive an expected type from their parent expression.
+#include "compiler/typecheck.h"
+
+#include <set>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+namespace relief::compiler {
+
+namespace {
+
+const Type kError{};
+const Type kVoid{TypeKind::Void};
+const Type kInt{TypeKind::Int};
+const Type kFloat{TypeKind::Float};
+const Type kVector{TypeKind::Vector};
+
+bool isArithmetic(Tok op) {
+  return op == Tok::Plus || op == Tok::Minus || op == Tok::Star || op == Tok::Slash;
+}
+Tok compoundBase(Tok op) {
+  switch (op) {
+    case Tok::PlusAssign: return Tok::Plus;
+    case Tok::MinusAssign: return Tok::Minus;
+    case Tok::StarAssign: return Tok::Star;
+    case Tok::SlashAssign: return Tok::Slash;
+    case Tok::PercentAssign: return Tok::Percent;
+    default: return Tok::Eof;
+  }
+}
+
+// Result of `a op b`, or kError when the operands do not fit (not reported here).
+Type binaryResult(Tok op, Type a, Type b) {
+  if (a.isArray() || b.isArray()) return kError;
+  const bool strings = a.kind == TypeKind::String && b.kind == TypeKind::String;
+  switch (op) {
+    case Tok::AmpAmp:
+    case Tok::PipePipe:
+    case Tok::Less:
+    case Tok::LessEq:
+    case Tok::Greater:
+    case Tok::GreaterEq: return a.isScalar() && b.isScalar() ? kInt : kError;
+    case Tok::EqEq:
+    case Tok::NotEq:
+      if (strings) return kInt;
+      if (!a.isNumeric() || !b.isNumeric()) return kError;
+      if (a.isTriple() && b.isTriple() && (a.isSpatial() != b.isSpatial())) return kError;
+      return kInt;
+    case Tok::Dot:
+      if ((a.isSpatial() && b.isSpatial()) ||
+          (a.kind == TypeKind::Color && b.kind == TypeKind::Color && !a.isArray()))
+        return kFloat;
+      return kError;
+    case Tok::Caret: return a.isSpatial() && b.isSpatial() ? kVector : kError;
+    case Tok::Percent: return a.kind == TypeKind::Int && b.kind == TypeKind::Int ? kInt : kError;
+    case Tok::Plus:
+    case Tok::Minus:
+    case Tok::Star:
+    case Tok::Slash:
+      if (!a.isNumeric() || !b.isNumeric()) return kError;
+      if (a.isScalar() && b.isScalar())
+        return a.kind == TypeKind::Int && b.kind == TypeKind::Int ? kInt : kFloat;
+      if (a.isScalar()) return b;
+      if (b.isScalar()) return a;
+      if (a.kind == TypeKind::Color || b.kind == TypeKind::Color)
+        return a.kind == b.kind ? a : kError;
+      if (op == Tok::Plus || op == Tok::Minus)
+        return Type(spatialSum(a.kind, b.kind, op == Tok::Minus));
+      return a.kind == b.kind ? a : kVector;
+    default: return kError;
+  }
+}
+
+// Walks the chain §6.1 inspects (parentheses leave no node).
+bool hasContextCall(const Expr& e) {
+  switch (e.kind) {
+    case ExprKind::Call: {
+      const BuiltinInfo* b = findBuiltin(e.text);
+      return b && b->shape == BuiltinShape::Noise;
+    }
+    case ExprKind::Unary: return e.op == Tok::Minus && hasContextCall(*e.operands[0]);
+    case ExprKind::Conditional:
+      return hasContextCall(*e.operands[1]) || hasContextCall(*e.operands[2]);
+    case ExprKind::Binary:
+      return isArithmetic(e.op) &&
+             (hasContextCall(*e.operands[0]) || hasContextCall(*e.operands[1]));
+    default: return false;
+  }
+}
+
+// The expected type a context-typed operand gets from a `+ - * /` whose other operand has type
+// `other`; `outer` is the parent's own expectation.
+Type contextHint(Tok op, Type other, Type outer) {
+  if (other.isTriple()) return (op == Tok::Plus || op == Tok::Minus) ? other : kFloat;
+  return outer;
+}
+
+std::string typeList(const std::vector<ExprPtr>& args) {
+  std::string out;
+  for (size_t i = 0; i < args.size(); ++i) {
+    if (i) out += ", ";
+    out += typeName(args[i]->type);
+  }
+  return out;
+}
+
+bool isKnownSpace(const std::string& s) {
+  return s == "current" || s == "world" || s == "common" || s == "object" || s == "shader" ||
+         s == "camera";
+}
+
+class Checker {
+ public:
+  Checker(TranslationUnit& unit, DiagnosticsEngine& diags) : unit_(unit), diags_(diags) {}
+
+  void run() {
+    makeGlobals();
+    std::set<std::string> shaderNames;
+    for (auto& shader : unit_.shaders) {
+      if (!shaderNames.insert(shader->name).second)
+        report(DiagId::ErrDuplicateShader, shader->nameRange.begin)
+            .arg(shader->name)
+            .range(shader->nameRange);
+      checkShader(*shader);
+    }
+  }
+
+ private:
+  DiagnosticsEngine::Builder report(DiagId id, SourceLoc loc) {
+    if (suppress_) return DiagnosticsEngine::Builder(&scratch_, id, loc);
+    return diags_.report(id, loc);
+  }
+
+  void makeGlobals() {
+    struct G {
+      const char* name;
+      TypeKind type;
+      GlobalId id;
+      bool writable;
+    };
+    static constexpr G kGlobals[] = {
+        {"P", TypeKind::Point, GlobalId::P, true},        {"N", TypeKind::Normal, GlobalId::N, true},
+        {"Ng", TypeKind::Normal, GlobalId::Ng, false},    {"dPdu", TypeKind::Vector, GlobalId::dPdu, false},
+        {"dPdv", TypeKind::Vector, GlobalId::dPdv, false}, {"u", TypeKind::Float, GlobalId::u, false},
+        {"v", TypeKind::Float, GlobalId::v, false},       {"s", TypeKind::Float, GlobalId::s, false},
+        {"t", TypeKind::Float, GlobalId::t, false},       {"du", TypeKind::Float, GlobalId::du, false},
+        {"dv", TypeKind::Float, GlobalId::dv, false},     {"PI", TypeKind::Float, GlobalId::PI, false},
+    };
+    unit_.globals.clear();
+    scopes_.clear();
+    scopes_.emplace_back();
+    for (const G& g : kGlobals) {
+      auto d = std::make_unique<VarDecl>();
+      d->name = g.name;
+      d->type = Type(g.type);
+      d->storage = Storage::Global;
+      d->global = g.id;
+      d->writable = g.writable;
+      scopes_.back()[d->name] = d.get();
+      unit_.globals.push_back(std::move(d));
+    }
+  }
+
+  VarDecl* lookup(const std::string& name) {
+    for (auto it = scopes_.rbegin(); it != scopes_.rend(); ++it) {
+      auto f = it->find(name);
+      if (f != it->end()) return f->second;
+    }
+    return nullptr;
+  }
+
+  void pushScope() { scopes_.emplace_back(); }
+  void popScope() {
+    // -Wunused-variable / -Wunused-parameter, in declaration order for stable output.
+    for (VarDecl* d : scopeDecls_.back()) {
+      if (d->reads != 0) continue;
+      if (d->storage == Storage::Local)
+        report(DiagId::WarnUnusedVariable, d->nameRange.begin).arg(d->name).range(d->nameRange);
+      else if (d->storage == Storage::Parameter && !d->isOutput)
+        report(DiagId::WarnUnusedParameter, d->nameRange.begin).arg(d->name).range(d->nameRange);
+    }
+    scopes_.pop_back();
+    scopeDecls_.pop_back();
+  }
+
+  void declare(VarDecl& d) {
+    auto& scope = scopes_.back();
+    auto it = scope.find(d.name);
+    if (it != scope.end()) {
+      report(DiagId::ErrRedeclaration, d.nameRange.begin)
+          .arg(d.name)
+          .range(d.nameRange)
+          .note(DiagId::NotePreviousDeclaration, it->second->nameRange.begin, it->second->nameRange);
+      return;
+    }
+    if (VarDecl* outer = lookup(d.name)) {
+      const char* what = outer->storage == Storage::Global      ? "the global"
+                         : outer->storage == Storage::Parameter ? "the parameter"
+                                                                : "the local variable";
+      report(DiagId::WarnShadow, d.nameRange.begin).arg(what).arg(d.name).range(d.nameRange);
+    }
+    scope[d.name] = &d;
+    scopeDecls_.back().push_back(&d);
+  }
+
+  void checkShader(ShaderDecl& shader) {
+    shader_ = &shader;
+    undeclaredReported_.clear();
+    scopes_.emplace_back();
+    scopeDecls_.emplace_back();
+    for (auto& p : shader.params) {
+      p->storage = Storage::Parameter;
+      if (p->type.kind == TypeKind::Matrix) {
+        report(DiagId::ErrUnsupported, p->nameRange.begin).arg("'matrix' parameter").range(p->nameRange);
+      } else if (!p->init) {
+        report(DiagId::ErrMissingDefault, p->nameRange.begin).arg(p->name).range(p->nameRange);
+      } else {
+        checkInit(*p);
+        if (!p->init->type.isError()) {
+          if (const Expr* bad = firstNonConstant(*p->init))
+            report(DiagId::ErrNonConstantDefault, bad->range.begin).range(bad->range);
+        }
+      }
+      declare(*p);
+    }
+    loopDepth_ = 0;
+    if (shader.body) checkBlockContents(*shader.body);
+    popScope();
+    shader_ = nullptr;
+  }
+
+  // A sub-expression that makes a default non-constant, or null.
+  const Expr* firstNonConstant(const Expr& e) {
+    switch (e.kind) {
+      case ExprKind::Identifier:
+        if (e.decl && (e.decl->storage == Storage::Parameter || e.decl->global == GlobalId::PI))
+          return nullptr;
+        return &e;
+      case ExprKind::Assign:
+      case ExprKind::PreIncDec:
+      case ExprKind::PostIncDec: return &e;
+      case ExprKind::Call:
+        if (!e.builtin) return &e;
+        switch (e.builtin->shape) {
+          case BuiltinShape::Deriv:
+          case BuiltinShape::CalcNormal:
+          case BuiltinShape::Area:
+          case BuiltinShape::Displace: return &e;
+          default: break;
+        }
+        break;
+      default: break;
+    }
+    for (const ExprPtr& c : e.operands)
+      if (const Expr* bad = firstNonConstant(*c)) return bad;
+    return nullptr;
+  }
+
+  void checkBlockContents(Stmt& block) {
+    bool terminated = false;
+    bool warned = false;
+    for (StmtPtr& s : block.stmts) {
+      if (terminated && !warned && s->kind != StmtKind::Empty) {
+        report(DiagId::WarnUnreachable, s->range.begin).range(s->range);
+        warned = true;
+      }
+      checkStmt(*s);
+      if (s->kind == StmtKind::Return || s->kind == StmtKind::Break || s->kind == StmtKind::Continue)
+        terminated = true;
+    }
+  }
+
+  void checkCondition(Expr& e) {
+    const Type t = checkExpr(e, kError);
+    if (t.isError()) return;
+    if (!t.isScalar())
+      report(DiagId::ErrBadCondition, e.range.begin).arg(typeName(t)).range(e.range);
+  }
+
+  void checkInit(VarDecl& d) {
+    const Type t = checkExpr(*d.init, d.type);
+    checkConversion(*d.init, t, d.type, DiagId::ErrIncompatibleInit);
+  }
+
+  void checkConversion(const Expr& value, Type from, Type to, DiagId error) {
+    if (from.isError() || to.isError()) return;
+    if (from.kind == TypeKind::Void) {
+      report(DiagId::ErrVoidValue, value.range.begin).range(value.range);
+      return;
+    }
+    switch (conversion(from, to)) {
+      case Conversion::None:
+        if (error == DiagId::ErrIncompatibleAssign)
+          report(error, value.range.begin).arg(typeName(to)).arg(typeName(from)).range(value.range);
+        else
+          report(error, value.range.begin).arg(typeName(to)).arg(typeName(from)).range(value.range);
+        break;
+      case Conversion::Narrowing: report(DiagId::WarnNarrowing, value.range.begin).range(value.range); break;
+      default: break;
+    }
+  }
+
+  void checkStmt(Stmt& s) {
+    switch (s.kind) {
+      case StmtKind::Block:
+        pushScope();
+        scopeDecls_.emplace_back();
+        checkBlockContents(s);
+        popScope();
+        break;
+      case StmtKind::Decl:
+        for (auto& d : s.decls) {
+          d->storage = Storage::Local;
+          if (d->type.kind == TypeKind::Matrix)
+            report(DiagId::ErrUnsupported, d->nameRange.begin).arg("'matrix' variable").range(d->nameRange);
+          if (d->init) {
+            checkInit(*d);
+            if (d->isUniform && d->init->isVarying && !d->init->type.isError())
+              report(DiagId::ErrUniformFromVarying, d->init->range.begin).arg(d->name).range(d->init->range);
+          }
+          declare(*d);
+        }
+        break;
+      case StmtKind::ExprStmt: {
+        Expr& e = *s.expr;
+        const Type t = checkExpr(e, kError);
+        const bool effect = e.kind == ExprKind::Assign || e.kind == ExprKind::PreIncDec ||
+                            e.kind == ExprKind::PostIncDec || e.kind == ExprKind::Call;
+        if (!effect && !t.isError()) report(DiagId::ErrUnusedResult, e.range.begin).range(e.range);
+        break;
+      }
+      case StmtKind::If:
+        checkCondition(*s.cond);
+        checkScoped(*s.then);
+        if (s.otherwise) checkScoped(*s.otherwise);
+        break;
+      case StmtKind::While:
+      case StmtKind::DoWhile:
+        checkCondition(*s.cond);
+        ++loopDepth_;
+        checkScoped(*s.body);
+        --loopDepth_;
+        break;
+      case StmtKind::For:
+        pushScope();
+        scopeDecls_.emplace_back();
+        if (s.init) checkStmt(*s.init);
+        if (s.cond) checkCondition(*s.cond);
+        if (s.step) checkExpr(*s.step, kError);
+        ++loopDepth_;
+        checkScoped(*s.body);
+        --loopDepth_;
+        popScope();
+        break;
+      case StmtKind::Break:
+      case StmtKind::Continue:
+        if (loopDepth_ == 0)
+          report(DiagId::ErrBreakOutsideLoop, s.keywordLoc)
+              .arg(s.kind == StmtKind::Break ? "break" : "continue")
+              .range({s.keywordLoc, s.keywordLoc.advanced(s.kind == StmtKind::Break ? 5 : 8)});
+        break;
+      case StmtKind::Return:
+        if (s.expr) {
+          checkExpr(*s.expr, kError);
+          report(DiagId::ErrReturnValueInShader, s.keywordLoc).range(s.expr->range);
+        }
+        break;
+      case StmtKind::Empty: break;
+    }
+  }
+
+  // A statement in its own scope (if/loop bodies that are not blocks still scope declarations).
+  void checkScoped(Stmt& s) {
+    if (s.kind == StmtKind::Block) {
+      checkStmt(s);
+      return;
+    }
+    pushScope();
+    scopeDecls_.emplace_back();
+    checkStmt(s);
+    popScope();
+  }
+
+  Type probe(Expr& e) {
+    ++suppress_;
+    ++contextFloat_;
+    const Type t = checkExpr(e, kError);
+    --contextFloat_;
+    --suppress_;
+    return t;
+  }
+
+  Type set(Expr& e, Type t) {
+    e.type = t;
+    return t;
+  }
+
+  // Reports use of a void value once; returns false if `t` is not a value.
+  bool requireValue(const Expr& e, Type t) {
+    if (t.kind != TypeKind::Void) return !t.isError();
+    report(DiagId::ErrVoidValue, e.range.begin).range(e.range);
+    return false;
+  }
+
+  Type checkExpr(Expr& e, Type expected) {
+    e.isVarying = false;
+    switch (e.kind) {
+      case ExprKind::IntLiteral: return set(e, kInt);
+      case ExprKind::FloatLiteral: return set(e, kFloat);
+      case ExprKind::StringLiteral: return set(e, Type(TypeKind::String));
+      case ExprKind::Identifier: {
+        VarDecl* d = lookup(e.text);
+        e.decl = d;
+        if (!d) {
+          if (!suppress_ && undeclaredReported_.insert(e.text).second)
+            report(DiagId::ErrUndeclared, e.range.begin).arg(e.text).range(e.opRange);
+          return set(e, kError);
+        }
+        ++d->reads;
+        e.isVarying = (d->storage == Storage::Global && d->global != GlobalId::PI) ||
+                      (d->storage == Storage::Local && !d->isUniform);
+        return set(e, d->type);
+      }
+      case ExprKind::Unary: {
+        Expr& a = *e.operands[0];
+        const Type t = checkExpr(a, e.op == Tok::Minus ? expected : kError);
+        e.isVarying = a.isVarying;
+        if (!requireValue(a, t)) return set(e, kError);
+        if (e.op == Tok::Bang) {
+          if (t.isScalar()) return set(e, kInt);
+        } else if (t.isNumeric()) {
+          return set(e, t);
+        }
+        report(DiagId::ErrInvalidUnaryOperand, e.opLoc).arg(typeName(t)).range(a.range);
+        return set(e, kError);
+      }
+      case ExprKind::PreIncDec:
+      case ExprKind::PostIncDec: {
+        Expr& a = *e.operands[0];
+        const Type t = checkExpr(a, kError);
+        e.isVarying = a.isVarying;
+        if (t.isError()) return set(e, kError);
+        if (!t.isScalar()) {
+          report(DiagId::ErrIncDecOperand, e.opLoc).arg(typeName(t)).range(a.range);
+          return set(e, kError);
+        }
+        if (!checkAssignable(a, e.opLoc, e.opRange)) return set(e, kError);
+        return set(e, t);
+      }
+      case ExprKind::Binary: return checkBinary(e, expected);
+      case ExprKind::Assign: return checkAssign(e);
+      case ExprKind::Conditional: {
+        checkCondition(*e.operands[0]);
+        const Type a = checkExpr(*e.operands[1], expected);
+        const Type b = checkExpr(*e.operands[2], expected);
+        e.isVarying = e.operands[0]->isVarying || e.operands[1]->isVarying || e.operands[2]->isVarying;
+        if (!requireValue(*e.operands[1], a) || !requireValue(*e.operands[2], b) ||
+            e.operands[0]->type.isError())
+          return set(e, kError);
+        Type r = kError;
+        if (a == b)
+          r = a;
+        else if (a.kind != TypeKind::String && b.kind != TypeKind::String)
+          r = binaryResult(Tok::Plus, a, b);
+        if (r.isError() || r.isArray()) {
+          report(DiagId::ErrInvalidBinaryOperands, e.opLoc)
+              .arg(typeName(a))
+              .arg(typeName(b))
+              .range(e.operands[1]->range)
+              .range(e.operands[2]->range);
+          return set(e, kError);
+        }
+        return set(e, r);
+      }
+      case ExprKind::Call: return checkCall(e, expected);
+      case ExprKind::Construct: return checkConstruct(e);
+      case ExprKind::Index: {
+        Expr& base = *e.operands[0];
+        Expr& index = *e.operands[1];
+        const Type bt = checkExpr(base, kError);
+        const Type it = checkExpr(index, kError);
+        e.isVarying = base.isVarying || index.isVarying;
+        if (bt.isError() || it.isError()) return set(e, kError);
+        if (!bt.isTriple()) {
+          report(DiagId::ErrNotIndexable, e.opLoc).arg(typeName(bt)).range(base.range);
+          return set(e, kError);
+        }
+        if (it.kind != TypeKind::Int) {
+          report(DiagId::ErrIndexNotInt, index.range.begin).arg(typeName(it)).range(index.range);
+          return set(e, kError);
+        }
+        if (index.kind == ExprKind::IntLiteral && (index.intValue < 0 || index.intValue > 2)) {
+          report(DiagId::ErrIndexRange, index.range.begin)
+              .arg(index.intValue)
+              .arg(typeName(bt))
+              .range(index.range);
+          return set(e, kError);
+        }
+        return set(e, kFloat);
+      }
+      case ExprKind::Tuple: {
+        bool ok = true;
+        for (ExprPtr& c : e.operands) {
+          const Type t = checkExpr(*c, kError);
+          e.isVarying |= c->isVarying;
+          if (!requireValue(*c, t)) {
+            ok = false;
+          } else if (!t.isScalar()) {
+            report(DiagId::ErrIncompatibleArg, c->range.begin).arg(typeName(t)).arg("float").range(c->range);
+            ok = false;
+          }
+        }
+        if (!ok) return set(e, kError);
+        if (e.operands.size() != 3) {
+          report(DiagId::ErrUnsupported, e.range.begin)
+              .arg("a tuple of " + std::to_string(e.operands.size()) + " elements")
+              .range(e.range);
+          return set(e, kError);
+        }
+        return set(e, expected.isTriple() ? expected : Type(TypeKind::Point));
+      }
+    }
+    return set(e, kError);
+  }
+
+  Type checkBinary(Expr& e, Type expected) {
+    Expr& l = *e.operands[0];
+    Expr& r = *e.operands[1];
+    Type tl, tr;
+    if (isArithmetic(e.op)) {
+      const bool cl = hasContextCall(l);
+      const bool cr = hasContextCall(r);
+      if (cl && cr) {
+        const Type pl = probe(l);
+        const Type pr = probe(r);
+        tl = checkExpr(l, contextHint(e.op, pr, expected));
+        tr = checkExpr(r, contextHint(e.op, pl, expected));
+      } else if (cl) {
+        tr = checkExpr(r, kError);
+        tl = checkExpr(l, contextHint(e.op, contextFloat_ ? tr : tr, expected));
+      } else {
+        tl = checkExpr(l, kError);
+        tr = checkExpr(r, contextHint(e.op, tl, expected));
+      }
+    } else {
+      tl = checkExpr(l, kError);
+      tr = checkExpr(r, kError);
+    }
+    e.isVarying = l.isVarying || r.isVarying;
+    const bool lv = requireValue(l, tl);
+    const bool rv = requireValue(r, tr);
+    if (!lv || !rv) return set(e, kError);
+    const Type t = binaryResult(e.op, tl, tr);
+    if (t.isError()) {
+      report(DiagId::ErrInvalidBinaryOperands, e.opLoc)
+          .arg(typeName(tl))
+          .arg(typeName(tr))
+          .range(l.range)
+          .range(r.range);
+    }
+    return set(e, t);
+  }
+
+  // Checks that `target` may be written; marks P/N writes for the host contract.
+  bool checkAssignable(Expr& target, SourceLoc opLoc, SourceRange opRange) {
+    Expr* base = &target;
+    if (target.kind == ExprKind::Index) base = target.operands[0].get();
+    if (base->kind != ExprKind::Identifier) {
+      report(DiagId::ErrNotAssignable, opLoc).range(opRange).range(target.range);
+      return false;
+    }
+    VarDecl* d = base->decl;
+    if (!d) return false;
+    if (!d->writable) {
+      report(DiagId::ErrReadOnly, opLoc).arg(d->name).range(opRange).range(target.range);
+      return false;
+    }
+    d->written = true;
+    if (d->storage == Storage::Global && shader_) {
+      if (d->global == GlobalId::P) shader_->assignsP = true;
+      if (d->global == GlobalId::N) shader_->assignsN = true;
+    }
+    return true;
+  }
+
+  Type checkAssign(Expr& e) {
+    Expr& target = *e.operands[0];
+    Expr& value = *e.operands[1];
+    const Type tt = checkExpr(target, kError);
+    // A plain assignment does not read its target.
+    if (e.op == Tok::Assign && target.kind == ExprKind::Identifier && target.decl) --target.decl->reads;
+    const Tok base = compoundBase(e.op);
+    const Type tv = checkExpr(value, base == Tok::Eof ? tt : contextHint(base, tt, tt));
+    e.isVarying = value.isVarying;
+    if (tt.isError()) return set(e, kError);
+    if (!checkAssignable(target, e.opLoc, e.opRange)) return set(e, kError);
+    if (!requireValue(value, tv)) return set(e, kError);
+    Type result = tv;
+    if (base != Tok::Eof) {
+      result = binaryResult(base, tt, tv);
+      if (result.isError()) {
+        report(DiagId::ErrInvalidBinaryOperands, e.opLoc)
+            .arg(typeName(tt))
+            .arg(typeName(tv))
+            .range(target.range)
+            .range(value.range);
+        return set(e, kError);
+      }
+    }
+    if (conversion(result, tt) == Conversion::None) {
+      report(DiagId::ErrIncompatibleAssign, value.range.begin)
+          .arg(typeName(tt))
+          .arg(typeName(result))
+          .range(value.range);
+      return set(e, kError);
+    }
+    if (conversion(result, tt) == Conversion::Narrowing)
+      report(DiagId::WarnNarrowing, value.range.begin).range(value.range);
+    if (target.kind == ExprKind::Identifier && target.decl && target.decl->isUniform && value.isVarying)
+      report(DiagId::ErrUniformFromVarying, value.range.begin).arg(target.decl->name).range(value.range);
+    return set(e, tt);
+  }
+
+  Type checkConstruct(Expr& e) {
+    const Type target(e.constructType);
+    std::vector<ExprPtr>& args = e.operands;
+    const Type hint = args.size() == 1 ? target : kError;
+    bool ok = true;
+    for (ExprPtr& a : args) {
+      const Type t = checkExpr(*a, hint);
+      e.isVarying |= a->isVarying;
+      if (!requireValue(*a, t)) ok = false;
+    }
+    if (!ok) return set(e, kError);
+    auto bad = [&] {
+      report(DiagId::ErrBadConstructor, e.opLoc).arg(typeName(target)).arg(typeList(args)).range(e.opRange);
+      return set(e, kError);
+    };
+    if (target.kind == TypeKind::Float || target.kind == TypeKind::Int) {
+      if (args.size() != 1 || !args[0]->type.isScalar()) return bad();
+      return set(e, target);
+    }
+    if (!target.isTriple()) {
+      report(DiagId::ErrUnsupported, e.opLoc).arg("'" + typeName(target) + "' constructor").range(e.opRange);
+      return set(e, kError);
+    }
+    size_t first = 0;
+    if (!args.empty() && args[0]->type.kind == TypeKind::String) {
+      const Expr& space = *args[0];
+      if (space.kind != ExprKind::StringLiteral) {
+        report(DiagId::ErrUnsupported, space.range.begin).arg("a non-literal space name").range(space.range);
+        return set(e, kError);
+      }
+      const bool known = target.kind == TypeKind::Color ? space.text == "rgb" : isKnownSpace(space.text);
+      if (!known) {
+        report(DiagId::ErrUnknownSpace, space.range.begin).arg(space.text).range(space.range);
+        return set(e, kError);
+      }
+      e.text = space.text;
+      first = 1;
+    }
+    const size_t n = args.size() - first;
+    if (n == 1 && args[first]->type.isNumeric()) return set(e, target);
+    if (n == 3 && args[first]->type.isScalar() && args[first + 1]->type.isScalar() &&
+        args[first + 2]->type.isScalar())
+      return set(e, target);
+    return bad();
+  }
+
+  Type checkCall(Expr& e, Type expected) {
+    const BuiltinInfo* b = findBuiltin(e.text);
+    e.builtin = b;
+    std::vector<ExprPtr>& args = e.operands;
+    bool ok = true;
+    for (ExprPtr& a : args) {
+      const Type t = checkExpr(*a, kError);
+      e.isVarying |= a->isVarying;
+      if (!requireValue(*a, t)) ok = false;
+    }
+    if (!b) {
+      if (!suppress_)
+        report(DiagId::ErrUndeclaredFunction, e.range.begin).arg(e.text).range(e.opRange);
+      return set(e, kError);
+    }
+    if (!ok) return set(e, kError);
+    const Type r = callResult(*b, args, expected);
+    if (r.isError()) {
+      report(DiagId::ErrNoMatchingCall, e.range.begin).arg(e.text).arg(typeList(args)).range(e.opRange);
+      return set(e, kError);
+    }
+    switch (b->shape) {
+      case BuiltinShape::Deriv:
+      case BuiltinShape::CalcNormal:
+      case BuiltinShape::Area: e.isVarying = true; break;
+      case BuiltinShape::Displace:
+        if (shader_) shader_->assignsP = shader_->assignsN = true;
+        break;
+      default: break;
+    }
+    if (b->shape == BuiltinShape::Displace && args.size() == 2) {
+      const Expr& space = *args[0];
+      if (space.kind != ExprKind::StringLiteral) {
+        report(DiagId::ErrUnsupported, space.range.begin).arg("a non-literal space name").range(space.range);
+        return set(e, kError);
+      }
+      if (!isKnownSpace(space.text)) {
+        report(DiagId::ErrUnknownSpace, space.range.begin).arg(space.text).range(space.range);
+        return set(e, kError);
+      }
+    }
+    return set(e, r);
+  }
+
+  // The §6 "T" binding: first triple argument, else int when `allowInt` and all are int, else float.
+  static Type bindT(const std::vector<ExprPtr>& args, bool allowInt) {
+    for (const ExprPtr& a : args)
+      if (a->type.isTriple()) return a->type;
+    if (allowInt) {
+      bool allInt = true;
+      for (const ExprPtr& a : args) allInt &= a->type.kind == TypeKind::Int;
+      if (allInt) return kInt;
+    }
+    return kFloat;
+  }
+  static bool fits(const Expr& a, Type t) { return conversion(a.type, t) != Conversion::None; }
+  static bool allFit(const std::vector<ExprPtr>& args, Type t, size_t from = 0, size_t to = SIZE_MAX) {
+    for (size_t i = from; i < args.size() && i < to; ++i)
+      if (!fits(*args[i], t) || args[i]->type.isArray() || args[i]->type.kind == TypeKind::String)
+        return false;
+    return true;
+  }
+
+  Type callResult(const BuiltinInfo& b, const std::vector<ExprPtr>& args, Type expected) {
+    const size_t n = args.size();
+    auto allNumeric = [&] {
+      for (const ExprPtr& a : args)
+        if (!a->type.isNumeric()) return false;
+      return true;
+    };
+    if (!allNumeric() && b.shape != BuiltinShape::Displace) return kError;
+    switch (b.shape) {
+      case BuiltinShape::UnaryT: {
+        if (b.id == BuiltinId::Atan && n == 2) {
+          const Type t = bindT(args, false);
+          return allFit(args, t) ? t : kError;
+        }
+        if (n != 1) return kError;
+        const bool intForm = b.id == BuiltinId::Abs || b.id == BuiltinId::Sign;
+        return bindT(args, intForm);
+      }
+      case BuiltinShape::BinaryT: {
+        if (n != 2) return kError;
+        const Type t = bindT(args, b.id == BuiltinId::Mod);
+        return allFit(args, t) ? t : kError;
+      }
+      case BuiltinShape::PowT: {
+        if (n != 2) return kError;
+        const Type t = bindT(args, false);
+        return fits(*args[0], t) && (fits(*args[1], t) || args[1]->type.isScalar()) ? t : kError;
+      }
+      case BuiltinShape::MinMax: {
+        if (n < 2) return kError;
+        const Type t = bindT(args, true);
+        return allFit(args, t) ? t : kError;
+      }
+      case BuiltinShape::Clamp:
+      case BuiltinShape::Smoothstep: {
+        if (n != 3) return kError;
+        const Type t = bindT(args, b.shape == BuiltinShape::Clamp);
+        return allFit(args, t) ? t : kError;
+      }
+      case BuiltinShape::Mix: {
+        if (n != 3) return kError;
+        const Type t = bindT(args, false);
+        return allFit(args, t, 0, 2) && (fits(*args[2], t) || args[2]->type.isScalar()) ? t : kError;
+      }
+      case BuiltinShape::Linearstep: return n == 3 && allFit(args, kFloat) ? kFloat : kError;
+      case BuiltinShape::Dot:
+        if (n != 2) return kError;
+        return binaryResult(Tok::Dot, args[0]->type, args[1]->type);
+      case BuiltinShape::Cross:
+        return n == 2 && args[0]->type.isSpatial() && args[1]->type.isSpatial() ? kVector : kError;
+      case BuiltinShape::Length:
+      case BuiltinShape::Component:
+      case BuiltinShape::Area: return n == 1 && args[0]->type.isSpatial() ? kFloat : kError;
+      case BuiltinShape::Normalize: return n == 1 && args[0]->type.isSpatial() ? args[0]->type : kError;
+      case BuiltinShape::CalcNormal: return n == 1 && args[0]->type.isSpatial() ? kVector : kError;
+      case BuiltinShape::Distance:
+        return n == 2 && args[0]->type.isSpatial() && args[1]->type.isSpatial() ? kFloat : kError;
+      case BuiltinShape::Deriv: {
+        if (n != 1) return kError;
+        const Type t = args[0]->type;
+        if (t.isScalar()) return kFloat;
+        return t.kind == TypeKind::Color ? t : kVector;
+      }
+      case BuiltinShape::Noise: {
+        if (n < 1 || n > 2) return kError;
+        if (!(args[0]->type.isScalar() || args[0]->type.isSpatial())) return kError;
+        if (n == 2 && !args[1]->type.isScalar()) return kError;
+        if (contextFloat_) return kFloat;
+        return expected.isTriple() || expected.kind == TypeKind::Float ? expected.element() : kFloat;
+      }
+      case BuiltinShape::Displace:
+        if (n == 1 && (args[0]->type.isSpatial() || args[0]->type.isScalar())) return kVoid;
+        if (n == 2 && args[0]->type.kind == TypeKind::String && args[1]->type.isScalar()) return kVoid;
+        return kError;
+      case BuiltinShape::FBm:
+        if (n != 2 && n != 4) return kError;
+        if (!args[0]->type.isSpatial() || !args[1]->type.isScalar()) return kError;
+        if (n == 4 && !(args[2]->type.isScalar() && args[3]->type.isScalar())) return kError;
+        return kFloat;
+      case BuiltinShape::FloatPred: return n == 1 && args[0]->type.isScalar() ? kInt : kError;
+    }
+    return kError;
+  }
+
+  TranslationUnit& unit_;
+  DiagnosticsEngine& diags_;
+  DiagnosticsEngine scratch_{DiagnosticOptions{false, false, 0}};
+  std::vector<std::unordered_map<std::string, VarDecl*>> scopes_;
+  std::vector<std::vector<VarDecl*>> scopeDecls_;
+  std::set<std::string> undeclaredReported_;
+  ShaderDecl* shader_ = nullptr;
+  int loopDepth_ = 0;
+  int suppress_ = 0;
+  int contextFloat_ = 0;
+};
+
+}  // namespace
+
+bool typeCheck(TranslationUnit& unit, DiagnosticsEngine& diags) {
+  const unsigned before = diags.numErrors();
+  Checker(unit, diags).run();
+  return diags.numErrors() == before;
+}
+
+}  // namespace relief::compiler

@@ -1,0 +1,17 @@
+// Gradient noise called by JIT-compiled shaders (language.md §6.5): extern "C", noexcept, pure and
+// deterministic. Each returns a value in [0,1] and writes its analytic gradient. Registered with the
+// JIT by compiler/builtins.cpp.
+#pragma once
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+float rlf_noise1(float x, float* dx);
+float rlf_noise2(float x, float y, float* grad2);
+float rlf_noise3(float x, float y, float z, float* grad3);
+float rlf_noise4(float x, float y, float z, float w, float* grad4);
+
+#ifdef __cplusplus
+}
+#endif

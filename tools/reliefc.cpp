@@ -1,0 +1,298 @@
+// reliefc: checks and compiles .disp shaders (language.md §8); optionally evaluates one point.
+// Exit codes: 0 success (warnings allowed), 1 compile errors, 2 usage or I/O error, 3 internal error.
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <iostream>
+#include <map>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "compiler/compiler.h"
+#include "runtime/abi.h"
+#include "runtime/shader.h"
+
+namespace {
+
+using relief::compiler::CompileFlags;
+using relief::compiler::CompileOptions;
+using relief::compiler::CompileResult;
+
+constexpr const char* kUsage =
+    "usage: reliefc [options] file.disp...\n"
+    "  -I dir                     add an include directory\n"
+    "  -D name[=value]            define a macro\n"
+    "  -O0 -O1 -O2 -O3            optimization level (default -O2)\n"
+    "  -Werror                    treat warnings as errors\n"
+    "  -w                         suppress warnings\n"
+    "  -ferror-limit=N            stop after N errors (default 20, 0: no limit)\n"
+    "  --emit-llvm                print the optimized LLVM IR\n"
+    "  --emit-ast                 print the syntax tree\n"
+    "  --color=auto|always|never  colored diagnostics\n"
+    "  --diagnostics-format=text|json\n"
+    "  --eval                     evaluate the (first or --shader) shader at one point:\n"
+    "    --shader name            which shader of the file\n"
+    "    -p name=value            bind a parameter (value: number, (x,y,z) or text)\n"
+    "    --at \"P=(x,y,z) N=(x,y,z) u=.. v=..\"   the shading point (also Ng dPdu dPdv s t du dv)\n"
+    "  --version, --help\n";
+
+struct Args {
+  CompileOptions options;
+  std::vector<std::string> files;
+  bool emitLlvm = false;
+  bool emitAst = false;
+  bool json = false;
+  bool eval = false;
+  std::string color = "auto";
+  std::string shader;
+  std::vector<std::pair<std::string, std::string>> params;
+  std::string at;
+  unsigned errorLimit = 20;
+};
+
+int usageError(const std::string& message) {
+  std::cerr << "reliefc: error: " << message << "\n" << kUsage;
+  return 2;
+}
+
+// Parses "x", "(x,y,z)" or "x y z" into numbers; false if any is not a number.
+bool parseNumbers(std::string text, std::vector<float>* out) {
+  for (char& c : text)
+    if (c == '(' || c == ')' || c == ',') c = ' ';
+  std::istringstream in(text);
+  std::string word;
+  while (in >> word) {
+    char* end = nullptr;
+    const float f = std::strtof(word.c_str(), &end);
+    if (!end || *end) return false;
+    out->push_back(f);
+  }
+  return !out->empty();
+}
+
+int evaluate(const Args& args, const CompileResult& result) {
+  std::shared_ptr<const relief::runtime::CompiledShader> shader =
+      args.shader.empty() ? (result.shaders.empty() ? nullptr : result.shaders.front()) : result.find(args.shader);
+  if (!shader) {
+    std::cerr << "reliefc: error: no shader '" << args.shader << "' to evaluate\n";
+    return 2;
+  }
+  relief::runtime::ShaderInstance instance(shader);
+  for (const auto& [name, value] : args.params) {
+    relief::runtime::ParamValue pv;
+    pv.name = name;
+    const relief::runtime::ParamInfo* info = shader->findParam(name);
+    if (info && info->type == relief::runtime::ParamType::String) {
+      pv.type = relief::runtime::ParamType::String;
+      pv.strings.push_back(value);
+    } else if (!parseNumbers(value, &pv.numbers)) {
+      std::cerr << "reliefc: error: bad value '" << value << "' for parameter '" << name << "'\n";
+      return 2;
+    } else {
+      pv.type = pv.numbers.size() == 3 && info ? info->type : relief::runtime::ParamType::Float;
+    }
+    std::string error;
+    if (!instance.bind(pv, &error)) {
+      std::cerr << "reliefc: error: " << error << "\n";
+      return 2;
+    }
+  }
+  // The default point: the top of a unit sphere parameterized so that dPdu ^ dPdv = N.
+  std::map<std::string, std::vector<float>> at = {
+      {"P", {0, 0, 1}},   {"N", {0, 0, 1}},  {"Ng", {}},     {"dPdu", {1, 0, 0}}, {"dPdv", {0, 1, 0}},
+      {"u", {0.5f}},      {"v", {0.5f}},     {"s", {}},      {"t", {}},           {"du", {0.01f}},
+      {"dv", {0.01f}}};
+  std::string spec = args.at;
+  for (size_t i = 0; i < spec.size();) {
+    while (i < spec.size() && spec[i] == ' ') ++i;
+    if (i >= spec.size()) break;
+    const size_t eq = spec.find('=', i);
+    if (eq == std::string::npos) return usageError("bad --at item '" + spec.substr(i) + "'");
+    const std::string key = spec.substr(i, eq - i);
+    size_t end = eq + 1;
+    if (end < spec.size() && spec[end] == '(') {
+      end = spec.find(')', end);
+      if (end == std::string::npos) return usageError("unbalanced '(' in --at");
+      ++end;
+    } else {
+      end = spec.find(' ', end);
+      if (end == std::string::npos) end = spec.size();
+    }
+    const std::string value = spec.substr(eq + 1, end - eq - 1);
+    std::vector<float> numbers;
+    auto it = at.find(key);
+    if (it == at.end()) return usageError("unknown --at name '" + key + "'");
+    const size_t want = (key == "P" || key == "N" || key == "Ng" || key == "dPdu" || key == "dPdv") ? 3 : 1;
+    if (!parseNumbers(value, &numbers) || numbers.size() != want)
+      return usageError("bad --at value '" + value + "' for '" + key + "'");
+    it->second = numbers;
+    i = end;
+  }
+  if (at["Ng"].empty()) at["Ng"] = at["N"];
+  if (at["s"].empty()) at["s"] = at["u"];
+  if (at["t"].empty()) at["t"] = at["v"];
+
+  float P[3], N[3], Ng[3], dPdu[3], dPdv[3], Pout[3], Nout[3];
+  for (int k = 0; k < 3; ++k) {
+    P[k] = at["P"][k];
+    N[k] = at["N"][k];
+    Ng[k] = at["Ng"][k];
+    dPdu[k] = at["dPdu"][k];
+    dPdv[k] = at["dPdv"][k];
+  }
+  float u = at["u"][0], v = at["v"][0], s = at["s"][0], t = at["t"][0], du = at["du"][0], dv = at["dv"][0];
+  float one = 1, zero = 0;
+  RlfSpaces spaces{};
+  for (int m = 0; m < 6; ++m)
+    for (int d = 0; d < 4; ++d) (&spaces.currentFromObject)[m][d * 5] = 1;
+  RlfShadingBatch batch{};
+  batch.count = 1;
+  auto set3 = [](RlfFloat3Array& a, float* p) { a = {p, p + 1, p + 2}; };
+  set3(batch.P, P);
+  set3(batch.N, N);
+  set3(batch.Ng, Ng);
+  set3(batch.dPdu, dPdu);
+  set3(batch.dPdv, dPdv);
+  set3(batch.Pout, Pout);
+  set3(batch.Nout, Nout);
+  batch.u = &u;
+  batch.v = &v;
+  batch.s = &s;
+  batch.t = &t;
+  batch.du = &du;
+  batch.dv = &dv;
+  batch.dsdu = &one;  // s = u and t = v unless given otherwise
+  batch.dsdv = &zero;
+  batch.dtdu = &zero;
+  batch.dtdv = &one;
+  batch.spaces = &spaces;
+  RlfStatus status{};
+  instance.evaluate(batch, status);
+  std::printf("P = (%.9g, %.9g, %.9g)\nN = (%.9g, %.9g, %.9g)\n", Pout[0], Pout[1], Pout[2], Nout[0], Nout[1],
+              Nout[2]);
+  if (status.nonFinite) std::printf("note: non-finite result replaced by the input\n");
+  if (status.loopLimit) std::printf("note: loop iteration limit reached\n");
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Args args;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    auto value = [&](const std::string& flag, std::string* out) {
+      if (a.size() > flag.size()) {
+        *out = a.substr(flag.size());
+        return true;
+      }
+      if (i + 1 >= argc) return false;
+      *out = argv[++i];
+      return true;
+    };
+    std::string v;
+    if (a == "--help" || a == "-h") {
+      std::cout << kUsage;
+      return 0;
+    } else if (a == "--version") {
+      std::cout << "reliefc 0.1.0 (.disp language v1, ABI " << kRlfAbiVersion << ", LLVM 19)\n";
+      return 0;
+    } else if (a.rfind("-I", 0) == 0) {
+      if (!value("-I", &v)) return usageError("missing directory after '-I'");
+      args.options.includeDirs.push_back(v);
+    } else if (a.rfind("-D", 0) == 0) {
+      if (!value("-D", &v) || v.empty()) return usageError("missing macro name after '-D'");
+      const size_t eq = v.find('=');
+      args.options.defines.emplace_back(v.substr(0, eq), eq == std::string::npos ? "1" : v.substr(eq + 1));
+    } else if (a == "-O0" || a == "-O1" || a == "-O2" || a == "-O3") {
+      args.options.optLevel = a[2] - '0';
+    } else if (a == "-Werror") {
+      args.options.warningsAsErrors = true;
+    } else if (a == "-w") {
+      args.options.noWarnings = true;
+    } else if (a.rfind("-ferror-limit=", 0) == 0) {
+      args.errorLimit = unsigned(std::strtoul(a.c_str() + 14, nullptr, 10));
+    } else if (a == "--emit-llvm") {
+      args.emitLlvm = true;
+    } else if (a == "--emit-ast") {
+      args.emitAst = true;
+    } else if (a.rfind("--color=", 0) == 0) {
+      args.color = a.substr(8);
+      if (args.color != "auto" && args.color != "always" && args.color != "never")
+        return usageError("bad value for --color: '" + args.color + "'");
+    } else if (a.rfind("--diagnostics-format=", 0) == 0) {
+      const std::string f = a.substr(21);
+      if (f != "text" && f != "json") return usageError("bad value for --diagnostics-format: '" + f + "'");
+      args.json = f == "json";
+    } else if (a == "--eval") {
+      args.eval = true;
+    } else if (a == "--shader") {
+      if (i + 1 >= argc) return usageError("missing name after '--shader'");
+      args.shader = argv[++i];
+    } else if (a == "-p") {
+      if (i + 1 >= argc) return usageError("missing name=value after '-p'");
+      const std::string p = argv[++i];
+      const size_t eq = p.find('=');
+      if (eq == std::string::npos || eq == 0) return usageError("expected name=value after '-p', got '" + p + "'");
+      args.params.emplace_back(p.substr(0, eq), p.substr(eq + 1));
+    } else if (a == "--at") {
+      if (i + 1 >= argc) return usageError("missing point after '--at'");
+      args.at = argv[++i];
+    } else if (a.size() > 1 && a[0] == '-') {
+      return usageError("unknown option '" + a + "'");
+    } else {
+      args.files.push_back(a);
+    }
+  }
+  if (args.files.empty()) return usageError("no input files");
+  if (args.eval && args.files.size() != 1) return usageError("--eval takes exactly one file");
+
+  const bool color = args.color == "always" || (args.color == "auto" && isatty(STDERR_FILENO));
+  unsigned warnings = 0, errors = 0;
+  int exitCode = 0;
+  for (const std::string& file : args.files) {
+    CompileFlags flags;
+    flags.emitLlvm = args.emitLlvm;
+    flags.keepAst = args.emitAst;
+    flags.jit = args.eval;
+    flags.errorLimit = args.errorLimit;
+    CompileResult result = relief::compiler::compileFile(file, args.options, flags);
+    const auto& diags = *result.diagnostics;
+    if (args.json) {
+      for (const auto& d : diags.sorted()) relief::compiler::renderJson(std::cerr, *result.sources, d);
+    } else {
+      relief::compiler::TextDiagnosticOptions topts;
+      topts.color = color;
+      relief::compiler::renderAllText(std::cerr, *result.sources, diags, topts);
+    }
+    warnings += diags.numWarnings();
+    errors += diags.numErrors();
+    if (result.ioError) {
+      exitCode = std::max(exitCode, 2);
+      continue;
+    }
+    if (!result.internalError.empty()) {
+      std::cerr << file << ": internal compiler error: " << result.internalError << "\n";
+      exitCode = 3;
+      continue;
+    }
+    if (diags.hasErrors()) {
+      exitCode = std::max(exitCode, 1);
+      continue;
+    }
+    if (args.emitAst && result.ast) relief::compiler::dump(std::cout, *result.ast);
+    if (args.emitLlvm) std::cout << result.llvmIr;
+    if (args.eval) {
+      const int rc = evaluate(args, result);
+      if (rc) exitCode = std::max(exitCode, rc);
+    }
+  }
+  if (!args.json) {
+    const std::string summary = relief::compiler::summaryLine(warnings, errors);
+    if (!summary.empty()) std::cerr << summary << "\n";
+  }
+  return exitCode;
+}
