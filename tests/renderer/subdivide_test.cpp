@@ -1,0 +1,192 @@
+// Tests of adaptive crack-free subdivision: edge-length target and depth guard, conforming micro-
+// meshes, shared input edges split identically from both sides, non-finite fallback, determinism.
+#include "renderer/subdivide.h"
+
+#include <map>
+#include <set>
+#include <tuple>
+
+#include <gtest/gtest.h>
+
+#include "geometry_test_util.h"
+
+namespace relief {
+namespace {
+
+// A unit quad in the z = 0 plane as two triangles sharing the diagonal (0, 2), with uv = xy.
+Mesh makeQuad() {
+  Mesh mesh;
+  mesh.P = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}};
+  mesh.N.assign(4, glm::vec3(0, 0, 1));
+  mesh.uv = {{0, 0}, {1, 0}, {1, 1}, {0, 1}};
+  mesh.indices = {0, 1, 2, 0, 2, 3};
+  return mesh;
+}
+
+Displacement makeDisplacement(RlfShaderEntry entry, float km, float freq, float edgeLength,
+                              int maxDepth) {
+  Displacement d;
+  d.shader = testing::makeShader(entry, km, freq);
+  d.boundWorld = km;
+  d.edgeLength = edgeLength;
+  d.maxDepth = maxDepth;
+  return d;
+}
+
+using Key = std::tuple<float, float, float>;
+Key key(glm::vec3 p) { return {p.x, p.y, p.z}; }
+
+// Directed micro-edges by position.
+std::map<std::pair<Key, Key>, int> directedEdges(const MicroMesh& mm) {
+  std::map<std::pair<Key, Key>, int> edges;
+  for (uint32_t t = 0; t < mm.numTriangles(); ++t)
+    for (int e = 0; e < 3; ++e)
+      ++edges[{key(mm.P[mm.indices[3 * t + e]]), key(mm.P[mm.indices[3 * t + (e + 1) % 3]])}];
+  return edges;
+}
+
+TEST(Subdivide, WithoutShaderReturnsTheInputTriangle) {
+  const Mesh quad = makeQuad();
+  MicroMesh mm;
+  SubdivideCounters counters;
+  subdivideTriangle(quad, 1, nullptr, mm, counters);
+  ASSERT_EQ(mm.numTriangles(), 1u);
+  EXPECT_EQ(mm.P[mm.indices[0]], quad.P[0]);
+  EXPECT_EQ(mm.P[mm.indices[1]], quad.P[2]);
+  EXPECT_EQ(mm.P[mm.indices[2]], quad.P[3]);
+  EXPECT_EQ(counters.shaderPoints, 0u);
+}
+
+TEST(Subdivide, FlatShaderMeetsEdgeLengthAndKeepsArea) {
+  const Mesh quad = makeQuad();
+  const Displacement d = makeDisplacement(testing::bumpyEntry, 0.0f, 1.0f, 0.1f, 12);
+  MicroMesh mm;
+  SubdivideCounters counters;
+  subdivideTriangle(quad, 0, &d, mm, counters);
+  float area = 0.0f;
+  for (uint32_t t = 0; t < mm.numTriangles(); ++t) {
+    const glm::vec3 a = mm.P[mm.indices[3 * t]], b = mm.P[mm.indices[3 * t + 1]],
+                    c = mm.P[mm.indices[3 * t + 2]];
+    EXPECT_LE(glm::length(b - a), 0.1f);
+    EXPECT_LE(glm::length(c - b), 0.1f);
+    EXPECT_LE(glm::length(a - c), 0.1f);
+    const glm::vec3 n = glm::cross(b - a, c - a);
+    EXPECT_GT(n.z, 0.0f);  // wound as the input triangle
+    area += 0.5f * glm::length(n);
+  }
+  EXPECT_NEAR(area, 0.5f, 1e-4f);
+  EXPECT_EQ(counters.shaderPoints, mm.P.size());  // each vertex displaced exactly once
+}
+
+TEST(Subdivide, DepthGuardStopsSplitting) {
+  const Mesh quad = makeQuad();
+  const Displacement d = makeDisplacement(testing::bumpyEntry, 0.0f, 1.0f, 1e-6f, 3);
+  MicroMesh mm;
+  SubdivideCounters counters;
+  subdivideTriangle(quad, 0, &d, mm, counters);
+  EXPECT_EQ(*std::max_element(mm.level.begin(), mm.level.end()), 3);
+  EXPECT_EQ(mm.numTriangles(), 64u);  // 4^3: every edge wants splitting, uniform 1-to-4
+}
+
+// Conforming: inside one input triangle every micro-edge is shared by exactly two micro-triangles
+// in opposite directions; edges on the input triangle's border appear once.
+TEST(Subdivide, MicroMeshIsConforming) {
+  const Mesh quad = makeQuad();
+  const Displacement d = makeDisplacement(testing::bumpyEntry, 0.2f, 2.0f, 0.07f, 10);
+  MicroMesh mm;
+  SubdivideCounters counters;
+  subdivideTriangle(quad, 0, &d, mm, counters);
+  std::map<int, int> childCounts;
+  const auto edges = directedEdges(mm);
+  int border = 0;
+  for (const auto& [edge, count] : edges) {
+    EXPECT_EQ(count, 1);
+    if (!edges.count({edge.second, edge.first})) ++border;
+  }
+  EXPECT_GT(border, 0);
+  // Non-uniform: different parts reach different levels.
+  std::set<int> levels(mm.level.begin(), mm.level.end());
+  EXPECT_GE(levels.size(), 4u);
+  // All border edges lie on the input triangle's border (barycentric coordinate zero).
+  for (uint32_t t = 0; t < mm.numTriangles(); ++t)
+    for (int e = 0; e < 3; ++e) {
+      const uint32_t a = mm.indices[3 * t + e], b = mm.indices[3 * t + (e + 1) % 3];
+      if (edges.count({key(mm.P[b]), key(mm.P[a])})) continue;
+      const glm::vec2 ba = mm.bary[a], bb = mm.bary[b];
+      const bool onBorder = (ba.x == 0 && bb.x == 0) || (ba.y == 0 && bb.y == 0) ||
+                            (ba.x + ba.y == 1 && bb.x + bb.y == 1);
+      EXPECT_TRUE(onBorder);
+    }
+}
+
+// Crack-free across input triangles: the shared diagonal is split into the same displaced
+// micro-edges, bit for bit, from both triangles.
+TEST(Subdivide, SharedEdgeSplitIdenticallyFromBothSides) {
+  const Mesh quad = makeQuad();
+  const Displacement d = makeDisplacement(testing::bumpyEntry, 0.2f, 2.0f, 0.05f, 10);
+  MicroMesh m0, m1;
+  SubdivideCounters counters;
+  subdivideTriangle(quad, 0, &d, m0, counters);
+  subdivideTriangle(quad, 1, &d, m1, counters);
+  const auto e1 = directedEdges(m1);
+  // Pieces of the diagonal (0, 2): in triangle 0 = (0, 1, 2) corner 1 has weight zero (bary.x),
+  // in triangle 1 = (0, 2, 3) corner 2 does (bary.y). Each piece of one must be a piece of the
+  // other, reversed, with bit-identical displaced end points.
+  auto pieces = [](const MicroMesh& mm, bool useX) {
+    std::vector<std::pair<Key, Key>> out;
+    for (uint32_t t = 0; t < mm.numTriangles(); ++t)
+      for (int e = 0; e < 3; ++e) {
+        const uint32_t a = mm.indices[3 * t + e], b = mm.indices[3 * t + (e + 1) % 3];
+        const float wa = useX ? mm.bary[a].x : mm.bary[a].y, wb = useX ? mm.bary[b].x : mm.bary[b].y;
+        if (wa == 0.0f && wb == 0.0f) out.push_back({key(mm.P[a]), key(mm.P[b])});
+      }
+    return out;
+  };
+  const auto diagonal0 = pieces(m0, true), diagonal1 = pieces(m1, false);
+  EXPECT_GT(diagonal0.size(), 4u);
+  EXPECT_EQ(diagonal0.size(), diagonal1.size());
+  for (const auto& [a, b] : diagonal0) EXPECT_TRUE(e1.count({b, a}));
+}
+
+TEST(Subdivide, NonFiniteDisplacementFallsBackToUndisplaced) {
+  const Mesh quad = makeQuad();
+  const Displacement d = makeDisplacement(testing::nanEntry, 0.0f, 0.0f, 0.2f, 6);
+  MicroMesh mm;
+  SubdivideCounters counters;
+  subdivideTriangle(quad, 0, &d, mm, counters);
+  for (const glm::vec3& p : mm.P) {
+    EXPECT_TRUE(std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z));
+    EXPECT_EQ(p.z, 0.0f);
+  }
+  EXPECT_GT(counters.status.nonFinite, 0u);
+  EXPECT_GT(mm.numTriangles(), 1u);
+}
+
+TEST(Subdivide, DeterministicAcrossCalls) {
+  const Mesh quad = makeQuad();
+  const Displacement d = makeDisplacement(testing::bumpyEntry, 0.2f, 3.0f, 0.04f, 10);
+  MicroMesh a, b, other;
+  SubdivideCounters counters;
+  subdivideTriangle(quad, 0, &d, a, counters);
+  subdivideTriangle(quad, 1, &d, other, counters);  // interleave another triangle
+  subdivideTriangle(quad, 0, &d, b, counters);
+  EXPECT_EQ(a.P, b.P);
+  EXPECT_EQ(a.indices, b.indices);
+}
+
+TEST(Subdivide, DegeneratePoleTrianglesStayFinite) {
+  testing::SphereOptions o;
+  o.edgeLength = 0.05f;
+  const Scene scene = testing::makeSphereScene(o);
+  const Mesh& mesh = scene.meshes[0];
+  MicroMesh mm;
+  SubdivideCounters counters;
+  for (uint32_t t = 0; t < mesh.numTriangles(); ++t) {
+    subdivideTriangle(mesh, t, &scene.displacements[0], mm, counters);
+    for (const glm::vec3& p : mm.P) ASSERT_TRUE(std::isfinite(p.x + p.y + p.z)) << "triangle " << t;
+  }
+  EXPECT_EQ(counters.status.nonFinite, 0u);
+}
+
+}  // namespace
+}  // namespace relief
