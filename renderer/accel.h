@@ -26,6 +26,8 @@ struct Hit {
   glm::vec3 P{0};   // world-space hit point
   glm::vec3 Ng{0};  // unit face normal of the (micro-)triangle hit, facing as the input triangle
   glm::vec2 st{0};  // interpolated texture coordinates
+  glm::vec2 bary{0};  // weights of input corners 1 and 2 at the hit (exact even where displaced P
+                     // lies off the input triangle): interpolate per-vertex data with these
   uint32_t meshIndex = 0;
   uint32_t triangleIndex = 0;  // input triangle within the mesh
   uint32_t microIndex = 0;     // micro-triangle within the input triangle's displaced geometry

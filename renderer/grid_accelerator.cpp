@@ -311,6 +311,7 @@ std::optional<Hit> GridAccelerator::intersect(const Ray& ray) {
     st[c] = !mesh.st.empty() ? mesh.st[i] : !mesh.uv.empty() ? mesh.uv[i] : corner[c];
   }
   hit.st = (1.0f - b.x - b.y) * st[0] + b.x * st[1] + b.y * st[2];
+  hit.bary = b;
   hit.meshIndex = m;
   hit.triangleIndex = t;
   hit.microIndex = best.microId;

@@ -37,6 +37,15 @@ void expectMatchesBruteForce(const Scene& scene, const AccelOptions& options, in
     // The hit point lies at t along the ray.
     const glm::vec3 p = ray.origin + hit->t * ray.direction;
     EXPECT_LT(glm::length(p - hit->P), 1e-5f);
+    // bary locates the hit on the input triangle: on it when undisplaced, within the
+    // displacement bound of it otherwise.
+    const Mesh& mesh = scene.meshes[hit->meshIndex];
+    const uint32_t* idx = &mesh.indices[3 * size_t(hit->triangleIndex)];
+    const glm::vec3 onInput = (1.0f - hit->bary.x - hit->bary.y) * mesh.P[idx[0]] +
+                              hit->bary.x * mesh.P[idx[1]] + hit->bary.y * mesh.P[idx[2]];
+    const bool displaced = options.displace && mesh.displacementIndex != UINT32_MAX;
+    EXPECT_LT(glm::length(onInput - hit->P),
+              displaced ? scene.displacements[0].boundWorld * 1.01f + 1e-4f : 1e-4f);
   }
   EXPECT_GT(numHits, numRays / 4);
   const AccelStats stats = accel->stats();
