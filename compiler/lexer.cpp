@@ -32,6 +32,7 @@ std::string tokDescription(Tok kind) {
     case Tok::StringLiteral: return "string literal";
     case Tok::ReservedWord:
     case Tok::ShaderKindWord: return "reserved word";
+    case Tok::Unknown: return "invalid character";
     default: return "'" + std::string(tokSpelling(kind)) + "'";
   }
 }
@@ -264,8 +265,7 @@ Token Lexer::next() {
       diags_.report(DiagId::ErrBadCharacter, locOf(start))
           .arg(std::string_view(start, 1));
       ++cur_;
-      atLineStart_ = false;
-      continue;
+      return make(Tok::Unknown, start);
     }
     cur_ += len;
     return make(kind, start);

@@ -69,6 +69,7 @@ bool Parser::accept(Tok k) {
 
 bool Parser::expectAfterPrev(Tok k, const char* context) {
   if (accept(k)) return true;
+  if (tok().is(Tok::Unknown)) return false;  // already reported by the lexer
   const SourceLoc at = pos_ ? prev().end() : tok().loc;
   if (context)
     diags_.report(DiagId::ErrExpectedAfter, at).arg(tokDescription(k)).arg(context);
@@ -79,6 +80,7 @@ bool Parser::expectAfterPrev(Tok k, const char* context) {
 
 bool Parser::expectClosing(Tok k, const Token& opener) {
   if (accept(k)) return true;
+  if (tok().is(Tok::Unknown)) return false;
   const SourceLoc at = pos_ ? prev().end() : tok().loc;
   diags_.report(DiagId::ErrExpected, at)
       .arg(tokDescription(k))
@@ -87,7 +89,12 @@ bool Parser::expectClosing(Tok k, const Token& opener) {
   return false;
 }
 
+// After a missing ';' (already reported): if the next token starts a new line, the statement most
+// likely just lacks its ';', so keep it and carry on without skipping the next line.
+bool Parser::missingSemiAtLineEnd() const { return tok().atLineStart || tok().is(Tok::RBrace); }
+
 void Parser::errorExpectedExpression() {
+  if (tok().is(Tok::Unknown)) return;
   if (tok().is(Tok::ReservedWord) || tok().is(Tok::ShaderKindWord))
     diags_.report(DiagId::ErrReservedWord, tok().loc).arg(tok().text).range(tok().range());
   else
@@ -342,14 +349,14 @@ StmtPtr Parser::parseStatement() {
     }
     auto s = parseDeclaration();
     if (!s) return nullptr;
-    if (!expectAfterPrev(Tok::Semi, "declaration")) return nullptr;
+    if (!expectAfterPrev(Tok::Semi, "declaration") && !missingSemiAtLineEnd()) return nullptr;
     s->range.end = prev().end();
     return s;
   }
   const SourceLoc start = t.loc;
   ExprPtr e = parseExpression();
   if (!e) return nullptr;
-  if (!expectAfterPrev(Tok::Semi, "expression")) return nullptr;
+  if (!expectAfterPrev(Tok::Semi, "expression") && !missingSemiAtLineEnd()) return nullptr;
   auto s = std::make_unique<Stmt>(StmtKind::ExprStmt, join(start, prev().end()));
   s->expr = std::move(e);
   return s;

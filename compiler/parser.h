@@ -36,6 +36,7 @@ class Parser {
   bool expectAfterPrev(Tok k, const char* context = nullptr);
   bool expectClosing(Tok k, const Token& opener);
   void errorExpectedExpression();
+  bool missingSemiAtLineEnd() const;
   void syncStatement();
   void syncTopLevel();
   bool isTypeKeyword(Tok k) const;

@@ -33,6 +33,7 @@ enum class Tok : uint8_t {
   StringLiteral,
   ReservedWord,  // gather, illuminance, ...: never an identifier
   ShaderKindWord,  // surface, light, volume, imager: a shader kind we do not support
+  Unknown,  // a character the lexer already reported; the parser stays silent about it
 #define RELIEF_TOK_ENUM(Name, Spelling) Name,
   RELIEF_PUNCTUATORS(RELIEF_TOK_ENUM)
 #define RELIEF_KW_ENUM(Name, Spelling) Kw##Name,

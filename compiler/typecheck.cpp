@@ -176,6 +176,7 @@ class Checker {
     // -Wunused-variable / -Wunused-parameter, in declaration order for stable output.
     for (VarDecl* d : scopeDecls_.back()) {
       if (d->reads != 0) continue;
+      if (d->init && d->init->type.isError()) continue;  // already diagnosed
       if (d->storage == Storage::Local)
         report(DiagId::WarnUnusedVariable, d->nameRange.begin).arg(d->name).range(d->nameRange);
       else if (d->storage == Storage::Parameter && !d->isOutput)

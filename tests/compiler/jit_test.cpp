@@ -1,0 +1,423 @@
+// JIT tests: bumps.disp against a hand-written C++ version, derivatives (Du/Dv, calculatenormal),
+// noise, non-finite results, the loop guard, ShaderLibrary lookup and parameter reflection.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <sstream>
+
+#include "compiler/compiler.h"
+#include "compiler/shader_library.h"
+#include "runtime/builtins_noise.h"
+#include "runtime/shader.h"
+#include "test_batch.h"
+
+namespace relief::compiler {
+namespace {
+
+using testing::TestBatch;
+
+constexpr double kPi = 3.14159265358979323846;
+
+std::shared_ptr<const runtime::CompiledShader> compileOne(const std::string& source,
+                                                          const std::string& name = "") {
+  CompileResult r = compileSource("test.disp", source);
+  EXPECT_TRUE(r.success()) << renderDiagnostics(r) << r.internalError;
+  if (!r.success() || r.shaders.empty()) return nullptr;
+  return name.empty() ? r.shaders.front() : r.find(name);
+}
+
+// The unit sphere P(u, v) = (sinθ cosφ, sinθ sinφ, cosθ), φ = 2πu, θ = πv, with exact seeds.
+void fillSphere(TestBatch& b, size_t i, double u, double v) {
+  const double phi = 2 * kPi * u, theta = kPi * v;
+  const double p[3] = {std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi), std::cos(theta)};
+  const double dpdu[3] = {-2 * kPi * std::sin(theta) * std::sin(phi), 2 * kPi * std::sin(theta) * std::cos(phi), 0};
+  const double dpdv[3] = {kPi * std::cos(theta) * std::cos(phi), kPi * std::cos(theta) * std::sin(phi),
+                          -kPi * std::sin(theta)};
+  for (int k = 0; k < 3; ++k) {
+    b.P[k][i] = float(p[k]);
+    b.N[k][i] = float(p[k]);
+    b.Ng[k][i] = float(p[k]);
+    b.dPdu[k][i] = float(dpdu[k]);
+    b.dPdv[k][i] = float(dpdv[k]);
+    b.dNdu[k][i] = float(dpdu[k]);  // N = P on the unit sphere
+    b.dNdv[k][i] = float(dpdv[k]);
+  }
+  b.u[i] = float(u);
+  b.v[i] = float(v);
+  b.s[i] = float(u);
+  b.t[i] = float(v);
+  b.dsdu[i] = 1;
+  b.dtdv[i] = 1;
+  b.du[i] = b.dv[i] = 0.01f;
+}
+
+std::array<double, 3> cross(const std::array<double, 3>& a, const std::array<double, 3>& b) {
+  return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+}
+double dot(const std::array<double, 3>& a, const std::array<double, 3>& b) {
+  return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
+std::array<double, 3> normalized(std::array<double, 3> a) {
+  const double l = std::sqrt(dot(a, a));
+  return {a[0] / l, a[1] / l, a[2] / l};
+}
+
+TEST(JitTest, BumpsMatchesHandWrittenVersion) {
+  CompileResult r = compileFile(RELIEF_SOURCE_DIR "/examples/shaders/bumps.disp");
+  ASSERT_TRUE(r.success()) << renderDiagnostics(r) << r.internalError;
+  auto shader = r.find("bumps");
+  ASSERT_TRUE(shader);
+  runtime::ShaderInstance instance(shader);
+  const double Km = 0.05, freq = 12;
+
+  constexpr size_t kPoints = 10000;
+  TestBatch b(kPoints);
+  std::mt19937 rng(1234);
+  std::uniform_real_distribution<double> uDist(0.0, 1.0), vDist(0.1, 0.9);
+  for (size_t i = 0; i < kPoints; ++i) fillSphere(b, i, uDist(rng), vDist(rng));
+
+  RlfStatus status{};
+  for (size_t first = 0; first < kPoints; first += 64) {
+    RlfShadingBatch view = b.view(first, std::min<size_t>(64, kPoints - first));
+    instance.evaluate(view, status);
+  }
+  EXPECT_EQ(status.nonFinite, 0u);
+
+  double worstP = 0, worstN = 0;
+  for (size_t i = 0; i < kPoints; ++i) {
+    const double u = b.u[i], v = b.v[i];
+    const std::array<double, 3> p{b.P[0][i], b.P[1][i], b.P[2][i]};
+    const std::array<double, 3> n = normalized({b.N[0][i], b.N[1][i], b.N[2][i]});
+    const std::array<double, 3> dpdu{b.dPdu[0][i], b.dPdu[1][i], b.dPdu[2][i]};
+    const std::array<double, 3> dpdv{b.dPdv[0][i], b.dPdv[1][i], b.dPdv[2][i]};
+    const double a = freq * 2 * kPi * u, c = freq * kPi * v;
+    const double h = Km * std::sin(a) * std::sin(c);
+    const double dhdu = Km * freq * 2 * kPi * std::cos(a) * std::sin(c);
+    const double dhdv = Km * std::sin(a) * freq * kPi * std::cos(c);
+    // d normalize(N)/du = dN/du for a unit N whose derivative is tangent (the sphere).
+    std::array<double, 3> Pu, Pv, P;
+    for (int k = 0; k < 3; ++k) {
+      P[k] = p[k] + h * n[k];
+      Pu[k] = dpdu[k] + dhdu * n[k] + h * dpdu[k];
+      Pv[k] = dpdv[k] + dhdv * n[k] + h * dpdv[k];
+    }
+    const double orient = dot(cross(dpdu, dpdv), {b.Ng[0][i], b.Ng[1][i], b.Ng[2][i]}) < 0 ? -1 : 1;
+    std::array<double, 3> N = normalized(cross(Pu, Pv));
+    for (double& x : N) x *= orient;
+    for (int k = 0; k < 3; ++k) {
+      worstP = std::max(worstP, std::abs(P[k] - b.Pout[k][i]));
+      worstN = std::max(worstN, std::abs(N[k] - b.Nout[k][i]));
+    }
+  }
+  EXPECT_LT(worstP, 1e-5);
+  EXPECT_LT(worstN, 1e-5);
+}
+
+TEST(JitTest, BatchSizeDoesNotChangeResults) {
+  auto shader = compileOne(
+      "displacement d(float Km = 0.1) { P += Km * snoise(P * 3) * normalize(N); }");
+  ASSERT_TRUE(shader);
+  runtime::ShaderInstance instance(shader);
+  TestBatch a(100), single(100);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> dist(0.05, 0.95);
+  for (size_t i = 0; i < 100; ++i) {
+    const double u = dist(rng), v = dist(rng);
+    fillSphere(a, i, u, v);
+    fillSphere(single, i, u, v);
+  }
+  RlfStatus status{};
+  RlfShadingBatch all = a.all();
+  instance.evaluate(all, status);
+  for (size_t i = 0; i < 100; ++i) {
+    RlfShadingBatch one = single.view(i, 1);
+    instance.evaluate(one, status);
+  }
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_EQ(a.Pout[k], single.Pout[k]);  // bit-identical (language.md §7)
+    EXPECT_EQ(a.Nout[k], single.Nout[k]);
+  }
+}
+
+TEST(JitTest, DerivativesOfPolynomialsInUV) {
+  // f = u²v + 3u - v³ + 2: Du = 2uv + 3, Dv = u² - 3v². g = u·v·v: Du = v², Dv = 2uv.
+  auto shader = compileOne(R"(
+displacement d()
+{
+    float f = u * u * v + 3 * u - v * v * v + 2;
+    float g = u * v;
+    g *= v;
+    P = point(Du(f), Dv(f), Du(g));
+    N = normal(Dv(g), Du(u), Dv(u));
+})");
+  ASSERT_TRUE(shader);
+  runtime::ShaderInstance instance(shader);
+  TestBatch b(50);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> dist(-2, 2);
+  for (size_t i = 0; i < 50; ++i) {
+    fillSphere(b, i, 0.3, 0.4);
+    b.u[i] = float(dist(rng));
+    b.v[i] = float(dist(rng));
+  }
+  RlfStatus status{};
+  RlfShadingBatch view = b.all();
+  instance.evaluate(view, status);
+  for (size_t i = 0; i < 50; ++i) {
+    const double u = b.u[i], v = b.v[i];
+    EXPECT_NEAR(b.Pout[0][i], 2 * u * v + 3, 1e-4);
+    EXPECT_NEAR(b.Pout[1][i], u * u - 3 * v * v, 1e-4);
+    EXPECT_NEAR(b.Pout[2][i], v * v, 1e-4);
+    EXPECT_NEAR(b.Nout[0][i], 2 * u * v, 1e-4);
+    EXPECT_NEAR(b.Nout[1][i], 1, 0);
+    EXPECT_NEAR(b.Nout[2][i], 0, 0);
+  }
+}
+
+TEST(JitTest, CalculateNormalOfUndisplacedSphereIsItsNormal) {
+  auto shader = compileOne("displacement d() { N = normalize(calculatenormal(P)); }");
+  ASSERT_TRUE(shader);
+  runtime::ShaderInstance instance(shader);
+  TestBatch b(200);
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> dist(0.05, 0.95);
+  for (size_t i = 0; i < 200; ++i) fillSphere(b, i, dist(rng), dist(rng));
+  // Flip the parameterization of half the points: the orientation rule must still follow Ng.
+  for (size_t i = 0; i < 200; i += 2)
+    for (int k = 0; k < 3; ++k) b.dPdu[k][i] = -b.dPdu[k][i];
+  RlfStatus status{};
+  RlfShadingBatch view = b.all();
+  instance.evaluate(view, status);
+  for (size_t i = 0; i < 200; ++i)
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_NEAR(b.Nout[k][i], b.P[k][i], 1e-5) << "point " << i;
+      EXPECT_EQ(b.Pout[k][i], b.P[k][i]);
+    }
+}
+
+TEST(JitTest, HostContractAppendsNormalWhenOnlyPIsAssigned) {
+  auto withN = compileOne(
+      "displacement d(float Km = 0.05) { P += Km * sin(20 * u) * normalize(N); N = normalize(calculatenormal(P)); }");
+  auto withoutN = compileOne("displacement d(float Km = 0.05) { P += Km * sin(20 * u) * normalize(N); }");
+  ASSERT_TRUE(withN && withoutN);
+  runtime::ShaderInstance a(withN), b(withoutN);
+  TestBatch x(20), y(20);
+  for (size_t i = 0; i < 20; ++i) {
+    fillSphere(x, i, 0.04 * double(i) + 0.01, 0.3);
+    fillSphere(y, i, 0.04 * double(i) + 0.01, 0.3);
+  }
+  RlfStatus status{};
+  RlfShadingBatch vx = x.all(), vy = y.all();
+  a.evaluate(vx, status);
+  b.evaluate(vy, status);
+  for (int k = 0; k < 3; ++k) EXPECT_EQ(x.Nout[k], y.Nout[k]);
+  // The bumps really tilt the normal, so equality above is not vacuous.
+  double tilt = 0;
+  for (size_t i = 0; i < 20; ++i)
+    for (int k = 0; k < 3; ++k) tilt = std::max(tilt, double(std::abs(y.Nout[k][i] - y.N[k][i])));
+  EXPECT_GT(tilt, 0.1);
+}
+
+TEST(JitTest, NoiseIsInRangeHalfAtLatticeAndHasExactDerivative) {
+  float grad[3];
+  EXPECT_FLOAT_EQ(rlf_noise3(3, -2, 7, grad), 0.5f);
+  EXPECT_FLOAT_EQ(rlf_noise1(-4, grad), 0.5f);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> dist(-50, 50);
+  for (int i = 0; i < 2000; ++i) {
+    const float x = dist(rng), y = dist(rng), z = dist(rng);
+    const float n = rlf_noise3(x, y, z, grad);
+    ASSERT_GE(n, 0.0f);
+    ASSERT_LE(n, 1.0f);
+    // Central differences in double-spaced steps agree with the analytic gradient.
+    const float h = 1e-3f;
+    float g2[3];
+    const double fd = (double(rlf_noise3(x + h, y, z, g2)) - double(rlf_noise3(x - h, y, z, g2))) / (2 * h);
+    EXPECT_NEAR(grad[0], fd, 2e-2) << x << ' ' << y << ' ' << z;
+  }
+  // Deterministic: same input, same output.
+  EXPECT_EQ(rlf_noise3(1.25f, 2.5f, -3.75f, grad), rlf_noise3(1.25f, 2.5f, -3.75f, grad));
+}
+
+TEST(JitTest, NoiseDerivativesFlowThroughShaders) {
+  auto shader = compileOne(R"(
+displacement d()
+{
+    float n = noise(u * 7.3, v * 5.1);
+    P = point(n, Du(n), Dv(n));
+})");
+  ASSERT_TRUE(shader);
+  runtime::ShaderInstance instance(shader);
+  TestBatch b(30);
+  for (size_t i = 0; i < 30; ++i) {
+    fillSphere(b, i, 0.3, 0.4);
+    b.u[i] = 0.031f * float(i) + 0.01f;
+    b.v[i] = 0.027f * float(i) + 0.02f;
+  }
+  RlfStatus status{};
+  RlfShadingBatch view = b.all();
+  instance.evaluate(view, status);
+  for (size_t i = 0; i < 30; ++i) {
+    float g[2];
+    const float n = rlf_noise2(b.u[i] * 7.3f, b.v[i] * 5.1f, g);
+    EXPECT_FLOAT_EQ(b.Pout[0][i], n);
+    EXPECT_NEAR(b.Pout[1][i], 7.3f * g[0], 1e-4);
+    EXPECT_NEAR(b.Pout[2][i], 5.1f * g[1], 1e-4);
+  }
+}
+
+TEST(JitTest, NonFiniteResultKeepsUndisplacedPointAndCounts) {
+  auto shader = compileOne("displacement d() { P += exp(1000 * u) * N; }");
+  ASSERT_TRUE(shader);
+  runtime::ShaderInstance instance(shader);
+  TestBatch b(4);
+  for (size_t i = 0; i < 4; ++i) fillSphere(b, i, i < 2 ? 0.5 : 0.0, 0.5);
+  RlfStatus status{};
+  RlfShadingBatch view = b.all();
+  instance.evaluate(view, status);
+  EXPECT_EQ(status.nonFinite, 2u);
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_EQ(b.Pout[k][0], b.P[k][0]);
+    EXPECT_EQ(b.Nout[k][0], b.N[k][0]);
+    EXPECT_TRUE(std::isfinite(b.Pout[k][3]));
+  }
+  EXPECT_NE(b.Pout[2][3], b.P[2][3]);
+}
+
+TEST(JitTest, LoopGuardAbortsRunawayLoops) {
+  auto shader = compileOne("displacement d() { while (1) { P += 0.001 * N; } }");
+  ASSERT_TRUE(shader);
+  runtime::ShaderInstance instance(shader);
+  TestBatch b(2);
+  fillSphere(b, 0, 0.2, 0.3);
+  fillSphere(b, 1, 0.4, 0.6);
+  RlfStatus status{};
+  RlfShadingBatch view = b.all();
+  instance.evaluate(view, status);
+  EXPECT_EQ(status.loopLimit, 2u);
+  for (int k = 0; k < 3; ++k) EXPECT_EQ(b.Pout[k][1], b.P[k][1]);
+}
+
+TEST(JitTest, ControlFlowAndIntegerArithmetic) {
+  auto shader = compileOne(R"(
+displacement d(int n = 5)
+{
+    int sum = 0;
+    for (int i = 0; i < n; i++) {
+        if (i == 3) continue;
+        sum += i;
+    }
+    int k = 0;
+    while (k < 100) { k++; if (k >= 7) break; }
+    float x = 7 / 2;
+    float y = 1 / 0;
+    int z = -7 % 3;
+    P = point(sum, k, x);
+    N = normal(y, z, u > 0.5 && v < 0.5 ? 1 : -1);
+})");
+  ASSERT_TRUE(shader);
+  runtime::ShaderInstance instance(shader);
+  TestBatch b(2);
+  fillSphere(b, 0, 0.7, 0.2);
+  fillSphere(b, 1, 0.2, 0.2);
+  RlfStatus status{};
+  RlfShadingBatch view = b.all();
+  instance.evaluate(view, status);
+  EXPECT_EQ(b.Pout[0][0], 0 + 1 + 2 + 4);
+  EXPECT_EQ(b.Pout[1][0], 7);
+  EXPECT_EQ(b.Pout[2][0], 3);  // int division truncates
+  EXPECT_EQ(b.Nout[0][0], 0);  // division by zero yields 0
+  EXPECT_EQ(b.Nout[1][0], -1);
+  EXPECT_EQ(b.Nout[2][0], 1);
+  EXPECT_EQ(b.Nout[2][1], -1);
+}
+
+TEST(JitTest, ReflectionReportsParametersAndDefaults) {
+  CompileResult r = compileSource("p.disp", R"(
+displacement p(float Km = 0.5, freq = Km * 4; point c = point(1, 2, 3), color k = 0.25;
+               string name = "hello"; int octaves = 6)
+{
+    P += Km * freq * (c - P) * octaves + vector(k);
+    if (name == "x") P = c;
+})");
+  ASSERT_TRUE(r.success()) << renderDiagnostics(r);
+  auto shader = r.find("p");
+  ASSERT_TRUE(shader);
+  auto params = shader->params();
+  ASSERT_EQ(params.size(), 6u);
+  EXPECT_EQ(params[0].name, "Km");
+  EXPECT_EQ(params[0].defaultNumbers, std::vector<float>{0.5f});
+  EXPECT_EQ(params[1].defaultNumbers, std::vector<float>{2.0f});
+  EXPECT_EQ(params[2].type, runtime::ParamType::Point);
+  EXPECT_EQ(params[2].defaultNumbers, (std::vector<float>{1, 2, 3}));
+  EXPECT_EQ(params[3].type, runtime::ParamType::Color);
+  EXPECT_EQ(params[3].defaultNumbers, (std::vector<float>{0.25f, 0.25f, 0.25f}));
+  EXPECT_EQ(params[4].type, runtime::ParamType::String);
+  EXPECT_EQ(params[4].defaultStrings, std::vector<std::string>{"hello"});
+  EXPECT_EQ(params[4].offset % 8, 0u);
+  EXPECT_EQ(params[5].type, runtime::ParamType::Int);
+  EXPECT_EQ(params[5].defaultNumbers, std::vector<float>{6});
+
+  // Binding a string parameter changes behavior.
+  runtime::ShaderInstance instance(shader);
+  std::string error;
+  ASSERT_TRUE(instance.bind({"name", runtime::ParamType::String, {}, {"x"}}, &error)) << error;
+  ASSERT_TRUE(instance.bind({"Km", runtime::ParamType::Float, {0}, {}}, &error)) << error;
+  TestBatch b(1);
+  fillSphere(b, 0, 0.1, 0.5);
+  RlfStatus status{};
+  RlfShadingBatch view = b.all();
+  instance.evaluate(view, status);
+  EXPECT_EQ(b.Pout[0][0], 1);
+  EXPECT_EQ(b.Pout[1][0], 2);
+  EXPECT_EQ(b.Pout[2][0], 3);
+}
+
+TEST(JitTest, DefinesReplaceIdentifiers) {
+  CompileOptions options;
+  options.defines = {{"AMOUNT", "0.5"}};
+  CompileResult r = compileSource("d.disp", "displacement d() { P += AMOUNT * M_PI * N; }", options);
+  ASSERT_TRUE(r.success()) << renderDiagnostics(r);
+  runtime::ShaderInstance instance(r.shaders.front());
+  TestBatch b(1);
+  fillSphere(b, 0, 0.0, 0.0);
+  RlfStatus status{};
+  RlfShadingBatch view = b.all();
+  instance.evaluate(view, status);
+  EXPECT_NEAR(b.Pout[2][0], 1 + 0.5 * kPi, 1e-6);
+}
+
+TEST(ShaderLibraryTest, FindsCompilesAndCaches) {
+  std::ostringstream diagnostics;
+  ShaderLibrary library({}, &diagnostics);
+  const std::vector<std::string> path = {RELIEF_SOURCE_DIR "/does/not/exist", RELIEF_SOURCE_DIR "/examples/shaders"};
+  std::string error;
+  auto a = library.find("bumps", path, &error);
+  ASSERT_TRUE(a) << error;
+  EXPECT_EQ(a->name(), "bumps");
+  ASSERT_TRUE(a->findParam("Km"));
+  EXPECT_EQ(a->findParam("Km")->defaultNumbers, std::vector<float>{0.05f});
+  EXPECT_EQ(library.find("bumps", path, &error), a);  // cached
+  EXPECT_FALSE(library.find("nosuchshader", path, &error));
+  EXPECT_NE(error.find("nosuchshader"), std::string::npos);
+  EXPECT_TRUE(diagnostics.str().empty()) << diagnostics.str();
+}
+
+TEST(ShaderLibraryTest, ReportsCompileErrorsToTheStream) {
+  const std::string dir = ::testing::TempDir() + "/relief_shaderlib";
+  std::filesystem::create_directories(dir);
+  std::ofstream(dir + "/broken.disp") << "displacement broken() { P += Kn; }\n";
+  std::ostringstream diagnostics;
+  ShaderLibrary library({}, &diagnostics);
+  std::string error;
+  EXPECT_FALSE(library.find("broken", std::vector<std::string>{dir}, &error));
+  EXPECT_NE(error.find("failed to compile"), std::string::npos);
+  EXPECT_NE(diagnostics.str().find("broken.disp:1:30: error: use of undeclared identifier 'Kn'"), std::string::npos)
+      << diagnostics.str();
+}
+
+}  // namespace
+}  // namespace relief::compiler
