@@ -1039,8 +1039,8 @@ bool RibParser::doSphere(const Call& call) {
   // Both with a floor so spheres look round and a cap for very large ones.
   const bool displaced = attr_.displacement != nullptr;
   const float worldRadius = std::fabs(radius) * maxScale(attr_.ctm);
-  const float target = (displaced ? 64.0f : 4.0f) * attr_.edgeLength;
-  const int minU = displaced ? 64 : 128, minV = displaced ? 32 : 64;
+  const float target = (displaced ? 16.0f : 4.0f) * attr_.edgeLength;
+  const int minU = 256, minV = 128;
   const float sweep = std::fabs(thetamax) / 360.0f;
   const float vFraction =
       (std::acos(zmin / std::fabs(radius)) - std::acos(zmax / std::fabs(radius))) / float(M_PI);

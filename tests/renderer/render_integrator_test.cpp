@@ -120,7 +120,7 @@ TEST(RenderIntegrator, ImageIsIdenticalAcrossOrdersThreadsAndRuns) {
       "Translate 0 0 5\nRotate -20 1 0 0\nWorldBegin\n"
       "LightSource \"distantlight\" 1 \"from\" [-2 3 -1.5] \"to\" [0 0 0]\n"
       "LightSource \"ambientlight\" 2 \"intensity\" [0.1]\n"
-      "Color [0.9 0.5 0.3]\nSphere 1 -1 1 360\n"
+      "Color [0.9 0.5 0.3]\nRotate -60 0 0 1\nSphere 1 -0.5 1 200\n"
       "Polygon \"P\" [-4 -1 -4  -4 -1 4  4 -1 4  4 -1 -4]\nWorldEnd\n");
   const Film reference = renderScene(scene, PixelOrder::Hilbert, 1);
   double sum = 0;
