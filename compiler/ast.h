@@ -75,6 +75,7 @@ struct VarDecl {
   bool isOutput = false;
   bool isUniform = false;  // explicitly declared uniform
   bool writable = true;
+  bool invalid = false;  // its initializer failed to parse: declared, but never diagnosed again
 
   // Filled in by the type checker.
   unsigned reads = 0;

@@ -49,13 +49,14 @@ DiagnosticsEngine::Builder::Builder(Builder&& other) noexcept
 }
 
 DiagnosticsEngine::Builder& DiagnosticsEngine::Builder::note(DiagId id, SourceLoc loc,
+                                                              std::vector<std::string> args,
                                                               SourceRange r) {
   Diagnostic n;
   n.id = id;
   n.severity = Severity::Note;
   n.loc = loc;
   if (r.isValid()) n.ranges.push_back(r);
-  n.message = format(id, {});
+  n.message = format(id, args);
   notes_.push_back(std::move(n));
   return *this;
 }
@@ -89,7 +90,6 @@ void DiagnosticsEngine::record(Diagnostic d) {
       fatal.message = format(fatal.id, {});
       fatal.order = uint32_t(diags_.size());
       diags_.push_back(std::move(fatal));
-      ++numErrors_;
       return;
     }
     ++numErrors_;
@@ -147,7 +147,7 @@ void renderOne(std::ostream& out, const SourceManager& sm, const Diagnostic& d,
   out << d.message;
   if (!d.flag.empty() && d.severity != Severity::Note) {
     out << " [-W";
-    if (d.severity == Severity::Error) out << "error,";
+    if (d.severity == Severity::Error) out << "error,-W";
     out << d.flag << ']';
   }
   if (opt.color) out << kReset;

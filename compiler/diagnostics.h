@@ -65,7 +65,7 @@ class DiagnosticsEngine {
       return *this;
     }
     // Attaches a note to this diagnostic (printed right after it).
-    Builder& note(DiagId id, SourceLoc loc, SourceRange r = {});
+    Builder& note(DiagId id, SourceLoc loc, std::vector<std::string> args = {}, SourceRange r = {});
 
    private:
     DiagnosticsEngine* engine_;
@@ -79,7 +79,7 @@ class DiagnosticsEngine {
 
   Builder report(DiagId id, SourceLoc loc) { return Builder(this, id, loc); }
 
-  bool hasErrors() const { return numErrors_ > 0; }
+  bool hasErrors() const { return numErrors_ > 0 || limitReached_; }
   unsigned numErrors() const { return numErrors_; }
   unsigned numWarnings() const { return numWarnings_; }
   // Diagnostics sorted by location (then emission order).

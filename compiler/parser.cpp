@@ -84,8 +84,7 @@ bool Parser::expectClosing(Tok k, const Token& opener) {
   const SourceLoc at = pos_ ? prev().end() : tok().loc;
   diags_.report(DiagId::ErrExpected, at)
       .arg(tokDescription(k))
-      .note(DiagId::NoteToMatch, opener.loc)
-      .arg(tokSpelling(opener.kind));
+      .note(DiagId::NoteToMatch, opener.loc, {std::string(tokSpelling(opener.kind))});
   return false;
 }
 
@@ -262,6 +261,10 @@ bool Parser::parseFormals(std::vector<std::unique_ptr<VarDecl>>& params) {
     }
     const Type type(typeOf(consume().kind));
     if (!parseDeclarators(params, type, isOutput, isUniform, Storage::Parameter)) return false;
+    if (recovering_) {
+      recovering_ = false;
+      return false;
+    }
     if (tok().is(Tok::Semi)) {
       consume();
       if (tok().is(Tok::RParen)) return true;
@@ -304,7 +307,13 @@ bool Parser::parseDeclarators(std::vector<std::unique_ptr<VarDecl>>& out, Type t
         return false;
       }
       decl->init = parseAssignment();
-      if (!decl->init) return false;
+      if (!decl->init) {
+        // Keep the variable declared so later uses do not cascade into more errors.
+        decl->invalid = true;
+        out.push_back(std::move(decl));
+        recovering_ = true;
+        return true;
+      }
     }
     out.push_back(std::move(decl));
     if (tok().is(Tok::Comma) && peek().is(Tok::Identifier)) {
@@ -349,14 +358,16 @@ StmtPtr Parser::parseStatement() {
     }
     auto s = parseDeclaration();
     if (!s) return nullptr;
-    if (!expectAfterPrev(Tok::Semi, "declaration") && !missingSemiAtLineEnd()) return nullptr;
+    if (recovering_) return s;
+    // Without its ';' the declaration is still complete: keep it, resync unless at a line end.
+    if (!expectAfterPrev(Tok::Semi, "declaration") && !missingSemiAtLineEnd()) recovering_ = true;
     s->range.end = prev().end();
     return s;
   }
   const SourceLoc start = t.loc;
   ExprPtr e = parseExpression();
   if (!e) return nullptr;
-  if (!expectAfterPrev(Tok::Semi, "expression") && !missingSemiAtLineEnd()) return nullptr;
+  if (!expectAfterPrev(Tok::Semi, "expression") && !missingSemiAtLineEnd()) recovering_ = true;
   auto s = std::make_unique<Stmt>(StmtKind::ExprStmt, join(start, prev().end()));
   s->expr = std::move(e);
   return s;
@@ -369,9 +380,11 @@ StmtPtr Parser::parseBlock() {
   while (!tok().is(Tok::RBrace) && !tok().is(Tok::Eof) && !tok().is(Tok::KwDisplacement) &&
          !tok().is(Tok::ShaderKindWord)) {
     const size_t before = pos_;
+    recovering_ = false;
     StmtPtr s = parseStatement();
     if (s) {
       block->stmts.push_back(std::move(s));
+      if (recovering_) syncStatement();
     } else {
       syncStatement();
       if (pos_ == before) consume();  // always make progress
@@ -413,7 +426,8 @@ StmtPtr Parser::parseIf() {
   }
   const Token open = consume();
   s->cond = parseExpression();
-  if (!s->cond || !expectClosing(Tok::RParen, open)) return nullptr;
+  if (!s->cond) return nullptr;
+  if (!expectClosing(Tok::RParen, open) && !tok().is(Tok::LBrace)) return nullptr;
   s->then = parseStatement();
   if (!s->then) return nullptr;
   if (accept(Tok::KwElse)) {
@@ -434,7 +448,8 @@ StmtPtr Parser::parseWhile() {
   }
   const Token open = consume();
   s->cond = parseExpression();
-  if (!s->cond || !expectClosing(Tok::RParen, open)) return nullptr;
+  if (!s->cond) return nullptr;
+  if (!expectClosing(Tok::RParen, open) && !tok().is(Tok::LBrace)) return nullptr;
   s->body = parseStatement();
   if (!s->body) return nullptr;
   s->range.end = prev().end();
@@ -550,8 +565,7 @@ ExprPtr Parser::parseConditional() {
   if (!tok().is(Tok::Colon)) {
     diags_.report(DiagId::ErrExpected, prev().end())
         .arg("':'")
-        .note(DiagId::NoteToMatch, q.loc)
-        .arg("?");
+        .note(DiagId::NoteToMatch, q.loc, {"?"});
     return nullptr;
   }
   consume();
@@ -743,7 +757,8 @@ ExprPtr Parser::parsePrimary() {
         tuple->range.end = prev().end();
         return tuple;
       }
-      if (!expectClosing(Tok::RParen, open)) return nullptr;
+      // A missing ')' right before ';' is most likely just that: keep the expression.
+      if (!expectClosing(Tok::RParen, open) && !tok().is(Tok::Semi)) return nullptr;
       // Parentheses leave no node; widen the range so carets cover them.
       first->range = join(open.loc, prev().end());
       return first;

@@ -73,6 +73,7 @@ class Parser {
   std::vector<Token> toks_;
   size_t pos_ = 0;
   std::unique_ptr<TranslationUnit> unit_;
+  bool recovering_ = false;  // a statement was kept despite an error: resync after it
 };
 
 }  // namespace relief::compiler

@@ -176,7 +176,7 @@ class Checker {
     // -Wunused-variable / -Wunused-parameter, in declaration order for stable output.
     for (VarDecl* d : scopeDecls_.back()) {
       if (d->reads != 0) continue;
-      if (d->init && d->init->type.isError()) continue;  // already diagnosed
+      if (d->invalid || (d->init && d->init->type.isError())) continue;  // already diagnosed
       if (d->storage == Storage::Local)
         report(DiagId::WarnUnusedVariable, d->nameRange.begin).arg(d->name).range(d->nameRange);
       else if (d->storage == Storage::Parameter && !d->isOutput)
@@ -193,7 +193,7 @@ class Checker {
       report(DiagId::ErrRedeclaration, d.nameRange.begin)
           .arg(d.name)
           .range(d.nameRange)
-          .note(DiagId::NotePreviousDeclaration, it->second->nameRange.begin, it->second->nameRange);
+          .note(DiagId::NotePreviousDeclaration, it->second->nameRange.begin, {}, it->second->nameRange);
       return;
     }
     if (VarDecl* outer = lookup(d.name)) {
