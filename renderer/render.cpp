@@ -157,17 +157,10 @@ glm::vec3 Integrator::radiance(const Ray& ray, RenderStats* stats) const {
 
 glm::vec3 Integrator::surfaceColor(const Mesh& mesh, const Material& material, const Hit& hit) {
   if (mesh.Cs.empty() || hit.triangleIndex >= mesh.numTriangles()) return material.color;
-  // Barycentrics of the hit projected onto its input triangle: a displaced hit lies off the
-  // triangle, and its colour is the colour of the point it was displaced from (approximately).
+  // Hit::bary is exact for displaced hits too (the point the micro-geometry was displaced from).
   const uint32_t* idx = &mesh.indices[3 * size_t(hit.triangleIndex)];
-  const glm::vec3 p0 = mesh.P[idx[0]], p1 = mesh.P[idx[1]], p2 = mesh.P[idx[2]];
-  const glm::vec3 n = glm::cross(p1 - p0, p2 - p0);
-  const float area = glm::dot(n, n);
-  if (!(area > 0.0f)) return mesh.Cs[idx[0]];
-  float b1 = glm::dot(glm::cross(hit.P - p0, p2 - p0), n) / area;
-  float b2 = glm::dot(glm::cross(p1 - p0, hit.P - p0), n) / area;
-  b1 = std::clamp(b1, 0.0f, 1.0f);
-  b2 = std::clamp(b2, 0.0f, 1.0f - b1);
+  const float b1 = std::clamp(hit.bary.x, 0.0f, 1.0f);
+  const float b2 = std::clamp(hit.bary.y, 0.0f, 1.0f - b1);
   return (1.0f - b1 - b2) * mesh.Cs[idx[0]] + b1 * mesh.Cs[idx[1]] + b2 * mesh.Cs[idx[2]];
 }
 

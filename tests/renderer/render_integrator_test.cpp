@@ -211,7 +211,8 @@ TEST(RenderIntegrator, GridAcceleratorAgreesWithBruteForce) {
       "Translate 0 0 5\nWorldBegin\n"
       "LightSource \"distantlight\" 1 \"from\" [-2 3 -1.5] \"to\" [0 0 0]\n"
       "Sphere 1 -1 1 360\n"
-      "Polygon \"P\" [-4 -1 -4  -4 -1 4  4 -1 4  4 -1 -4]\nWorldEnd\n");
+      "Polygon \"P\" [-4 -1 -4  -4 -1 4  4 -1 4  4 -1 -4]"
+      " \"Cs\" [1 0 0  0 1 0  0 0 1  1 1 1]\nWorldEnd\n");
   const Film brute = renderScene(scene);
   std::unique_ptr<Accelerator> accel = makeGridAccelerator(scene, AccelOptions{});
   Film film(scene.width, scene.height);

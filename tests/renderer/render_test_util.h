@@ -35,6 +35,7 @@ class BruteForceAccelerator : public Accelerator {
         const glm::vec3 p0 = mesh.P[mesh.indices[3 * t]], p1 = mesh.P[mesh.indices[3 * t + 1]],
                         p2 = mesh.P[mesh.indices[3 * t + 2]];
         h.Ng = glm::normalize(glm::cross(p1 - p0, p2 - p0));
+        h.bary = glm::vec2(b1, b2);
         h.meshIndex = m;
         h.triangleIndex = t;
         best = h;

@@ -1,0 +1,270 @@
+// relief: renders a RIB scene with displacement shaders compiled on the fly. The only place where
+// the compiler (ShaderLibrary, the ShaderProvider) meets the renderer (reader, accelerator, render
+// loop, film). Exit codes: 0 image written, 1 scene/shader/render error, 2 usage error.
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <exception>
+#include <filesystem>
+#include <iostream>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "compiler/shader_library.h"
+#include "renderer/accel.h"
+#include "renderer/film.h"
+#include "renderer/render.h"
+#include "renderer/rib_reader.h"
+#include "runtime/abi.h"
+
+namespace {
+
+constexpr const char* kVersion = "0.1.0";
+
+constexpr const char* kUsage =
+    "usage: relief [options] scene.rib\n"
+    "\n"
+    "Renders a RenderMan RIB scene whose displacement shaders (.disp) are compiled on the fly.\n"
+    "\n"
+    "options:\n"
+    "  -I, --shader-path DIR     search DIR for shaders (repeatable; before RELIEF_SHADER_PATH)\n"
+    "  -o FILE                   write the image to FILE instead of the scene's Display\n"
+    "                            (format from the extension: png, exr, tif, ...)\n"
+    "  --resolution WxH          override the scene's Format\n"
+    "  --spp N                   samples per pixel (overrides PixelSamples)\n"
+    "  --threads N               render threads (default: all cores)\n"
+    "  --order ORDER             pixel order: scanline, bucket or hilbert (default)\n"
+    "  --cache-triangles N       geometry cache budget in displaced triangles, or 'unlimited'\n"
+    "  --no-displacement         render the undisplaced surfaces\n"
+    "  --stats                   print cache statistics and timings\n"
+    "  --quiet                   no warnings or progress, only errors and the image path\n"
+    "  --help                    show this help\n"
+    "  --version                 show the version\n"
+    "\n"
+    "The shader search path is the scene's Option \"searchpath\" \"shader\" if given ('@' in it\n"
+    "stands for the default path), otherwise the default: the -I directories, then the\n"
+    "':'-separated RELIEF_SHADER_PATH, then the scene file's directory.\n";
+
+struct CommandLine {
+  std::string scene;
+  std::vector<std::string> shaderDirs;
+  std::string output;
+  int width = 0, height = 0;
+  int spp = 0;
+  int threads = 0;
+  relief::PixelOrder order = relief::PixelOrder::Hilbert;
+  uint64_t cacheTriangles = UINT64_MAX;
+  bool displace = true;
+  bool stats = false;
+  bool quiet = false;
+};
+
+int usageError(const std::string& message) {
+  std::cerr << "relief: error: " << message << "\n"
+            << "usage: relief [options] scene.rib (see relief --help)\n";
+  return 2;
+}
+
+bool parsePositive(const std::string& text, long long max, long long* value) {
+  if (text.empty() || text.size() > 19) return false;
+  for (char c : text)
+    if (c < '0' || c > '9') return false;
+  *value = std::stoll(text);
+  return *value > 0 && *value <= max;
+}
+
+// Returns -1 when parsing succeeded and the program should go on, else the exit code.
+int parseCommandLine(int argc, char** argv, CommandLine* cl) {
+  std::vector<std::string> args(argv + 1, argv + argc);
+  for (size_t i = 0; i < args.size(); ++i) {
+    const std::string& a = args[i];
+    auto value = [&](std::string* out) {
+      if (i + 1 >= args.size()) return false;
+      *out = args[++i];
+      return true;
+    };
+    std::string v;
+    long long n = 0;
+    if (a == "--help" || a == "-h") {
+      std::cout << kUsage;
+      return 0;
+    } else if (a == "--version") {
+      std::cout << "relief " << kVersion << " (shader ABI " << kRlfAbiVersion << ")\n";
+      return 0;
+    } else if (a == "-I" || a == "--shader-path") {
+      if (!value(&v)) return usageError("'" + a + "' needs a directory");
+      cl->shaderDirs.push_back(v);
+    } else if (a.size() > 2 && a.rfind("-I", 0) == 0) {
+      cl->shaderDirs.push_back(a.substr(2));
+    } else if (a == "-o") {
+      if (!value(&v)) return usageError("'-o' needs a file name");
+      cl->output = v;
+    } else if (a == "--resolution") {
+      if (!value(&v)) return usageError("'--resolution' needs WxH");
+      const size_t x = v.find('x');
+      long long w = 0, h = 0;
+      if (x == std::string::npos || !parsePositive(v.substr(0, x), 65536, &w) ||
+          !parsePositive(v.substr(x + 1), 65536, &h))
+        return usageError("invalid resolution '" + v + "' (expected WxH, e.g. 640x480)");
+      cl->width = int(w);
+      cl->height = int(h);
+    } else if (a == "--spp") {
+      if (!value(&v) || !parsePositive(v, 4096, &n))
+        return usageError("'--spp' needs a sample count between 1 and 4096");
+      cl->spp = int(n);
+    } else if (a == "--threads") {
+      if (!value(&v) || !parsePositive(v, 256, &n))
+        return usageError("'--threads' needs a thread count between 1 and 256");
+      cl->threads = int(n);
+    } else if (a == "--order") {
+      if (!value(&v) || !relief::parsePixelOrder(v, &cl->order))
+        return usageError("'--order' needs scanline, bucket or hilbert");
+    } else if (a == "--cache-triangles") {
+      if (!value(&v)) return usageError("'--cache-triangles' needs a count or 'unlimited'");
+      if (v == "unlimited") {
+        cl->cacheTriangles = UINT64_MAX;
+      } else if (parsePositive(v, (1LL << 62), &n)) {
+        cl->cacheTriangles = uint64_t(n);
+      } else {
+        return usageError("invalid triangle budget '" + v + "'");
+      }
+    } else if (a == "--no-displacement") {
+      cl->displace = false;
+    } else if (a == "--stats") {
+      cl->stats = true;
+    } else if (a == "--quiet" || a == "-q") {
+      cl->quiet = true;
+    } else if (a.size() > 1 && a[0] == '-') {
+      return usageError("unknown option '" + a + "'");
+    } else if (cl->scene.empty()) {
+      cl->scene = a;
+    } else {
+      return usageError("more than one scene given ('" + cl->scene + "' and '" + a + "')");
+    }
+  }
+  if (cl->scene.empty()) return usageError("no scene file given");
+  return -1;
+}
+
+std::vector<std::string> defaultShaderPath(const CommandLine& cl) {
+  std::vector<std::string> path = cl.shaderDirs;
+  if (const char* env = std::getenv("RELIEF_SHADER_PATH")) {
+    std::string s = env;
+    size_t start = 0;
+    while (start <= s.size()) {
+      const size_t colon = s.find(':', start);
+      const size_t end = colon == std::string::npos ? s.size() : colon;
+      if (end > start) path.push_back(s.substr(start, end - start));
+      if (colon == std::string::npos) break;
+      start = colon + 1;
+    }
+  }
+  const std::filesystem::path sceneDir = std::filesystem::path(cl.scene).parent_path();
+  path.push_back(sceneDir.empty() ? std::string(".") : sceneDir.string());
+  return path;
+}
+
+double secondsSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+void printStats(const relief::AccelStats& a, const relief::RenderStats& r, double loadSeconds,
+                double buildSeconds, uint64_t inputTriangles) {
+  const double accesses = a.accesses ? double(a.accesses) : 1.0;
+  std::printf("scene:      %llu input triangles, loaded in %.3f s\n",
+              (unsigned long long)inputTriangles, loadSeconds);
+  std::printf("accel:      built in %.3f s\n", buildSeconds);
+  std::printf("render:     %.3f s on %d threads, %d spp\n", r.seconds, r.threads,
+              r.samplesPerPixel);
+  std::printf("rays:       %llu camera (%llu hit), %llu shadow\n",
+              (unsigned long long)r.cameraRays, (unsigned long long)r.cameraHits,
+              (unsigned long long)r.shadowRays);
+  std::printf("cache:      %llu accesses, %.2f%% hits, %llu compulsory + %llu capacity misses\n",
+              (unsigned long long)a.accesses, 100.0 * double(a.hits) / accesses,
+              (unsigned long long)a.compulsoryMisses, (unsigned long long)a.capacityMisses);
+  std::printf("triangles:  %llu displaced created, %llu unique, peak %llu resident (%llu now)\n",
+              (unsigned long long)a.displacedTrianglesCreated,
+              (unsigned long long)a.uniqueDisplacedTriangles,
+              (unsigned long long)a.peakResidentTriangles,
+              (unsigned long long)a.residentTriangles);
+  std::printf("shading:    %llu shader points; subdivide %.3f s, displace %.3f s\n",
+              (unsigned long long)a.shaderPoints, a.subdivideSeconds, a.displaceSeconds);
+}
+
+int run(const CommandLine& cl) {
+  std::ostream* warnings = cl.quiet ? nullptr : &std::cerr;
+  relief::compiler::ShaderLibrary shaders(relief::compiler::CompileOptions{}, &std::cerr);
+
+  const auto loadStart = std::chrono::steady_clock::now();
+  relief::RibReadOptions readOptions;
+  readOptions.shaders = &shaders;
+  readOptions.defaultShaderPath = defaultShaderPath(cl);
+  readOptions.warnings = warnings;
+  relief::SceneError error;
+  std::optional<relief::Scene> loaded = relief::readRibFile(cl.scene, readOptions, &error);
+  if (!loaded) {
+    std::cerr << error.format() << "\n";
+    return 1;
+  }
+  const double loadSeconds = secondsSince(loadStart);
+  relief::Scene& scene = *loaded;
+  if (cl.width > 0) {
+    scene.width = cl.width;
+    scene.height = cl.height;
+  }
+
+  std::vector<std::string> outputs;
+  if (!cl.output.empty()) {
+    outputs.push_back(cl.output);
+  } else if (!scene.displays.empty()) {
+    outputs = scene.displays;
+  } else {
+    outputs.push_back(std::filesystem::path(cl.scene).stem().string() + ".png");
+    if (warnings)
+      *warnings << cl.scene << ": warning: no Display in the scene; writing '" << outputs[0]
+                << "'\n";
+  }
+
+  uint64_t inputTriangles = 0;
+  for (const relief::Mesh& m : scene.meshes) inputTriangles += m.numTriangles();
+
+  const auto buildStart = std::chrono::steady_clock::now();
+  relief::AccelOptions accelOptions;
+  accelOptions.cacheBudgetTriangles = cl.cacheTriangles;
+  accelOptions.displace = cl.displace;
+  std::unique_ptr<relief::Accelerator> accel = relief::makeGridAccelerator(scene, accelOptions);
+  const double buildSeconds = secondsSince(buildStart);
+
+  relief::RenderOptions renderOptions;
+  renderOptions.order = cl.order;
+  renderOptions.threads = cl.threads;
+  renderOptions.samplesPerPixel = cl.spp;
+  relief::Film film(scene.width, scene.height);
+  const relief::RenderStats renderStats = relief::render(scene, *accel, renderOptions, &film);
+
+  for (const std::string& path : outputs) {
+    std::string writeError;
+    if (!film.write(path, &writeError)) {
+      std::cerr << "relief: error: " << writeError << "\n";
+      return 1;
+    }
+  }
+  if (cl.stats) printStats(accel->stats(), renderStats, loadSeconds, buildSeconds, inputTriangles);
+  for (const std::string& path : outputs) std::cout << path << "\n";
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CommandLine cl;
+  const int parsed = parseCommandLine(argc, argv, &cl);
+  if (parsed >= 0) return parsed;
+  try {
+    return run(cl);
+  } catch (const std::exception& e) {
+    std::cerr << "relief: error: " << e.what() << "\n";
+    return 1;
+  }
+}
