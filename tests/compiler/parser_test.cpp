@@ -1,0 +1,147 @@
+// Parser unit tests: precedence and associativity (language.md §4.1), statements, formals, and
+// syntax errors with their locations and recovery.
+#include <gtest/gtest.h>
+
+#include <sstream>
+
+#include "compiler/compiler.h"
+#include "compiler/parser.h"
+
+namespace relief::compiler {
+namespace {
+
+std::string dumpExpr(const std::string& text, std::string* errors = nullptr) {
+  SourceManager sm;
+  DiagnosticsEngine diags;
+  const auto id = sm.addBuffer("e.disp", text);
+  Parser parser(sm, id, diags);
+  ExprPtr e = parser.parseStandaloneExpression();
+  if (errors) {
+    for (const Diagnostic& d : diags.sorted()) {
+      const PresumedLoc p = sm.presumed(d.loc);
+      *errors += std::to_string(p.line) + ":" + std::to_string(p.column) + ": " + d.message + "\n";
+    }
+  }
+  if (!e) return "<null>";
+  std::ostringstream out;
+  dump(out, *e);
+  return out.str();
+}
+
+// Diagnostics of a whole file as "line:col: severity: message" lines.
+std::string errorsOf(const std::string& source) {
+  CompileFlags flags;
+  flags.jit = false;
+  CompileResult r = compileSource("p.disp", source, {}, flags);
+  std::string out;
+  for (const Diagnostic& d : r.diagnostics->sorted()) {
+    const PresumedLoc p = r.sources->presumed(d.loc);
+    out += std::to_string(p.line) + ":" + std::to_string(p.column) + ": " + d.message + "\n";
+  }
+  return out;
+}
+
+TEST(ParserTest, MultiplicationBindsTighterThanAddition) {
+  EXPECT_EQ(dumpExpr("a + b * c"),
+            "Binary +\n  Identifier a\n  Binary *\n    Identifier b\n    Identifier c\n");
+}
+
+TEST(ParserTest, DotBindsTighterThanMultiplicationAndCrossLooserThanIt) {
+  EXPECT_EQ(dumpExpr("a * b . c"),
+            "Binary *\n  Identifier a\n  Binary .\n    Identifier b\n    Identifier c\n");
+  EXPECT_EQ(dumpExpr("a ^ b * c"),
+            "Binary ^\n  Identifier a\n  Binary *\n    Identifier b\n    Identifier c\n");
+  EXPECT_EQ(dumpExpr("a + b ^ c"),
+            "Binary +\n  Identifier a\n  Binary ^\n    Identifier b\n    Identifier c\n");
+}
+
+TEST(ParserTest, BinaryOperatorsAreLeftAssociative) {
+  EXPECT_EQ(dumpExpr("a - b - c"),
+            "Binary -\n  Binary -\n    Identifier a\n    Identifier b\n  Identifier c\n");
+}
+
+TEST(ParserTest, AssignmentAndConditionalAreRightAssociative) {
+  EXPECT_EQ(dumpExpr("a = b += c"),
+            "Assign =\n  Identifier a\n  Assign +=\n    Identifier b\n    Identifier c\n");
+  EXPECT_EQ(dumpExpr("a ? b : c ? d : e"),
+            "Conditional\n  Identifier a\n  Identifier b\n  Conditional\n    Identifier c\n"
+            "    Identifier d\n    Identifier e\n");
+}
+
+TEST(ParserTest, LogicalAndComparisonPrecedence) {
+  EXPECT_EQ(dumpExpr("a < b == c && d || e"),
+            "Binary ||\n  Binary &&\n    Binary ==\n      Binary <\n        Identifier a\n"
+            "        Identifier b\n      Identifier c\n    Identifier d\n  Identifier e\n");
+}
+
+TEST(ParserTest, UnaryPostfixCastsAndConstructors) {
+  EXPECT_EQ(dumpExpr("-a . b"), "Binary .\n  Unary -\n    Identifier a\n  Identifier b\n");
+  EXPECT_EQ(dumpExpr("!x++"), "Unary !\n  PostIncDec ++\n    Identifier x\n");
+  EXPECT_EQ(dumpExpr("(float) i"), "Cast float\n  Identifier i\n");
+  EXPECT_EQ(dumpExpr("float noise(P)"), "Cast float\n  Call noise\n    Identifier P\n");
+  EXPECT_EQ(dumpExpr("point \"object\" (1, 2, 3)"),
+            "Construct point\n  StringLiteral \"object\"\n  IntLiteral 1\n  IntLiteral 2\n  IntLiteral 3\n");
+  EXPECT_EQ(dumpExpr("v[1]"), "Index\n  Identifier v\n  IntLiteral 1\n");
+  EXPECT_EQ(dumpExpr("(1, 2, 3)"), "Tuple\n  IntLiteral 1\n  IntLiteral 2\n  IntLiteral 3\n");
+}
+
+TEST(ParserTest, ExpectedExpressionPointsAtTheToken) {
+  std::string errors;
+  EXPECT_EQ(dumpExpr("a + * b", &errors), "<null>");
+  EXPECT_EQ(errors, "1:5: expected expression\n");
+}
+
+TEST(ParserTest, RslAndOslParameterGroups) {
+  CompileFlags flags;
+  flags.jit = false;
+  flags.keepAst = true;
+  CompileResult r = compileSource(
+      "g.disp", "displacement g(float a = 1, b = 2; point c = 0, float d = 3; output vector e = 0;) { P += a*b*c*d*e; }",
+      {}, flags);
+  ASSERT_TRUE(r.success()) << renderDiagnostics(r);
+  const auto& params = r.ast->shaders[0]->params;
+  ASSERT_EQ(params.size(), 5u);
+  EXPECT_EQ(params[1]->name, "b");
+  EXPECT_EQ(params[1]->type.kind, TypeKind::Float);
+  EXPECT_EQ(params[2]->type.kind, TypeKind::Point);
+  EXPECT_EQ(params[3]->type.kind, TypeKind::Float);
+  EXPECT_TRUE(params[4]->isOutput);
+}
+
+TEST(ParserTest, MissingSemicolonIsReportedPastThePreviousToken) {
+  EXPECT_EQ(errorsOf("displacement d()\n{\n    P += N\n    P += N;\n}\n"),
+            "3:11: expected ';' after expression\n");
+}
+
+TEST(ParserTest, MissingClosersGetANoteAtTheOpener) {
+  CompileFlags flags;
+  flags.jit = false;
+  CompileResult r = compileSource("c.disp", "displacement d() {\n  if (u > 0 { P += N; }\n}\n", {}, flags);
+  const auto sorted = r.diagnostics->sorted();
+  ASSERT_EQ(sorted.size(), 1u);
+  EXPECT_EQ(sorted[0].message, "expected ')'");
+  ASSERT_EQ(sorted[0].notes.size(), 1u);
+  EXPECT_EQ(sorted[0].notes[0].message, "to match this '('");
+  EXPECT_EQ(r.sources->presumed(sorted[0].notes[0].loc).column, 6u);
+
+  EXPECT_EQ(errorsOf("displacement d() {\n  P += N;\n"), "2:10: expected '}'\n");
+}
+
+TEST(ParserTest, SeveralErrorsAreReportedInOneRun) {
+  EXPECT_EQ(errorsOf("displacement d()\n{\n  float a = 1 +;\n  P += ) N;\n  P += a * N;\n}\n"
+                     "displacement e( { }\n"
+                     "displacement f() { P += N }\n"),
+            "3:16: expected expression\n"
+            "4:8: expected expression\n"
+            "7:17: expected a type\n"
+            "8:26: expected ';' after expression\n");
+}
+
+TEST(ParserTest, OnlyDisplacementShadersAndNoReservedIdentifiers) {
+  EXPECT_EQ(errorsOf("light l() {}\ndisplacement d() { float solar = 1; P += N; }\n"),
+            "1:1: only displacement shaders are supported, not 'light' shaders\n"
+            "2:26: 'solar' is a reserved word\n");
+}
+
+}  // namespace
+}  // namespace relief::compiler
