@@ -14,6 +14,7 @@
 #include "compiler/shader_library.h"
 #include "renderer/accel.h"
 #include "renderer/film.h"
+#include "renderer/grid_accelerator.h"
 #include "renderer/render.h"
 #include "renderer/rib_reader.h"
 #include "runtime/abi.h"
@@ -162,7 +163,16 @@ std::vector<std::string> defaultShaderPath(const CommandLine& cl) {
   }
   const std::filesystem::path sceneDir = std::filesystem::path(cl.scene).parent_path();
   path.push_back(sceneDir.empty() ? std::string(".") : sceneDir.string());
-  return path;
+  // Later duplicates only cost a second failed lookup and clutter error messages.
+  std::vector<std::string> unique;
+  for (const std::string& dir : path) {
+    const std::string normal = std::filesystem::path(dir).lexically_normal().string();
+    bool seen = false;
+    for (const std::string& u : unique)
+      seen = seen || std::filesystem::path(u).lexically_normal().string() == normal;
+    if (!seen) unique.push_back(dir);
+  }
+  return unique;
 }
 
 double secondsSince(std::chrono::steady_clock::time_point start) {
@@ -190,6 +200,21 @@ void printStats(const relief::AccelStats& a, const relief::RenderStats& r, doubl
               (unsigned long long)a.residentTriangles);
   std::printf("shading:    %llu shader points; subdivide %.3f s, displace %.3f s\n",
               (unsigned long long)a.shaderPoints, a.subdivideSeconds, a.displaceSeconds);
+}
+
+// Runtime problems inside displacement shaders are counted, not thrown (abi.h); say so once.
+void reportShaderProblems(const relief::Accelerator& accel, std::ostream& out) {
+  const auto* grid = dynamic_cast<const relief::GridAccelerator*>(&accel);
+  if (!grid) return;
+  const RlfStatus s = grid->shaderStatus();
+  auto report = [&](uint32_t count, const char* what) {
+    if (count) out << "relief: warning: displacement shaders: " << count << " " << what << "\n";
+  };
+  report(s.nonFinite, "points produced NaN or infinity (left undisplaced)");
+  report(s.loopLimit, "invocations hit the loop-iteration limit");
+  report(s.indexClamped, "array or component indices were clamped into range");
+  report(s.unknownSpace, "unknown coordinate space names were treated as 'current'");
+  report(s.textureErrors, "texture lookups failed");
 }
 
 int run(const CommandLine& cl) {
@@ -250,6 +275,7 @@ int run(const CommandLine& cl) {
       return 1;
     }
   }
+  if (warnings) reportShaderProblems(*accel, *warnings);
   if (cl.stats) printStats(accel->stats(), renderStats, loadSeconds, buildSeconds, inputTriangles);
   for (const std::string& path : outputs) std::cout << path << "\n";
   return 0;
