@@ -83,6 +83,7 @@ const RuntimeSymbol kSymbols[] = {
     {"rlf_noise2", reinterpret_cast<void*>(&rlf_noise2)},
     {"rlf_noise3", reinterpret_cast<void*>(&rlf_noise3)},
     {"rlf_noise4", reinterpret_cast<void*>(&rlf_noise4)},
+    {"rlf_cellnoise", reinterpret_cast<void*>(&rlf_cellnoise)},
 };
 }  // namespace
 

@@ -32,6 +32,13 @@ enum class BuiltinShape : uint8_t {
   Displace,    // void f(vector) | f(float) | f(string, float)
   FBm,         // float f(point, int[, float, float])
   FloatPred,   // int f(float)
+  Transform,   // S f([string from,] string to, S p)
+  Filterwidth, // float→float, S→vector
+  Filterstep,  // float f(float e, float x[, float x2][, "width", float w])
+  Reflect,     // vector f(vector I, vector N)
+  Faceforward, // vector f(vector N, vector I[, vector Nref])
+  Luminance,   // float f(color)
+  Hypot,       // float f(float, float[, float])
 };
 
 enum class BuiltinId : uint8_t {

@@ -393,6 +393,7 @@ class ShaderCodegen {
     Value* block = fn_->getArg(0);
     orientation_ = cf(1);
     slots_.clear();
+    gradient_ = cellInput_ = nullptr;
     for (const auto& p : shader_.params) {
       Val v = p->init ? convert(gen(*p->init), p->type) : zeroOf(p->type);
       store(slotFor(p.get()), v);
@@ -412,6 +413,7 @@ class ShaderCodegen {
     llvm::BasicBlock* entry = llvm::BasicBlock::Create(ctx_, "entry", fn_);
     b_.SetInsertPoint(entry);
     slots_.clear();
+    gradient_ = cellInput_ = nullptr;
 
     zeroCell_ = entryAlloca(f32_, "zero");
     b_.CreateStore(cf(0), zeroCell_);
@@ -1058,6 +1060,31 @@ class ShaderCodegen {
     return r;
   }
 
+  Val cellnoiseOf(const std::vector<Val>& args, Type result) {
+    std::vector<Value*> in;
+    for (const Val& a : args) {
+      if (a.type.isTriple())
+        for (int k = 0; k < 3; ++k) in.push_back(a.c[k].v);
+      else
+        in.push_back(toFloatScalar(a).c[0].v);
+    }
+    if (!cellInput_) cellInput_ = entryAlloca(llvm::ArrayType::get(f32_, 4), "cell");
+    for (size_t i = 0; i < in.size(); ++i)
+      b_.CreateStore(in[i], b_.CreateConstInBoundsGEP2_32(cellInput_->getAllocatedType(), cellInput_, 0, unsigned(i)));
+    llvm::FunctionCallee fnc =
+        module_.getOrInsertFunction("rlf_cellnoise", llvm::FunctionType::get(f32_, {ptr_, i32_, i32_}, false));
+    if (auto* fn = llvm::dyn_cast<llvm::Function>(fnc.getCallee())) {
+      fn->setDoesNotThrow();
+      fn->setWillReturn();
+      fn->setMemoryEffects(llvm::MemoryEffects::argMemOnly(llvm::ModRefInfo::Ref));
+    }
+    Val r;
+    r.type = result;
+    for (int k = 0; k < numComponents(result); ++k)
+      r.c[k] = {b_.CreateCall(fnc, {cellInput_, ci(int32_t(in.size())), ci(k)}), nullptr, nullptr};
+    return r;
+  }
+
   Val noiseOf(const std::vector<Val>& args, Type result, bool isSigned) {
     std::vector<Dual> in;
     for (const Val& a : args) {
@@ -1240,7 +1267,83 @@ class ShaderCodegen {
         Val c = cross3(a, b);
         return makeFloat(dsqrtSafe(dot3(c, c)));
       }
-      case BuiltinShape::Noise: return noiseOf(args, rt, id == BuiltinId::Snoise);
+      case BuiltinShape::Noise:
+        if (id == BuiltinId::Cellnoise) return cellnoiseOf(args, rt);
+        return noiseOf(args, rt, id == BuiltinId::Snoise);
+      case BuiltinShape::Transform: {
+        const size_t n = args.size();
+        Val p = args[n - 1];
+        if (id == BuiltinId::Vtransform) p.type = Type(TypeKind::Vector);
+        if (id == BuiltinId::Ntransform) p.type = Type(TypeKind::Normal);
+        if (n == 3) p = toCurrent(p, e.operands[0]->text);
+        return fromCurrent(p, e.operands[n - 2]->text);
+      }
+      case BuiltinShape::Filterwidth: {
+        const Val du = load(slotFor(globals_[size_t(GlobalId::du)]));
+        const Val dv = load(slotFor(globals_[size_t(GlobalId::dv)]));
+        Val a = args[0].type.isScalar() ? toFloatScalar(args[0]) : args[0];
+        const Val gu = derivOf(a, true), gv = derivOf(a, false);
+        Val r;
+        r.type = rt;
+        for (int k = 0; k < numComponents(rt); ++k)
+          r.c[k] = {b_.CreateFAdd(intrinsic(llvm::Intrinsic::fabs, {b_.CreateFMul(gu.c[k].v, du.c[0].v)}),
+                                  intrinsic(llvm::Intrinsic::fabs, {b_.CreateFMul(gv.c[k].v, dv.c[0].v)})),
+                    nullptr, nullptr};
+        return r;
+      }
+      case BuiltinShape::Filterstep: {
+        // Box-filtered step: the fraction of [lo, hi] at or above the edge.
+        const Dual edge = toFloatScalar(args[0]).c[0];
+        const Dual x = toFloatScalar(args[1]).c[0];
+        const size_t n = args.size();
+        const bool hasX2 = n == 3 || n == 5;
+        Dual lo, hi;
+        if (hasX2) {
+          lo = x;
+          hi = toFloatScalar(args[2]).c[0];
+        } else {
+          const Val du = load(slotFor(globals_[size_t(GlobalId::du)]));
+          const Val dv = load(slotFor(globals_[size_t(GlobalId::dv)]));
+          Value* w = b_.CreateFAdd(intrinsic(llvm::Intrinsic::fabs, {b_.CreateFMul(x.du ? x.du : cf(0), du.c[0].v)}),
+                                   intrinsic(llvm::Intrinsic::fabs, {b_.CreateFMul(x.dv ? x.dv : cf(0), dv.c[0].v)}));
+          if (n >= 4) w = b_.CreateFMul(w, toFloatScalar(args[n - 1]).c[0].v);
+          const Dual half{b_.CreateFMul(w, cf(0.5f)), nullptr, nullptr};
+          lo = dsub(x, half);
+          hi = dadd(x, half);
+        }
+        const Dual width = dsub(hi, lo);
+        const Dual frac = dclamp01(ddiv(dsub(hi, edge), width));
+        const Dual hard{b_.CreateSelect(b_.CreateFCmpOLT(x.v, edge.v), cf(0), cf(1)), nullptr, nullptr};
+        return makeFloat(dselect(b_.CreateFCmpOLE(width.v, cf(0)), hard, frac));
+      }
+      case BuiltinShape::Reflect: {
+        const Val i = args[0], nn = args[1];
+        const Dual k = dmul(dconst(2), dot3(nn, i));
+        return makeTriple(Type(TypeKind::Vector), dsub(i.c[0], dmul(k, nn.c[0])), dsub(i.c[1], dmul(k, nn.c[1])),
+                          dsub(i.c[2], dmul(k, nn.c[2])));
+      }
+      case BuiltinShape::Faceforward: {
+        const Val nn = args[0], i = args[1];
+        const Val ref = args.size() == 3 ? args[2] : load(slotFor(globals_[size_t(GlobalId::Ng)]));
+        Value* facing = b_.CreateFCmpOLT(dot3(i, ref).v, cf(0));
+        Val r;
+        r.type = Type(TypeKind::Vector);
+        for (int k = 0; k < 3; ++k) r.c[k] = dselect(facing, nn.c[k], dneg(nn.c[k]));
+        return r;
+      }
+      case BuiltinShape::Luminance: {
+        const Val c = args[0];
+        return makeFloat(dadd(dadd(dmul(c.c[0], dconst(0.2126f)), dmul(c.c[1], dconst(0.7152f))),
+                              dmul(c.c[2], dconst(0.0722f))));
+      }
+      case BuiltinShape::Hypot: {
+        Dual sum = dconst(0);
+        for (const Val& a : args) {
+          const Dual x = toFloatScalar(a).c[0];
+          sum = dadd(sum, dmul(x, x));
+        }
+        return makeFloat(dsqrtSafe(sum));
+      }
       case BuiltinShape::FBm: return fbm(args, id == BuiltinId::Turbulence);
       case BuiltinShape::Displace: {
         if (args.size() == 1 && args[0].type.isTriple()) {
@@ -1303,6 +1406,7 @@ class ShaderCodegen {
   llvm::AllocaInst* loopLimitHits_ = nullptr;
   llvm::AllocaInst* loopCounter_ = nullptr;
   llvm::AllocaInst* gradient_ = nullptr;
+  llvm::AllocaInst* cellInput_ = nullptr;
   Value* spaces_ = nullptr;
   Value* orientation_ = nullptr;
 };

@@ -694,14 +694,19 @@ class Checker {
     switch (b->shape) {
       case BuiltinShape::Deriv:
       case BuiltinShape::CalcNormal:
-      case BuiltinShape::Area: e.isVarying = true; break;
+      case BuiltinShape::Area:
+      case BuiltinShape::Filterwidth:
+      case BuiltinShape::Filterstep: e.isVarying = true; break;
       case BuiltinShape::Displace:
         if (shader_) shader_->assignsP = shader_->assignsN = true;
         break;
       default: break;
     }
-    if (b->shape == BuiltinShape::Displace && args.size() == 2) {
-      const Expr& space = *args[0];
+    const size_t numSpaces = b->shape == BuiltinShape::Displace && args.size() == 2 ? 1
+                             : b->shape == BuiltinShape::Transform                 ? args.size() - 1
+                                                                                   : 0;
+    for (size_t i = 0; i < numSpaces; ++i) {
+      const Expr& space = *args[i];
       if (space.kind != ExprKind::StringLiteral) {
         report(DiagId::ErrUnsupported, space.range.begin).arg("a non-literal space name").range(space.range);
         return set(e, kError);
@@ -740,7 +745,9 @@ class Checker {
         if (!a->type.isNumeric()) return false;
       return true;
     };
-    if (!allNumeric() && b.shape != BuiltinShape::Displace) return kError;
+    if (!allNumeric() && b.shape != BuiltinShape::Displace && b.shape != BuiltinShape::Transform &&
+        b.shape != BuiltinShape::Filterstep)
+      return kError;
     switch (b.shape) {
       case BuiltinShape::UnaryT: {
         if (b.id == BuiltinId::Atan && n == 2) {
@@ -813,6 +820,40 @@ class Checker {
         if (n == 4 && !(args[2]->type.isScalar() && args[3]->type.isScalar())) return kError;
         return kFloat;
       case BuiltinShape::FloatPred: return n == 1 && args[0]->type.isScalar() ? kInt : kError;
+      case BuiltinShape::Transform: {
+        if (n != 2 && n != 3) return kError;
+        for (size_t i = 0; i + 1 < n; ++i)
+          if (args[i]->type.kind != TypeKind::String) return kError;
+        const Type p = args[n - 1]->type;
+        if (!p.isSpatial()) return kError;
+        if (b.id == BuiltinId::Vtransform) return kVector;
+        if (b.id == BuiltinId::Ntransform) return Type(TypeKind::Normal);
+        return p;
+      }
+      case BuiltinShape::Filterwidth:
+        if (n != 1) return kError;
+        if (args[0]->type.isScalar()) return kFloat;
+        return args[0]->type.isSpatial() ? kVector : kError;
+      case BuiltinShape::Filterstep: {
+        auto scalar = [&](size_t i) { return args[i]->type.isScalar(); };
+        auto widthOption = [&](size_t i) {
+          return args[i]->kind == ExprKind::StringLiteral && args[i]->text == "width" && scalar(i + 1);
+        };
+        if (n == 2) return scalar(0) && scalar(1) ? kFloat : kError;
+        if (n == 3) return scalar(0) && scalar(1) && scalar(2) ? kFloat : kError;
+        if (n == 4) return scalar(0) && scalar(1) && widthOption(2) ? kFloat : kError;
+        if (n == 5) return scalar(0) && scalar(1) && scalar(2) && widthOption(3) ? kFloat : kError;
+        return kError;
+      }
+      case BuiltinShape::Reflect:
+        return n == 2 && args[0]->type.isSpatial() && args[1]->type.isSpatial() ? kVector : kError;
+      case BuiltinShape::Faceforward:
+        if (n != 2 && n != 3) return kError;
+        for (const ExprPtr& a : args)
+          if (!a->type.isSpatial()) return kError;
+        return kVector;
+      case BuiltinShape::Luminance: return n == 1 && args[0]->type.kind == TypeKind::Color ? kFloat : kError;
+      case BuiltinShape::Hypot: return (n == 2 || n == 3) && allFit(args, kFloat) ? kFloat : kError;
     }
     return kError;
   }

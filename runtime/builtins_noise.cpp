@@ -141,4 +141,13 @@ float rlf_noise4(float x, float y, float z, float w, float* grad4) {
   return noise<4>(p, grad4);
 }
 
+float rlf_cellnoise(const float* p, int dims, int channel) {
+  uint32_t h = mix32(0x5bd1e995u ^ uint32_t(channel) * 0x68e31da4u);
+  for (int i = 0; i < dims && i < 4; ++i) {
+    const int32_t cell = std::isfinite(p[i]) ? cellOf(p[i]) : 0;
+    h = mix32(h ^ (uint32_t(cell) * 0x9e3779b1u + uint32_t(i)));
+  }
+  return float(h >> 8) * (1.0f / 16777216.0f);  // 24 bits: exactly representable, < 1
+}
+
 }  // extern "C"

@@ -11,6 +11,9 @@ float rlf_noise1(float x, float* dx);
 float rlf_noise2(float x, float y, float* grad2);
 float rlf_noise3(float x, float y, float z, float* grad3);
 float rlf_noise4(float x, float y, float z, float w, float* grad4);
+// Constant per integer cell of the `dims` (1..4) coordinates in p, uncorrelated across cells and
+// channels, in [0, 1).
+float rlf_cellnoise(const float* p, int dims, int channel);
 
 #ifdef __cplusplus
 }

@@ -390,6 +390,64 @@ TEST(JitTest, DefinesReplaceIdentifiers) {
   EXPECT_NEAR(b.Pout[2][0], 1 + 0.5 * kPi, 1e-6);
 }
 
+TEST(JitTest, EveryExampleShaderCompilesAndEvaluatesFinite) {
+  int numFiles = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(RELIEF_SOURCE_DIR "/examples/shaders")) {
+    if (entry.path().extension() != ".disp") continue;
+    ++numFiles;
+    SCOPED_TRACE(entry.path().filename().string());
+    CompileResult r = compileFile(entry.path().string());
+    ASSERT_TRUE(r.success()) << renderDiagnostics(r) << r.internalError;
+    for (const auto& shader : r.shaders) {
+      runtime::ShaderInstance instance(shader);
+      TestBatch b(64);
+      for (size_t i = 0; i < 64; ++i) fillSphere(b, i, 0.013 * double(i) + 0.05, 0.011 * double(i) + 0.1);
+      RlfStatus status{};
+      RlfShadingBatch view = b.all();
+      instance.evaluate(view, status);
+      EXPECT_EQ(status.nonFinite, 0u);
+      EXPECT_EQ(status.loopLimit, 0u);
+      for (size_t i = 0; i < 64; ++i) {
+        const double len = std::sqrt(double(b.Nout[0][i]) * b.Nout[0][i] + double(b.Nout[1][i]) * b.Nout[1][i] +
+                                     double(b.Nout[2][i]) * b.Nout[2][i]);
+        EXPECT_NEAR(len, 1.0, 1e-4) << "point " << i;
+        // Displacement stays small for these shaders on the unit sphere.
+        for (int k = 0; k < 3; ++k) EXPECT_NEAR(b.Pout[k][i], b.P[k][i], 0.5);
+      }
+    }
+  }
+  EXPECT_GE(numFiles, 6);
+}
+
+TEST(JitTest, TransformsUseTheBatchSpaces) {
+  auto shader = compileOne(R"(
+displacement d()
+{
+    point o = transform("object", P);
+    vector w = vtransform("object", vector(1, 0, 0));
+    P = o + w;
+    N = point "object" (0, 0, 0);
+})");
+  ASSERT_TRUE(shader);
+  runtime::ShaderInstance instance(shader);
+  TestBatch b(1);
+  fillSphere(b, 0, 0.0, 0.0);  // P = (0, 0, 1)
+  // object = current scaled by 2 and moved by (10, 0, 0): p_current = p_object * 2 + (10, 0, 0).
+  float* cfo = b.spaces.currentFromObject;
+  float* ofc = b.spaces.objectFromCurrent;
+  for (int i = 0; i < 16; ++i) cfo[i] = ofc[i] = 0;
+  cfo[0] = cfo[5] = cfo[10] = 2, cfo[15] = 1, cfo[12] = 10;
+  ofc[0] = ofc[5] = ofc[10] = 0.5f, ofc[15] = 1, ofc[12] = -5;
+  RlfStatus status{};
+  RlfShadingBatch view = b.all();
+  instance.evaluate(view, status);
+  EXPECT_FLOAT_EQ(b.Pout[0][0], -5 + 0.5f);  // object-space P plus the object-space x axis
+  EXPECT_FLOAT_EQ(b.Pout[1][0], 0);
+  EXPECT_FLOAT_EQ(b.Pout[2][0], 0.5f);
+  EXPECT_FLOAT_EQ(b.Nout[0][0], 10);  // the object origin in current space
+  EXPECT_FLOAT_EQ(b.Nout[2][0], 0);
+}
+
 TEST(ShaderLibraryTest, FindsCompilesAndCaches) {
   std::ostringstream diagnostics;
   ShaderLibrary library({}, &diagnostics);
