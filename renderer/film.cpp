@@ -61,9 +61,12 @@ bool Film::write(const std::string& path, std::string* error) const {
 
   // Same directory, so the final rename is atomic; same extension, in case a plugin checks it.
   const fs::path target(path);
-  const fs::path temp = target.parent_path() /
-                        ("." + target.stem().string() + ".tmp" + std::to_string(::getpid()) +
-                         target.extension().string());
+  std::string tempName = ".";
+  tempName += target.stem().string();
+  tempName += ".tmp";
+  tempName += std::to_string(::getpid());
+  tempName += target.extension().string();
+  const fs::path temp = target.parent_path() / tempName;
   if (!out->open(temp.string(), spec)) {
     *error = "cannot write '" + path + "': " + out->geterror();
     return false;

@@ -23,8 +23,13 @@ namespace relief {
 
 std::string SceneError::format() const {
   std::string out = file;
-  if (line > 0) out += ":" + std::to_string(line);
-  return out + ": error: " + message;
+  if (line > 0) {
+    out += ':';
+    out += std::to_string(line);
+  }
+  out += ": error: ";
+  out += message;
+  return out;
 }
 
 void toRlfMatrix(const glm::mat4& m, float out[16]) {

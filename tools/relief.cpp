@@ -269,6 +269,10 @@ int run(const CommandLine& cl) {
   const relief::RenderStats renderStats = relief::render(scene, *accel, renderOptions, &film);
 
   for (const std::string& path : outputs) {
+    // `-o out/image.png` into a fresh checkout should just work; a failure surfaces in write().
+    const std::filesystem::path parent = std::filesystem::path(path).parent_path();
+    std::error_code ignored;
+    if (!parent.empty()) std::filesystem::create_directories(parent, ignored);
     std::string writeError;
     if (!film.write(path, &writeError)) {
       std::cerr << "relief: error: " << writeError << "\n";
