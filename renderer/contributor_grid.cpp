@@ -53,6 +53,11 @@ ContributorGrid::ContributorGrid(const Scene& scene, const AccelOptions& options
   int n = options.gridResolution;
   if (n <= 0) {
     n = int(std::lround(kAutoGridFactor * std::cbrt(double(std::max(1u, numTriangles())))));
+    float maxBound = 0.0f;
+    for (const Displacement* d : displacements_)
+      if (d) maxBound = std::max(maxBound, d->boundWorld);
+    if (maxBound > 0.0f && std::isfinite(maxBound))
+      n = std::min(n, int(longest / (kVoxelsPerBound * maxBound)));
     n = std::clamp(n, 1, kMaxAutoGridResolution);
   }
   n = std::clamp(n, 1, kMaxGridResolution);

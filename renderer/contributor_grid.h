@@ -31,7 +31,14 @@ struct Bounds3 {
 // voxel holds a small piece of a few input triangles: big enough that per-voxel fills rarely
 // re-subdivide one triangle for many voxels, small enough that a voxel's displaced triangles stay
 // cheap to fill and evict.
+//
+// Displaced scenes also cap the resolution so that a voxel is at least kVoxelsPerBound times the
+// largest displacement bound: a per-voxel fill re-subdivides every part of its contributors within
+// the bound of the voxel, so the repeated work grows like ((size + 2 * bound) / size)^2. Measured
+// on a bumpy sphere (4096 input triangles, bound 0.05, 600K micro-triangles, 160K rays): 32^3
+// voxels evaluated 5.2M shader points in 1.37 s, 8^3 voxels 1.0M points in 0.54 s.
 constexpr float kAutoGridFactor = 2.0f;
+constexpr float kVoxelsPerBound = 4.0f;
 constexpr int kMaxAutoGridResolution = 128;
 // Explicit resolutions are clamped too: beyond this the per-voxel arrays alone exceed memory.
 constexpr int kMaxGridResolution = 1024;

@@ -11,21 +11,6 @@
 namespace relief {
 namespace {
 
-std::atomic<uint64_t> nextInstanceId{1};
-
-// Recent micro-meshes of this thread: neighbouring voxels share contributors and the DDA walks to
-// neighbours, so a few entries avoid most re-subdivision. Affects speed only (rule 1).
-constexpr int kMemoEntries = 16;
-struct MemoEntry {
-  uint64_t owner = 0;
-  uint32_t triangle = 0;
-  MicroMesh mesh;
-};
-struct Memo {
-  MemoEntry entries[kMemoEntries];
-  int nextVictim = 0;
-};
-thread_local Memo memo;
 
 bool overlaps(const Bounds3& box, const glm::vec3& a, const glm::vec3& b, const glm::vec3& c) {
   const glm::vec3 lo = glm::min(a, glm::min(b, c)), hi = glm::max(a, glm::max(b, c));
@@ -145,27 +130,14 @@ GridAccelerator::GridAccelerator(const Scene& scene, const AccelOptions& options
     : scene_(scene),
       options_(options),
       grid_(scene, options),
-      instanceId_(nextInstanceId.fetch_add(1)),
-      subdivided_(grid_.numTriangles()) {
+      voxelCounted_(grid_.numVoxels()) {
   if (grid_.anyDisplaced())
     cache_ = std::make_unique<GeometryCache>(grid_.numVoxels(), options.cacheBudgetTriangles);
 }
 
 GridAccelerator::~GridAccelerator() = default;
 
-const MicroMesh& GridAccelerator::microMesh(uint32_t globalId) {
-  for (MemoEntry& e : memo.entries)
-    if (e.owner == instanceId_ && e.triangle == globalId) return e.mesh;
-  MemoEntry& e = memo.entries[memo.nextVictim];
-  memo.nextVictim = (memo.nextVictim + 1) % kMemoEntries;
-  const auto [mesh, triangle] = grid_.split(globalId);
-  SubdivideCounters counters;
-  e.owner = 0;  // invalid while rebuilding
-  subdivideTriangle(scene_.meshes[mesh], triangle, grid_.displacement(mesh), e.mesh, counters);
-  e.owner = instanceId_;
-  e.triangle = globalId;
-  if (subdivided_[globalId].exchange(1, std::memory_order_relaxed) == 0)
-    uniqueTriangles_.fetch_add(e.mesh.numTriangles(), std::memory_order_relaxed);
+void GridAccelerator::addCounters(const SubdivideCounters& counters) {
   shaderPoints_.fetch_add(counters.shaderPoints, std::memory_order_relaxed);
   displaceNanos_.fetch_add(counters.displaceNanos, std::memory_order_relaxed);
   if (counters.status.nonFinite) nonFinite_.fetch_add(counters.status.nonFinite);
@@ -173,17 +145,26 @@ const MicroMesh& GridAccelerator::microMesh(uint32_t globalId) {
   if (counters.status.indexClamped) indexClamped_.fetch_add(counters.status.indexClamped);
   if (counters.status.unknownSpace) unknownSpace_.fetch_add(counters.status.unknownSpace);
   if (counters.status.textureErrors) textureErrors_.fetch_add(counters.status.textureErrors);
-  return e.mesh;
 }
 
 std::unique_ptr<VoxelGeometry> GridAccelerator::buildVoxel(uint32_t voxel) {
   const auto start = std::chrono::steady_clock::now();
   auto g = std::make_unique<VoxelGeometry>();
   const Bounds3 box = grid_.voxelBounds(voxel);
+  const CullBox cull{box.lo, box.hi};
+  // A micro-triangle is stored in every voxel it overlaps but counted as unique only in the voxel
+  // holding its centroid, and only on the voxel's first fill.
+  const bool countUnique = voxelCounted_[voxel].exchange(1, std::memory_order_relaxed) == 0;
+  const Bounds3& gridBounds = grid_.bounds();
+  const glm::ivec3 res = grid_.resolution();
+  uint64_t unique = 0;
+  thread_local MicroMesh mm;
   thread_local std::vector<uint32_t> remap;
   std::vector<uint32_t> indices;
+  SubdivideCounters counters;
   for (uint32_t id : grid_.contributors(voxel)) {
-    const MicroMesh& mm = microMesh(id);
+    const auto [mesh, triangle] = grid_.split(id);
+    subdivideTriangle(scene_.meshes[mesh], triangle, grid_.displacement(mesh), mm, counters, &cull);
     remap.assign(mm.P.size(), UINT32_MAX);
     for (uint32_t i = 0; i < mm.numTriangles(); ++i) {
       const uint32_t* tri = &mm.indices[3 * size_t(i)];
@@ -198,9 +179,17 @@ std::unique_ptr<VoxelGeometry> GridAccelerator::buildVoxel(uint32_t voxel) {
         indices.push_back(slot);
       }
       g->triangleIds.push_back(id);
-      g->microIds.push_back(i);
+      g->microIds.push_back(mm.ids[i]);
+      if (countUnique) {
+        const glm::vec3 centroid = (mm.P[tri[0]] + mm.P[tri[1]] + mm.P[tri[2]]) / 3.0f;
+        const glm::ivec3 cell = glm::clamp(
+            glm::ivec3(glm::floor((centroid - gridBounds.lo) / grid_.voxelSize())), glm::ivec3(0), res - 1);
+        unique += grid_.voxelIndex(cell) == voxel;
+      }
     }
   }
+  addCounters(counters);
+  if (unique) uniqueTriangles_.fetch_add(unique, std::memory_order_relaxed);
   if (g->P.size() <= 65536) g->indices16.assign(indices.begin(), indices.end());
   else g->indices32 = std::move(indices);
   buildSubGrid(*g, box, grid_.padding());
@@ -227,8 +216,9 @@ void GridAccelerator::intersectVoxel(uint32_t voxel, const WatertightRay& wr, co
       glm::vec3 p[3];
       for (int c = 0; c < 3; ++c) p[c] = mesh.P[mesh.indices[3 * size_t(t) + c]];
       if (!intersectTriangle(wr, p[0], p[1], p[2], ray.tMin, tLimit(), h)) continue;
-      if (!best.better(h.t, id, 0)) continue;
-      best.found = true, best.t = h.t, best.triangleId = id, best.microId = 0, best.hit = h;
+      if (!best.better(h.t, id, kWholeTriangleId)) continue;
+      best.found = true, best.t = h.t, best.triangleId = id, best.microId = kWholeTriangleId;
+      best.hit = h;
       const glm::vec2 corner[3] = {{0, 0}, {1, 0}, {0, 1}};
       for (int c = 0; c < 3; ++c) best.p[c] = p[c], best.bary[c] = corner[c];
       if (anyHit) return;

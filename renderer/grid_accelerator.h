@@ -47,15 +47,14 @@ class GridAccelerator final : public Accelerator {
   void intersectVoxel(uint32_t voxel, const struct WatertightRay& wr, const Ray& ray,
                       uint64_t stamp, bool anyHit, Best& best);
   std::unique_ptr<VoxelGeometry> buildVoxel(uint32_t voxel);
-  const MicroMesh& microMesh(uint32_t globalId);
+  void addCounters(const SubdivideCounters& counters);
 
   const Scene& scene_;
   AccelOptions options_;
   ContributorGrid grid_;
   std::unique_ptr<GeometryCache> cache_;
-  uint64_t instanceId_;  // keys the per-thread micro-mesh memo, so instances never share entries
   std::atomic<uint64_t> clock_{1};
-  std::vector<std::atomic<uint8_t>> subdivided_;  // per input triangle: counted in uniqueTriangles_
+  std::vector<std::atomic<uint8_t>> voxelCounted_;  // per voxel: its unique triangles counted
   std::atomic<uint64_t> uniqueTriangles_{0}, shaderPoints_{0}, fillNanos_{0}, displaceNanos_{0};
   std::atomic<uint64_t> maxVoxelTriangles_{0};
   std::atomic<uint32_t> nonFinite_{0}, loopLimit_{0}, indexClamped_{0}, unknownSpace_{0},

@@ -43,6 +43,8 @@ struct Scratch {
   Vertices vertices;
   Batch batch;
   std::vector<uint32_t> active, next;  // 3 indices per triangle
+  std::vector<uint32_t> activeCodes, nextCodes;  // path code (or ancestor code) per triangle
+  std::vector<uint32_t> ranks;                   // finished triangles per ancestor code
   std::unordered_map<uint64_t, int64_t> edges;  // (min, max) vertex pair -> midpoint, or -1: kept
 };
 
@@ -161,10 +163,21 @@ void push(std::vector<uint32_t>& list, uint32_t a, uint32_t b, uint32_t c) {
   list.push_back(a), list.push_back(b), list.push_back(c);
 }
 
+// Whether the displaced descendants of triangle (a, b, c) may reach `box`: they lie within
+// `bound` of the undisplaced triangle (the displacement bound the contributor grid relies on too).
+bool mayReach(const Vertices& vs, uint32_t a, uint32_t b, uint32_t c, float bound, const CullBox& box) {
+  glm::vec3 lo = glm::min(vs.P[a], glm::min(vs.P[b], vs.P[c])) - glm::vec3(bound);
+  glm::vec3 hi = glm::max(vs.P[a], glm::max(vs.P[b], vs.P[c])) + glm::vec3(bound);
+  lo = glm::min(lo, glm::min(vs.displaced[a], glm::min(vs.displaced[b], vs.displaced[c])));
+  hi = glm::max(hi, glm::max(vs.displaced[a], glm::max(vs.displaced[b], vs.displaced[c])));
+  return lo.x <= box.hi.x && box.lo.x <= hi.x && lo.y <= box.hi.y && box.lo.y <= hi.y &&
+         lo.z <= box.hi.z && box.lo.z <= hi.z;
+}
+
 }  // namespace
 
 void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* displacement,
-                       MicroMesh& out, SubdivideCounters& counters) {
+                       MicroMesh& out, SubdivideCounters& counters, const CullBox* cull) {
   thread_local Scratch scratch;
   Vertices& vs = scratch.vertices;
   vs.clear();
@@ -189,6 +202,7 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
 
   const bool displaced = displacement != nullptr && displacement->shader != nullptr;
   out.indices.clear();
+  out.ids.clear();
   if (displaced) {
     const Displacement& disp = *displacement;
     const TriangleFrame frame = makeFrame(p, n, uv);
@@ -200,6 +214,11 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
     std::vector<uint32_t>& next = scratch.next;
     auto& edges = scratch.edges;
     active.assign({0, 1, 2});
+    std::vector<uint32_t>& activeCodes = scratch.activeCodes;
+    std::vector<uint32_t>& nextCodes = scratch.nextCodes;
+    activeCodes.assign({1});
+    scratch.ranks.assign(size_t(1) << (1 + 2 * kCullRounds), 0);
+    const float cullGrow = std::max(0.0f, disp.boundWorld);
     edges.clear();
     // Returns the midpoint of edge (a, b), creating it if the edge wants splitting; -1 if kept.
     auto midpoint = [&](uint32_t a, uint32_t b) -> int64_t {
@@ -213,14 +232,35 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
       }
       return it->second;
     };
-    while (!active.empty()) {
+    // A finished triangle's id: its own path code while rounds < kCullRounds, else its ancestor's
+    // code and its rank among that ancestor's finished descendants.
+    auto finish = [&](uint32_t a, uint32_t b, uint32_t c, uint32_t code, int round) {
+      push(out.indices, a, b, c);
+      const uint32_t rank = round > kCullRounds ? scratch.ranks[code]++ : 0;
+      out.ids.push_back((code << kMicroRankBits) | rank);
+    };
+    for (int round = 0; !active.empty(); ++round) {
+      if (cull && round <= kCullRounds) {
+        // Drop whole subtrees that cannot reach the box; ids of the kept ones do not change.
+        size_t kept = 0;
+        for (size_t k = 0; k < active.size(); k += 3) {
+          if (!mayReach(vs, active[k], active[k + 1], active[k + 2], cullGrow, *cull)) continue;
+          for (int c = 0; c < 3; ++c) active[kept * 3 + c] = active[k + c];
+          activeCodes[kept++] = activeCodes[k / 3];
+        }
+        active.resize(kept * 3);
+        activeCodes.resize(kept);
+      }
       const uint32_t firstNew = vs.size();
       for (size_t k = 0; k < active.size(); k += 3)
         for (int e = 0; e < 3; ++e) midpoint(active[k + e], active[k + (e + 1) % 3]);
       displace(disp, frame, vs, firstNew, scratch.batch, counters);
       next.clear();
+      nextCodes.clear();
       for (size_t k = 0; k < active.size(); k += 3) {
         uint32_t v[3] = {active[k], active[k + 1], active[k + 2]};
+        const uint32_t code = activeCodes[k / 3];
+        const size_t firstChild = next.size() / 3;
         int64_t m[3];  // m[e] on edge (v[e], v[e+1])
         int numSplit = 0;
         for (int e = 0; e < 3; ++e) {
@@ -230,7 +270,7 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
           numSplit += m[e] >= 0;
         }
         if (numSplit == 0) {
-          push(out.indices, v[0], v[1], v[2]);
+          finish(v[0], v[1], v[2], code, round);
         } else if (numSplit == 3) {
           const uint32_t m0 = uint32_t(m[0]), m1 = uint32_t(m[1]), m2 = uint32_t(m[2]);
           push(next, v[0], m0, m2);
@@ -261,11 +301,15 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
             push(next, mab, mbc, c);
           }
         }
+        for (size_t c = firstChild; c < next.size() / 3; ++c)
+          nextCodes.push_back(round < kCullRounds ? code * 4 + uint32_t(c - firstChild) : code);
       }
       std::swap(active, next);
+      std::swap(activeCodes, nextCodes);
     }
   } else {
     push(out.indices, 0, 1, 2);
+    out.ids.push_back(kWholeTriangleId);
   }
   out.P = vs.displaced;
   out.bary = vs.bary;

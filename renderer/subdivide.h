@@ -12,6 +12,13 @@
 // (no T-junctions) and, with the watertight ray test of intersect.h, nothing leaks.
 //
 // Evaluation is breadth first: each round's new vertices are displaced in one shader batch.
+//
+// Culling for per-voxel fills: given a box, triangles of the first kCullRounds rounds whose
+// undisplaced box grown by the displacement bound misses it are dropped with their whole subtree.
+// The kept micro-triangles are exactly those of the full subdivision (decisions are per edge), and
+// each carries an id independent of culling: its first kCullRounds split choices (a path code,
+// 2 bits per round behind a leading 1) in the high bits, and its rank among the finished
+// descendants of that ancestor in the low kMicroRankBits bits.
 // Determinism rule 1: the result depends only on the input triangle, its shader and settings.
 // Known limit: a shader reading dPdu/dPdv, du/dv or Ng (which are per input triangle) may displace
 // a shared edge differently from its two sides; P, N, u, v, s, t are shared exactly.
@@ -26,12 +33,23 @@
 
 namespace relief {
 
-// The displaced micro-mesh of one input triangle.
+constexpr int kCullRounds = 4;
+constexpr int kMicroRankBits = 32 - (1 + 2 * kCullRounds);
+// The id of an input triangle left whole (undisplaced, or never split): the root's path code.
+constexpr uint32_t kWholeTriangleId = 1u << kMicroRankBits;
+
+// An axis-aligned world box restricting a subdivision (see culling above).
+struct CullBox {
+  glm::vec3 lo, hi;
+};
+
+// The displaced micro-mesh of one input triangle (or of its part reaching a CullBox).
 struct MicroMesh {
   std::vector<glm::vec3> P;       // displaced positions, world space
   std::vector<glm::vec2> bary;    // (b1, b2): weights of input corners 1 and 2 (for st at a hit)
   std::vector<uint8_t> level;     // subdivision level of each vertex (corners 0)
   std::vector<uint32_t> indices;  // 3 per micro-triangle, wound as the input triangle
+  std::vector<uint32_t> ids;      // per micro-triangle: its culling-independent id (see above)
   uint32_t numTriangles() const { return uint32_t(indices.size() / 3); }
 };
 
@@ -42,8 +60,9 @@ struct SubdivideCounters {
 };
 
 // Subdivides and displaces triangle `triangle` of `mesh` with `displacement` (null, or a null
-// shader: the triangle itself, one micro-triangle). `out` is overwritten.
+// shader: the triangle itself, one micro-triangle). `out` is overwritten. With `cull`, parts that
+// cannot reach the box are skipped (the result then also holds some triangles outside it).
 void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* displacement,
-                       MicroMesh& out, SubdivideCounters& counters);
+                       MicroMesh& out, SubdivideCounters& counters, const CullBox* cull = nullptr);
 
 }  // namespace relief

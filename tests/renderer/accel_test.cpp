@@ -51,7 +51,9 @@ void expectMatchesBruteForce(const Scene& scene, const AccelOptions& options, in
   const AccelStats stats = accel->stats();
   EXPECT_EQ(stats.accesses, stats.hits + stats.compulsoryMisses + stats.capacityMisses);
   if (scene.meshes[0].displacementIndex != UINT32_MAX && options.displace) {
-    EXPECT_GT(stats.uniqueDisplacedTriangles, 10 * scene.meshes[0].numTriangles());
+    // Unique counts each micro-triangle of the filled voxels once; created counts it per voxel.
+    EXPECT_GT(stats.uniqueDisplacedTriangles, 0u);
+    EXPECT_LE(stats.uniqueDisplacedTriangles, stats.displacedTrianglesCreated);
   }
 }
 

@@ -42,7 +42,10 @@ TEST(GeometryCache, HitsIndependentOfBudgetAndThreads) {
   const Scene scene = makeSphereScene(cacheOptions());
   const std::vector<Ray> rays = scatteredRays();
 
-  GridAccelerator unlimited(scene, AccelOptions{});
+  // Many small voxels, so that a 5% budget holds a good number of them.
+  AccelOptions unlimitedOptions;
+  unlimitedOptions.gridResolution = 16;
+  GridAccelerator unlimited(scene, unlimitedOptions);
   const std::vector<HitKey> expected = run(unlimited, rays);
   const AccelStats full = unlimited.stats();
   ASSERT_GT(full.residentTriangles, 10000u);
@@ -55,7 +58,7 @@ TEST(GeometryCache, HitsIndependentOfBudgetAndThreads) {
   EXPECT_EQ(again.compulsoryMisses, full.compulsoryMisses);
   EXPECT_EQ(again.hits - full.hits, again.accesses - full.accesses);
 
-  AccelOptions small;
+  AccelOptions small = unlimitedOptions;
   small.cacheBudgetTriangles = full.residentTriangles / 20;  // 5%
   GridAccelerator limited(scene, small);
   EXPECT_EQ(run(limited, rays), expected);
@@ -86,8 +89,9 @@ TEST(GeometryCache, HitsIndependentOfBudgetAndThreads) {
 TEST(GeometryCache, OcclusionIndependentOfBudget) {
   const Scene scene = makeSphereScene(cacheOptions());
   const std::vector<Ray> rays = scatteredRays();
-  GridAccelerator unlimited(scene, AccelOptions{});
   AccelOptions tiny;
+  tiny.gridResolution = 16;
+  GridAccelerator unlimited(scene, tiny);
   tiny.cacheBudgetTriangles = 1;  // every fill evicts everything unpinned
   GridAccelerator limited(scene, tiny);
   for (const Ray& ray : rays) {

@@ -129,9 +129,9 @@ class BruteForce {
                                ray.tMax, h))
           continue;
         if (!best || h.t < best->t ||
-            (h.t == best->t && std::tie(e.mesh, e.triangle, i) <
+            (h.t == best->t && std::tie(e.mesh, e.triangle, e.micro.ids[i]) <
                                    std::tie(best->mesh, best->triangle, best->micro)))
-          best = Result{h.t, e.mesh, e.triangle, i};
+          best = Result{h.t, e.mesh, e.triangle, e.micro.ids[i]};
       }
     }
     return best;

@@ -190,3 +190,50 @@ TEST(Subdivide, DegeneratePoleTrianglesStayFinite) {
 
 }  // namespace
 }  // namespace relief
+
+namespace relief {
+namespace {
+
+// Culling to a box keeps exactly the full subdivision's triangles that reach it, with the same
+// ids and bit-identical positions, and ids are unique.
+TEST(Subdivide, CullingKeepsIdsAndGeometry) {
+  const Mesh quad = makeQuad();
+  const Displacement d = makeDisplacement(testing::bumpyEntry, 0.05f, 2.0f, 0.02f, 10);
+  MicroMesh full, culled;
+  SubdivideCounters fullCounters, culledCounters;
+  subdivideTriangle(quad, 0, &d, full, fullCounters);
+  const CullBox box{{0.6f, 0.1f, -1.0f}, {0.8f, 0.3f, 1.0f}};
+  subdivideTriangle(quad, 0, &d, culled, culledCounters, &box);
+  EXPECT_LT(culledCounters.shaderPoints * 3, fullCounters.shaderPoints);
+  using Tri = std::tuple<Key, Key, Key>;
+  auto triangleOf = [](const MicroMesh& mm, uint32_t i) {
+    return Tri{key(mm.P[mm.indices[3 * i]]), key(mm.P[mm.indices[3 * i + 1]]),
+               key(mm.P[mm.indices[3 * i + 2]])};
+  };
+  std::map<uint32_t, Tri> byId;
+  for (uint32_t i = 0; i < full.numTriangles(); ++i)
+    EXPECT_TRUE(byId.emplace(full.ids[i], triangleOf(full, i)).second) << "duplicate id";
+  auto reaches = [&](const MicroMesh& mm, uint32_t i) {
+    glm::vec3 lo(1e30f), hi(-1e30f);
+    for (int c = 0; c < 3; ++c) lo = glm::min(lo, mm.P[mm.indices[3 * i + c]]), hi = glm::max(hi, mm.P[mm.indices[3 * i + c]]);
+    return lo.x <= box.hi.x && box.lo.x <= hi.x && lo.y <= box.hi.y && box.lo.y <= hi.y &&
+           lo.z <= box.hi.z && box.lo.z <= hi.z;
+  };
+  std::set<uint32_t> culledIds;
+  for (uint32_t i = 0; i < culled.numTriangles(); ++i) {
+    auto it = byId.find(culled.ids[i]);
+    ASSERT_NE(it, byId.end());
+    EXPECT_EQ(it->second, triangleOf(culled, i));
+    culledIds.insert(culled.ids[i]);
+  }
+  int reaching = 0;
+  for (uint32_t i = 0; i < full.numTriangles(); ++i)
+    if (reaches(full, i)) {
+      ++reaching;
+      EXPECT_TRUE(culledIds.count(full.ids[i]));
+    }
+  EXPECT_GT(reaching, 10);
+}
+
+}  // namespace
+}  // namespace relief
