@@ -4,7 +4,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <unordered_map>
 
 namespace relief {
 namespace {
@@ -39,13 +38,68 @@ struct Batch {
   }
 };
 
+// Edge (vertex pair) -> midpoint index, or -1 for an edge kept whole. Open addressing with
+// generation stamps: clearing between triangles is O(1), and nothing is allocated per edge (the
+// node allocations of std::unordered_map dominated fills).
+class EdgeMap {
+ public:
+  void clear() {
+    if (++generation_ == 0) {  // stamps wrapped: really clear
+      std::fill(stamps_.begin(), stamps_.end(), 0u);
+      generation_ = 1;
+    }
+    size_ = 0;
+  }
+  // Returns the value slot for `key` and whether it was just inserted (then holding -1).
+  std::pair<int64_t*, bool> tryEmplace(uint64_t key) {
+    if (2 * (size_ + 1) > stamps_.size()) grow();
+    size_t i = hash(key) & (stamps_.size() - 1);
+    while (stamps_[i] == generation_) {
+      if (keys_[i] == key) return {&values_[i], false};
+      i = (i + 1) & (stamps_.size() - 1);
+    }
+    stamps_[i] = generation_, keys_[i] = key, values_[i] = -1;
+    ++size_;
+    return {&values_[i], true};
+  }
+  int64_t find(uint64_t key) const {
+    if (stamps_.empty()) return -1;
+    size_t i = hash(key) & (stamps_.size() - 1);
+    while (stamps_[i] == generation_) {
+      if (keys_[i] == key) return values_[i];
+      i = (i + 1) & (stamps_.size() - 1);
+    }
+    return -1;
+  }
+
+ private:
+  static size_t hash(uint64_t k) { return size_t((k * 0x9E3779B97F4A7C15ull) >> 20); }
+  void grow() {
+    std::vector<uint32_t> oldStamps = std::move(stamps_);
+    std::vector<uint64_t> oldKeys = std::move(keys_);
+    std::vector<int64_t> oldValues = std::move(values_);
+    const size_t capacity = std::max<size_t>(64, oldStamps.size() * 2);
+    stamps_.assign(capacity, 0u), keys_.resize(capacity), values_.resize(capacity);
+    const uint32_t oldGeneration = generation_;
+    generation_ = 1;
+    size_ = 0;
+    for (size_t i = 0; i < oldStamps.size(); ++i)
+      if (oldStamps[i] == oldGeneration) *tryEmplace(oldKeys[i]).first = oldValues[i];
+  }
+  std::vector<uint32_t> stamps_;
+  std::vector<uint64_t> keys_;
+  std::vector<int64_t> values_;
+  uint32_t generation_ = 1;
+  size_t size_ = 0;
+};
+
 struct Scratch {
   Vertices vertices;
   Batch batch;
   std::vector<uint32_t> active, next;  // 3 indices per triangle
   std::vector<uint32_t> activeCodes, nextCodes;  // path code (or ancestor code) per triangle
   std::vector<uint32_t> ranks;                   // finished triangles per ancestor code
-  std::unordered_map<uint64_t, int64_t> edges;  // (min, max) vertex pair -> midpoint, or -1: kept
+  EdgeMap edges;  // (min, max) vertex pair -> midpoint, or -1: kept
 };
 
 // Frame of the input triangle shared by all its vertices: geometric normal, dP/du and dP/dv of its
@@ -223,14 +277,14 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
     // Returns the midpoint of edge (a, b), creating it if the edge wants splitting; -1 if kept.
     auto midpoint = [&](uint32_t a, uint32_t b) -> int64_t {
       const uint64_t key = (uint64_t(std::min(a, b)) << 32) | std::max(a, b);
-      auto [it, inserted] = edges.try_emplace(key, -1);
+      auto [value, inserted] = edges.tryEmplace(key);
       if (inserted) {
         const glm::vec3 d = vs.displaced[a] - vs.displaced[b];
         const bool wants = glm::dot(d, d) > edgeLength2;
         const bool allowed = std::max(vs.level[a], vs.level[b]) + 1 <= maxDepth;
-        if (wants && allowed) it->second = addMidpoint(vs, a, b);
+        if (wants && allowed) *value = addMidpoint(vs, a, b);
       }
-      return it->second;
+      return *value;
     };
     // A finished triangle's id: its own path code while rounds < kCullRounds, else its ancestor's
     // code and its rank among that ancestor's finished descendants.
@@ -265,8 +319,7 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
         int numSplit = 0;
         for (int e = 0; e < 3; ++e) {
           m[e] = edges.find((uint64_t(std::min(v[e], v[(e + 1) % 3])) << 32) |
-                            std::max(v[e], v[(e + 1) % 3]))
-                     ->second;
+                            std::max(v[e], v[(e + 1) % 3]));
           numSplit += m[e] >= 0;
         }
         if (numSplit == 0) {
