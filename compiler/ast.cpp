@@ -65,6 +65,14 @@ void dump(std::ostream& out, const Stmt& s, int indent) {
     case StmtKind::Continue: out << "Continue\n"; return;
     case StmtKind::Return: out << "Return\n"; break;
     case StmtKind::Empty: out << "Empty\n"; return;
+    case StmtKind::FunctionDef:
+      out << "FunctionDef\n";
+      dump(out, *s.function, indent + 1);
+      return;
+    case StmtKind::Extern:
+      out << "Extern\n";
+      for (const auto& d : s.decls) dumpDecl(out, *d, indent + 1, "Var");
+      return;
   }
   if (s.init) dump(out, *s.init, indent + 1);
   if (s.cond && s.kind != StmtKind::DoWhile) dump(out, *s.cond, indent + 1);
@@ -80,7 +88,15 @@ void dump(std::ostream& out, const Stmt& s, int indent) {
   if (s.cond && s.kind == StmtKind::DoWhile) dump(out, *s.cond, indent + 1);
 }
 
+void dump(std::ostream& out, const FunctionDecl& f, int indent) {
+  pad(out, indent);
+  out << "Function " << typeName(f.returnType) << ' ' << f.name << '\n';
+  for (const auto& p : f.params) dumpDecl(out, *p, indent + 1, "Param");
+  if (f.body) dump(out, *f.body, indent + 1);
+}
+
 void dump(std::ostream& out, const TranslationUnit& unit) {
+  for (const auto& f : unit.functions) dump(out, *f);
   for (const auto& sh : unit.shaders) {
     out << "Shader " << sh->name << '\n';
     for (const auto& p : sh->params) dumpDecl(out, *p, 1, "Param");

@@ -18,6 +18,7 @@ namespace relief::compiler {
 struct VarDecl;
 struct Stmt;
 struct Expr;
+struct FunctionDecl;
 using ExprPtr = std::unique_ptr<Expr>;
 using StmtPtr = std::unique_ptr<Stmt>;
 
@@ -55,6 +56,7 @@ struct Expr {
   Type type;
   VarDecl* decl = nullptr;
   const BuiltinInfo* builtin = nullptr;
+  const FunctionDecl* function = nullptr;  // a resolved user function call
   bool isVarying = true;
 
   Expr(ExprKind k, SourceRange r) : kind(k), range(r), opLoc(r.begin) {}
@@ -76,6 +78,7 @@ struct VarDecl {
   bool isUniform = false;  // explicitly declared uniform
   bool writable = true;
   bool invalid = false;  // its initializer failed to parse: declared, but never diagnosed again
+  VarDecl* externTarget = nullptr;  // `extern` declarations: the variable they refer to
 
   // Filled in by the type checker.
   unsigned reads = 0;
@@ -94,6 +97,8 @@ enum class StmtKind : uint8_t {
   Continue,
   Return,  // expr (may be null)
   Empty,
+  FunctionDef,  // function (a nested function definition)
+  Extern,       // decls: the names it imports (type as declared; sema: externTarget)
 };
 
 struct Stmt {
@@ -109,6 +114,7 @@ struct Stmt {
   StmtPtr then;
   StmtPtr otherwise;
   StmtPtr body;
+  std::unique_ptr<FunctionDecl> function;
 
   Stmt(StmtKind k, SourceRange r) : kind(k), range(r), keywordLoc(r.begin) {}
 };
@@ -125,14 +131,31 @@ struct ShaderDecl {
   bool assignsN = false;
 };
 
+// function := (type | "void") IDENT "(" [formals] ")" block
+struct FunctionDecl {
+  Type returnType;
+  std::string name;
+  SourceLoc begin;
+  SourceRange nameRange;
+  std::vector<std::unique_ptr<VarDecl>> params;
+  StmtPtr body;
+
+  // Filled in by the type checker: what a call may write (propagates the §5 host contract).
+  bool writesP = false;
+  bool writesN = false;
+};
+
 struct TranslationUnit {
   std::string fileName;
   std::vector<std::unique_ptr<ShaderDecl>> shaders;
+  // File-scope functions; with shaders, checked in source order (functions precede their use).
+  std::vector<std::unique_ptr<FunctionDecl>> functions;
   // The §5 globals, created by the type checker; identifiers resolve to these.
   std::vector<std::unique_ptr<VarDecl>> globals;
 };
 
 void dump(std::ostream& out, const TranslationUnit& unit);
+void dump(std::ostream& out, const FunctionDecl& f, int indent = 0);
 void dump(std::ostream& out, const Expr& e, int indent = 0);
 void dump(std::ostream& out, const Stmt& s, int indent = 0);
 

@@ -626,9 +626,17 @@ class ShaderCodegen {
         b_.CreateBr(loops_.back().continueTarget);
         break;
       case StmtKind::Return:
-        b_.CreateBr(exitBlock_);
+        if (returns_.empty()) {
+          b_.CreateBr(exitBlock_);
+        } else {
+          const ReturnTarget r = returns_.back();  // a copy: gen() below may push more targets
+          if (s.expr && r.slot) store(*r.slot, convert(gen(*s.expr), r.type));
+          b_.CreateBr(r.block);
+        }
         break;
-      case StmtKind::Empty: break;
+      case StmtKind::Empty:
+      case StmtKind::FunctionDef:  // inlined at each call
+      case StmtKind::Extern: break;  // identifiers already resolve to the enclosing variable
     }
   }
 
@@ -1156,7 +1164,48 @@ class ShaderCodegen {
     store(nSlot, n);
   }
 
+  // User functions are inlined at every call (recursion is a compile error, so this terminates).
+  // Output parameters alias the argument's storage; the others are fresh copies.
+  Val genUserCall(const Expr& e) {
+    const FunctionDecl& f = *e.function;
+    // Evaluate every argument before binding any parameter: an argument may call f itself.
+    std::vector<Val> values(e.operands.size());
+    for (size_t i = 0; i < e.operands.size(); ++i)
+      if (!f.params[i]->isOutput) values[i] = convert(gen(*e.operands[i]), f.params[i]->type);
+    for (size_t i = 0; i < e.operands.size(); ++i) {
+      const VarDecl* p = f.params[i].get();
+      if (p->isOutput) {
+        const Slot target = slotFor(e.operands[i]->decl);
+        slots_[p] = target;
+      } else {
+        store(slotFor(p), values[i]);
+      }
+    }
+    const Slot* result = nullptr;
+    if (f.returnType.kind != TypeKind::Void) {
+      temps_.push_back(std::make_unique<VarDecl>());
+      temps_.back()->name = f.name + ".result";
+      temps_.back()->type = f.returnType;
+      result = &slotFor(temps_.back().get());
+      store(*result, zeroOf(f.returnType));
+    }
+    llvm::BasicBlock* end = newBlock("call.end");
+    returns_.push_back({end, result, f.returnType});
+    std::vector<LoopTargets> savedLoops = std::move(loops_);
+    loops_.clear();
+    genStmt(*f.body);
+    loops_ = std::move(savedLoops);
+    returns_.pop_back();
+    if (!terminated()) b_.CreateBr(end);
+    b_.SetInsertPoint(end);
+    if (result) return load(*result);
+    Val r;
+    r.type = Type(TypeKind::Void);
+    return r;
+  }
+
   Val genCall(const Expr& e) {
+    if (e.function) return genUserCall(e);
     std::vector<Val> args;
     for (const ExprPtr& a : e.operands) args.push_back(gen(*a));
     const BuiltinId id = e.builtin->id;
@@ -1383,6 +1432,12 @@ class ShaderCodegen {
     llvm::BasicBlock* breakTarget;
     llvm::BasicBlock* continueTarget;
   };
+  struct ReturnTarget {
+    llvm::BasicBlock* block;
+    const Slot* slot;  // null for void functions
+    Type type;
+  };
+  std::vector<ReturnTarget> returns_;
 
   llvm::LLVMContext& ctx_;
   llvm::Module& module_;

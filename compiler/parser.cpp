@@ -124,9 +124,14 @@ void Parser::syncStatement() {
   }
 }
 
+// Skips to the next shader keyword or to a line that starts a function definition.
 void Parser::syncTopLevel() {
-  while (!tok().is(Tok::Eof) && !tok().is(Tok::KwDisplacement) && !tok().is(Tok::ShaderKindWord))
+  while (!tok().is(Tok::Eof) && !tok().is(Tok::KwDisplacement) && !tok().is(Tok::ShaderKindWord)) {
+    if (tok().atLineStart && (isTypeKeyword(tok().kind) || tok().is(Tok::KwVoid)) &&
+        peek().is(Tok::Identifier) && peek(2).is(Tok::LParen))
+      return;
     consume();
+  }
 }
 
 bool Parser::isTypeKeyword(Tok k) const {
@@ -172,8 +177,9 @@ std::unique_ptr<TranslationUnit> Parser::parseTranslationUnit() {
       diags_.report(DiagId::ErrOnlyDisplacement, tok().loc).arg(tok().text).range(tok().range());
       consume();
       syncTopLevel();
-    } else if ((isTypeKeyword(tok().kind) || tok().is(Tok::KwVoid)) && peek().is(Tok::Identifier)) {
-      parseUnsupportedFunction();
+    } else if ((isTypeKeyword(tok().kind) || tok().is(Tok::KwVoid)) && peek().is(Tok::Identifier) &&
+               peek(2).is(Tok::LParen)) {
+      if (auto f = parseFunction()) unit_->functions.push_back(std::move(f));
     } else {
       diags_.report(DiagId::ErrExpectedTopLevel, tok().loc).range(tok().range());
       consume();
@@ -183,21 +189,58 @@ std::unique_ptr<TranslationUnit> Parser::parseTranslationUnit() {
   return std::move(unit_);
 }
 
-// function := (type | "void") IDENT "(" [formals] ")" block   (parsed, then rejected for now)
-void Parser::parseUnsupportedFunction() {
-  consume();
+// function := (type | "void") IDENT "(" [formals] ")" block
+std::unique_ptr<FunctionDecl> Parser::parseFunction() {
+  auto f = std::make_unique<FunctionDecl>();
+  const Token type = consume();
+  f->begin = type.loc;
+  f->returnType = Type(typeOf(type.kind));
   const Token name = consume();
-  diags_.report(DiagId::ErrUnsupported, name.loc).arg("user-defined function").range(name.range());
-  // Skip the signature and the body as a whole.
-  while (!tok().is(Tok::Eof) && !tok().is(Tok::LBrace) && !tok().is(Tok::KwDisplacement)) consume();
-  if (tok().is(Tok::LBrace)) {
-    int depth = 0;
-    do {
-      if (tok().is(Tok::LBrace)) ++depth;
-      if (tok().is(Tok::RBrace)) --depth;
-      consume();
-    } while (depth > 0 && !tok().is(Tok::Eof));
+  f->name = std::string(name.text);
+  f->nameRange = name.range();
+  const Token open = consume();  // callers checked it is '('
+  if (!tok().is(Tok::RParen) && !parseFormals(f->params)) {
+    while (!tok().is(Tok::Eof) && !tok().is(Tok::LBrace) && !tok().is(Tok::KwDisplacement)) consume();
+    if (tok().is(Tok::LBrace)) parseBlock();
+    return nullptr;
   }
+  if (!expectClosing(Tok::RParen, open)) {
+    while (!tok().is(Tok::Eof) && !tok().is(Tok::LBrace) && !tok().is(Tok::KwDisplacement)) consume();
+  }
+  if (!tok().is(Tok::LBrace)) {
+    expectAfterPrev(Tok::LBrace);
+    return nullptr;
+  }
+  f->body = parseBlock();
+  return f;
+}
+
+// extern := "extern" ["uniform"|"varying"] type IDENT { "," IDENT } ";"
+StmtPtr Parser::parseExtern() {
+  const Token kw = consume();
+  auto s = std::make_unique<Stmt>(StmtKind::Extern, kw.range());
+  if (!accept(Tok::KwUniform)) accept(Tok::KwVarying);
+  if (!isTypeKeyword(tok().kind)) {
+    diags_.report(DiagId::ErrExpectedType, tok().loc).range(tok().range());
+    return nullptr;
+  }
+  const Type type(typeOf(consume().kind));
+  for (;;) {
+    if (!tok().is(Tok::Identifier)) {
+      diags_.report(DiagId::ErrExpected, tok().loc).arg("identifier").range(tok().range());
+      return nullptr;
+    }
+    const Token name = consume();
+    auto d = std::make_unique<VarDecl>();
+    d->name = std::string(name.text);
+    d->nameRange = name.range();
+    d->type = type;
+    s->decls.push_back(std::move(d));
+    if (!accept(Tok::Comma)) break;
+  }
+  if (!expectAfterPrev(Tok::Semi, "extern declaration")) return nullptr;
+  s->range.end = prev().end();
+  return s;
 }
 
 // shader := "displacement" IDENT "(" [formals] ")" block
@@ -346,16 +389,18 @@ StmtPtr Parser::parseStatement() {
       const Token semi = consume();
       return std::make_unique<Stmt>(StmtKind::Empty, semi.range());
     }
-    case Tok::KwExtern:
-      diags_.report(DiagId::ErrUnsupported, t.loc).arg("'extern'").range(t.range());
-      return nullptr;
+    case Tok::KwExtern: return parseExtern();
     default: break;
   }
+  if ((isTypeKeyword(t.kind) || t.is(Tok::KwVoid)) && peek().is(Tok::Identifier) && peek(2).is(Tok::LParen)) {
+    const SourceLoc start = t.loc;
+    auto f = parseFunction();
+    if (!f) return nullptr;
+    auto s = std::make_unique<Stmt>(StmtKind::FunctionDef, SourceRange{start, prev().end()});
+    s->function = std::move(f);
+    return s;
+  }
   if (startsDeclaration()) {
-    if (peek(2).is(Tok::LParen) && isTypeKeyword(t.kind)) {
-      diags_.report(DiagId::ErrUnsupported, peek().loc).arg("user-defined function").range(peek().range());
-      return nullptr;
-    }
     auto s = parseDeclaration();
     if (!s) return nullptr;
     if (recovering_) return s;

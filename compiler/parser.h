@@ -44,7 +44,8 @@ class Parser {
   TypeKind typeOf(Tok k) const;
 
   void parseShader();
-  void parseUnsupportedFunction();
+  std::unique_ptr<FunctionDecl> parseFunction();
+  StmtPtr parseExtern();
   bool parseFormals(std::vector<std::unique_ptr<VarDecl>>& params);
   bool parseDeclarators(std::vector<std::unique_ptr<VarDecl>>& out, Type type, bool isOutput,
                         bool isUniform, Storage storage);

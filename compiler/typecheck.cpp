@@ -2,6 +2,9 @@
 // Context-typed calls (noise, §6.1) receive an expected type from their parent expression.
 #include "compiler/typecheck.h"
 
+#include <algorithm>
+#include <climits>
+#include <cstdint>
 #include <set>
 #include <string>
 #include <unordered_map>
@@ -117,13 +120,26 @@ class Checker {
 
   void run() {
     makeGlobals();
+    functionScopes_.clear();
+    functionScopes_.emplace_back();
+    // Shaders and file-scope functions in source order: a function is visible after its definition.
+    std::vector<std::pair<uint32_t, size_t>> order;  // (offset, index; shaders first in index space)
+    for (size_t i = 0; i < unit_.shaders.size(); ++i) order.emplace_back(unit_.shaders[i]->keywordLoc.offset, i);
+    for (size_t i = 0; i < unit_.functions.size(); ++i)
+      order.emplace_back(unit_.functions[i]->begin.offset, unit_.shaders.size() + i);
+    std::sort(order.begin(), order.end());
     std::set<std::string> shaderNames;
-    for (auto& shader : unit_.shaders) {
-      if (!shaderNames.insert(shader->name).second)
-        report(DiagId::ErrDuplicateShader, shader->nameRange.begin)
-            .arg(shader->name)
-            .range(shader->nameRange);
-      checkShader(*shader);
+    for (const auto& [offset, index] : order) {
+      if (index >= unit_.shaders.size()) {
+        checkFunction(*unit_.functions[index - unit_.shaders.size()]);
+        continue;
+      }
+      ShaderDecl& shader = *unit_.shaders[index];
+      if (!shaderNames.insert(shader.name).second)
+        report(DiagId::ErrDuplicateShader, shader.nameRange.begin)
+            .arg(shader.name)
+            .range(shader.nameRange);
+      checkShader(shader);
     }
   }
 
@@ -171,7 +187,11 @@ class Checker {
     return nullptr;
   }
 
-  void pushScope() { scopes_.emplace_back(); }
+  void pushScope() {
+    scopes_.emplace_back();
+    scopeDecls_.emplace_back();
+    functionScopes_.emplace_back();
+  }
   void popScope() {
     // -Wunused-variable / -Wunused-parameter, in declaration order for stable output.
     for (VarDecl* d : scopeDecls_.back()) {
@@ -184,6 +204,7 @@ class Checker {
     }
     scopes_.pop_back();
     scopeDecls_.pop_back();
+    functionScopes_.pop_back();
   }
 
   void declare(VarDecl& d) {
@@ -209,8 +230,7 @@ class Checker {
   void checkShader(ShaderDecl& shader) {
     shader_ = &shader;
     undeclaredReported_.clear();
-    scopes_.emplace_back();
-    scopeDecls_.emplace_back();
+    pushScope();
     for (auto& p : shader.params) {
       p->storage = Storage::Parameter;
       if (p->type.kind == TypeKind::Matrix) {
@@ -307,7 +327,6 @@ class Checker {
     switch (s.kind) {
       case StmtKind::Block:
         pushScope();
-        scopeDecls_.emplace_back();
         checkBlockContents(s);
         popScope();
         break;
@@ -346,7 +365,6 @@ class Checker {
         break;
       case StmtKind::For:
         pushScope();
-        scopeDecls_.emplace_back();
         if (s.init) checkStmt(*s.init);
         if (s.cond) checkCondition(*s.cond);
         if (s.step) checkExpr(*s.step, kError);
@@ -362,10 +380,62 @@ class Checker {
               .arg(s.kind == StmtKind::Break ? "break" : "continue")
               .range({s.keywordLoc, s.keywordLoc.advanced(s.kind == StmtKind::Break ? 5 : 8)});
         break;
-      case StmtKind::Return:
-        if (s.expr) {
-          checkExpr(*s.expr, kError);
-          report(DiagId::ErrReturnValueInShader, s.keywordLoc).range(s.expr->range);
+      case StmtKind::Return: {
+        const SourceRange kw{s.keywordLoc, s.keywordLoc.advanced(6)};
+        if (!function_) {
+          if (s.expr) {
+            checkExpr(*s.expr, kError);
+            report(DiagId::ErrReturnValueInShader, s.keywordLoc).range(s.expr->range);
+          }
+        } else if (function_->returnType.kind == TypeKind::Void) {
+          if (s.expr) {
+            checkExpr(*s.expr, kError);
+            report(DiagId::ErrReturnVoidValue, s.keywordLoc).arg(function_->name).range(s.expr->range);
+          }
+        } else if (!s.expr) {
+          report(DiagId::ErrReturnMissingValue, s.keywordLoc).arg(function_->name).range(kw);
+        } else {
+          const Type t = checkExpr(*s.expr, function_->returnType);
+          if (requireValue(*s.expr, t)) {
+            const Conversion c = conversion(t, function_->returnType);
+            if (c == Conversion::None)
+              report(DiagId::ErrIncompatibleReturn, s.expr->range.begin)
+                  .arg(typeName(t))
+                  .arg(typeName(function_->returnType))
+                  .range(s.expr->range);
+            else if (c == Conversion::Narrowing)
+              report(DiagId::WarnNarrowing, s.expr->range.begin).range(s.expr->range);
+          }
+        }
+        break;
+      }
+      case StmtKind::FunctionDef: checkFunction(*s.function); break;
+      case StmtKind::Extern:
+        for (auto& d : s.decls) {
+          VarDecl* target = nullptr;
+          if (!outerScopes_.empty()) {
+            const auto& outer = *outerScopes_.back();
+            for (auto it = outer.rbegin(); it != outer.rend() && !target; ++it) {
+              auto f = it->find(d->name);
+              if (f != it->end()) target = f->second;
+            }
+          } else {
+            target = lookup(d->name);
+          }
+          if (!target) {
+            report(DiagId::ErrExternUnknown, d->nameRange.begin).arg(d->name).range(d->nameRange);
+            continue;
+          }
+          if (!(target->type == d->type)) {
+            report(DiagId::ErrExternType, d->nameRange.begin)
+                .arg(d->name)
+                .arg(typeName(d->type))
+                .arg(typeName(target->type))
+                .range(d->nameRange);
+            continue;
+          }
+          d->externTarget = target;
+          scopes_.back()[d->name] = target;  // by reference: the same variable
         }
         break;
       case StmtKind::Empty: break;
@@ -379,7 +449,6 @@ class Checker {
       return;
     }
     pushScope();
-    scopeDecls_.emplace_back();
     checkStmt(s);
     popScope();
   }
@@ -579,11 +648,19 @@ class Checker {
       return false;
     }
     d->written = true;
-    if (d->storage == Storage::Global && shader_) {
-      if (d->global == GlobalId::P) shader_->assignsP = true;
-      if (d->global == GlobalId::N) shader_->assignsN = true;
-    }
+    if (d->storage == Storage::Global) markWrites(d->global == GlobalId::P, d->global == GlobalId::N);
     return true;
+  }
+
+  // Records writes of P/N: on the function being checked (propagated at its calls), else the shader.
+  void markWrites(bool p, bool n) {
+    if (function_) {
+      function_->writesP |= p;
+      function_->writesN |= n;
+    } else if (shader_) {
+      shader_->assignsP |= p;
+      shader_->assignsN |= n;
+    }
   }
 
   Type checkAssign(Expr& e) {
@@ -670,7 +747,207 @@ class Checker {
     return bad();
   }
 
+  const std::vector<FunctionDecl*>* lookupFunctions(const std::string& name) const {
+    for (auto it = functionScopes_.rbegin(); it != functionScopes_.rend(); ++it) {
+      auto f = it->find(name);
+      if (f != it->end()) return &f->second;
+    }
+    return nullptr;
+  }
+
+  static bool sameParameters(const FunctionDecl& a, const FunctionDecl& b) {
+    if (a.params.size() != b.params.size()) return false;
+    for (size_t i = 0; i < a.params.size(); ++i)
+      if (!(a.params[i]->type == b.params[i]->type)) return false;
+    return true;
+  }
+
+  // True if control can reach the end of `s` (loops may exit; `if` without `else` falls through).
+  static bool canFallThrough(const Stmt& s) {
+    switch (s.kind) {
+      case StmtKind::Return: return false;
+      case StmtKind::Block:
+        for (const StmtPtr& c : s.stmts)
+          if (!canFallThrough(*c)) return false;
+        return true;
+      case StmtKind::If: return !s.otherwise || canFallThrough(*s.then) || canFallThrough(*s.otherwise);
+      default: return true;
+    }
+  }
+
+  void checkFunction(FunctionDecl& f) {
+    // Registered before its body is checked, so a recursive call resolves and is reported.
+    const std::vector<FunctionDecl*>* visible = lookupFunctions(f.name);
+    auto& overloads = functionScopes_.back()[f.name];
+    bool redefinition = false;
+    for (FunctionDecl* other : overloads) {
+      if (!sameParameters(*other, f)) continue;
+      report(DiagId::ErrFunctionRedefinition, f.nameRange.begin)
+          .arg(f.name)
+          .range(f.nameRange)
+          .note(DiagId::NotePreviousDeclaration, other->nameRange.begin, {}, other->nameRange);
+      redefinition = true;
+    }
+    if (!visible && findBuiltin(f.name))
+      report(DiagId::WarnShadowFunction, f.nameRange.begin).arg(f.name).range(f.nameRange);
+    if (!redefinition) overloads.push_back(&f);
+
+    // Variables: globals and its own; enclosing locals only through `extern`.
+    auto savedScopes = std::move(scopes_);
+    auto savedDecls = std::move(scopeDecls_);
+    scopes_.clear();
+    scopeDecls_.clear();
+    scopes_.push_back(savedScopes.front());
+    scopeDecls_.emplace_back();
+    outerScopes_.push_back(&savedScopes);
+    FunctionDecl* savedFunction = function_;
+    const int savedLoopDepth = loopDepth_;
+    auto savedUndeclared = std::move(undeclaredReported_);
+    undeclaredReported_.clear();
+    function_ = &f;
+    loopDepth_ = 0;
+    functionStack_.push_back(&f);
+
+    pushScope();
+    for (auto& p : f.params) {
+      p->storage = Storage::Parameter;
+      p->writable = p->isOutput;
+      if (p->init) {
+        report(DiagId::ErrFunctionParamDefault, p->init->range.begin).range(p->init->range);
+        p->init.reset();
+      }
+      declare(*p);
+    }
+    if (f.body) {
+      checkBlockContents(*f.body);
+      if (f.returnType.kind != TypeKind::Void && canFallThrough(*f.body))
+        report(DiagId::ErrMissingReturn, SourceLoc{f.body->range.end.offset - 1}).arg(f.name);
+    }
+    popScope();
+
+    functionStack_.pop_back();
+    function_ = savedFunction;
+    loopDepth_ = savedLoopDepth;
+    undeclaredReported_ = std::move(savedUndeclared);
+    outerScopes_.pop_back();
+    scopes_ = std::move(savedScopes);
+    scopeDecls_ = std::move(savedDecls);
+  }
+
+  // Overload resolution (§6): exact match, then int→float-only conversions, then the unique
+  // candidate with the fewest conversions.
+  Type checkUserCall(Expr& e, const std::vector<FunctionDecl*>& candidates) {
+    std::vector<ExprPtr>& args = e.operands;
+    struct Viable {
+      FunctionDecl* f;
+      int conversions;
+      bool intToFloatOnly;
+    };
+    std::vector<Viable> viable;
+    for (FunctionDecl* f : candidates) {
+      if (f->params.size() != args.size()) continue;
+      Viable v{f, 0, true};
+      bool ok = true;
+      for (size_t i = 0; i < args.size() && ok; ++i) {
+        const VarDecl& p = *f->params[i];
+        const Expr& a = *args[i];
+        if (p.isOutput) {
+          ok = a.kind == ExprKind::Identifier && a.decl && a.type == p.type;
+          continue;
+        }
+        switch (conversion(a.type, p.type)) {
+          case Conversion::None: ok = false; break;
+          case Conversion::Identity: break;
+          case Conversion::Implicit:
+            ++v.conversions;
+            v.intToFloatOnly &= a.type.kind == TypeKind::Int && p.type.kind == TypeKind::Float;
+            break;
+          case Conversion::Narrowing:
+            ++v.conversions;
+            v.intToFloatOnly = false;
+            break;
+        }
+      }
+      if (ok) viable.push_back(v);
+    }
+    if (viable.empty()) {
+      if (candidates.size() == 1 && candidates[0]->params.size() == args.size()) {
+        // Non-overloaded: point at the offending argument.
+        const FunctionDecl& f = *candidates[0];
+        for (size_t i = 0; i < args.size(); ++i) {
+          const VarDecl& p = *f.params[i];
+          const Expr& a = *args[i];
+          if (p.isOutput && !(a.kind == ExprKind::Identifier && a.decl && a.type == p.type)) {
+            report(DiagId::ErrOutputArgument, a.range.begin).arg(p.name).arg(typeName(p.type)).range(a.range);
+            break;
+          }
+          if (!p.isOutput && conversion(a.type, p.type) == Conversion::None) {
+            report(DiagId::ErrIncompatibleArg, a.range.begin).arg(typeName(a.type)).arg(typeName(p.type)).range(a.range);
+            break;
+          }
+        }
+      } else {
+        report(DiagId::ErrNoMatchingCall, e.range.begin).arg(e.text).arg(typeList(args)).range(e.opRange);
+      }
+      return set(e, kError);
+    }
+    const Viable* best = nullptr;
+    auto pick = [&](auto pred) -> int {
+      int n = 0;
+      for (const Viable& v : viable)
+        if (pred(v)) {
+          if (!n) best = &v;
+          ++n;
+        }
+      return n;
+    };
+    int n = pick([](const Viable& v) { return v.conversions == 0; });
+    if (n == 0) n = pick([](const Viable& v) { return v.intToFloatOnly; });
+    if (n == 0) {
+      int fewest = INT32_MAX;
+      for (const Viable& v : viable) fewest = std::min(fewest, v.conversions);
+      n = pick([&](const Viable& v) { return v.conversions == fewest; });
+    }
+    if (n != 1) {
+      auto builder = report(DiagId::ErrAmbiguousCall, e.range.begin);
+      builder.arg(e.text).range(e.opRange);
+      for (const Viable& v : viable) builder.note(DiagId::NoteCandidate, v.f->nameRange.begin, {}, v.f->nameRange);
+      return set(e, kError);
+    }
+    FunctionDecl* f = best->f;
+    if (std::find(functionStack_.begin(), functionStack_.end(), f) != functionStack_.end()) {
+      report(DiagId::ErrRecursiveCall, e.range.begin).arg(e.text).range(e.opRange);
+      return set(e, kError);
+    }
+    for (size_t i = 0; i < args.size(); ++i) {
+      const VarDecl& p = *f->params[i];
+      Expr& a = *args[i];
+      if (p.isOutput) {
+        if (!checkAssignable(a, a.range.begin, a.range)) return set(e, kError);
+      } else if (conversion(a.type, p.type) == Conversion::Narrowing) {
+        report(DiagId::WarnNarrowing, a.range.begin).range(a.range);
+      }
+    }
+    markWrites(f->writesP, f->writesN);
+    e.function = f;
+    e.isVarying = true;
+    return set(e, f->returnType);
+  }
+
   Type checkCall(Expr& e, Type expected) {
+    if (const std::vector<FunctionDecl*>* fns = lookupFunctions(e.text)) {
+      // A user function hides every library overload of its name (§3).
+      const FunctionDecl* single = fns->size() == 1 ? (*fns)[0] : nullptr;
+      bool ok = true;
+      for (size_t i = 0; i < e.operands.size(); ++i) {
+        Expr& a = *e.operands[i];
+        const Type hint = single && i < single->params.size() ? single->params[i]->type : kError;
+        const Type t = checkExpr(a, hint);
+        if (!requireValue(a, t)) ok = false;
+      }
+      if (!ok) return set(e, kError);
+      return checkUserCall(e, *fns);
+    }
     const BuiltinInfo* b = findBuiltin(e.text);
     e.builtin = b;
     std::vector<ExprPtr>& args = e.operands;
@@ -697,9 +974,7 @@ class Checker {
       case BuiltinShape::Area:
       case BuiltinShape::Filterwidth:
       case BuiltinShape::Filterstep: e.isVarying = true; break;
-      case BuiltinShape::Displace:
-        if (shader_) shader_->assignsP = shader_->assignsN = true;
-        break;
+      case BuiltinShape::Displace: markWrites(true, true); break;
       default: break;
     }
     const size_t numSpaces = b->shape == BuiltinShape::Displace && args.size() == 2 ? 1
@@ -865,6 +1140,11 @@ class Checker {
   std::vector<std::vector<VarDecl*>> scopeDecls_;
   std::set<std::string> undeclaredReported_;
   ShaderDecl* shader_ = nullptr;
+  FunctionDecl* function_ = nullptr;
+  std::vector<FunctionDecl*> functionStack_;
+  std::vector<std::unordered_map<std::string, std::vector<FunctionDecl*>>> functionScopes_;
+  // While checking a nested function: the enclosing variable scopes, for `extern`.
+  std::vector<const std::vector<std::unordered_map<std::string, VarDecl*>>*> outerScopes_;
   int loopDepth_ = 0;
   int suppress_ = 0;
   int contextFloat_ = 0;

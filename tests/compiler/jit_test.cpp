@@ -390,6 +390,53 @@ TEST(JitTest, DefinesReplaceIdentifiers) {
   EXPECT_NEAR(b.Pout[2][0], 1 + 0.5 * kPi, 1e-6);
 }
 
+TEST(JitTest, UserFunctionsAreInlinedWithOverloadsOutputsAndExtern) {
+  auto shader = compileOne(R"(
+float sq(float x) { return x * x; }
+float sq2(float x) { return sq(x) * 2; }
+vector sq(vector x) { return x * x; }
+void bump(output point q; float amount) { q += amount * N; }
+float firstPositive(float a, float b) { if (a > 0) return a; return b; }
+
+displacement f(float Km = 0.5)
+{
+    float twice(float y) { extern float Km; return 2 * y * Km; }
+    point q = P;
+    bump(q, sq(2) + sq2(1));
+    P = q + vector(twice(1), sq(sq(3)), firstPositive(-1, 7)) + sq(vector(1, 2, 3));
+    N = normal(sq(u), Du(sq(u)), 0);
+})");
+  ASSERT_TRUE(shader);
+  runtime::ShaderInstance instance(shader);
+  TestBatch b(1);
+  fillSphere(b, 0, 0.25, 0.0);  // P = N = (0, 0, 1)
+  RlfStatus status{};
+  RlfShadingBatch view = b.all();
+  instance.evaluate(view, status);
+  EXPECT_FLOAT_EQ(b.Pout[0][0], 1 + 1);       // twice(1) = 2 * 0.5, plus 1²
+  EXPECT_FLOAT_EQ(b.Pout[1][0], 81 + 4);      // sq(sq(3)) plus 2²
+  EXPECT_FLOAT_EQ(b.Pout[2][0], 7 + 7 + 9);   // q.z = 1 + 6, firstPositive, 3²
+  EXPECT_FLOAT_EQ(b.Nout[0][0], 0.0625f);
+  EXPECT_FLOAT_EQ(b.Nout[1][0], 0.5f);        // derivatives flow through inlined calls
+}
+
+TEST(JitTest, FunctionWritingPTriggersTheHostContract) {
+  auto shader = compileOne(R"(
+void push(float h) { P += h * N; }
+displacement d() { push(0.1 * sin(10 * u)); })");
+  ASSERT_TRUE(shader);
+  runtime::ShaderInstance instance(shader);
+  TestBatch b(8);
+  for (size_t i = 0; i < 8; ++i) fillSphere(b, i, 0.1 * double(i) + 0.05, 0.4);
+  RlfStatus status{};
+  RlfShadingBatch view = b.all();
+  instance.evaluate(view, status);
+  double tilt = 0;
+  for (size_t i = 0; i < 8; ++i)
+    for (int k = 0; k < 3; ++k) tilt = std::max(tilt, double(std::abs(b.Nout[k][i] - b.N[k][i])));
+  EXPECT_GT(tilt, 0.05);  // N was recomputed from the displaced P
+}
+
 TEST(JitTest, EveryExampleShaderCompilesAndEvaluatesFinite) {
   int numFiles = 0;
   for (const auto& entry : std::filesystem::directory_iterator(RELIEF_SOURCE_DIR "/examples/shaders")) {
