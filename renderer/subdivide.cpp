@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <tuple>
 
 namespace relief {
 namespace {
@@ -99,6 +100,11 @@ struct Scratch {
   std::vector<uint32_t> active, next;  // 3 indices per triangle
   std::vector<uint32_t> activeCodes, nextCodes;  // path code (or ancestor code) per triangle
   std::vector<uint32_t> ranks;                   // finished triangles per ancestor code
+  struct ProbeSlot {
+    uint64_t key;  // not a pointer into `edges`: the table may grow while probes are collected
+    uint32_t a, b, mid;
+  };
+  std::vector<ProbeSlot> probes;
   EdgeMap edges;  // (min, max) vertex pair -> midpoint, or -1: kept
 };
 
@@ -217,6 +223,20 @@ void push(std::vector<uint32_t>& list, uint32_t a, uint32_t b, uint32_t c) {
   list.push_back(a), list.push_back(b), list.push_back(c);
 }
 
+// Simplification probes only edges up to this many target edge lengths long (see its use).
+constexpr float kFlatSpan = 4.0f;
+
+// Whether `m` lies within `tolerance` of segment (p, q); symmetric in p and q bit for bit, as the
+// end points are put in a canonical (lexicographic) order first.
+bool nearChord(glm::vec3 p, glm::vec3 q, glm::vec3 m, float tolerance) {
+  if (std::tie(q.x, q.y, q.z) < std::tie(p.x, p.y, p.z)) std::swap(p, q);
+  const glm::vec3 e = q - p, d = m - p;
+  const float ee = glm::dot(e, e);
+  const float t = ee > 0.0f ? std::clamp(glm::dot(d, e) / ee, 0.0f, 1.0f) : 0.0f;
+  const glm::vec3 off = d - t * e;
+  return glm::dot(off, off) <= tolerance * tolerance;
+}
+
 // Whether the displaced descendants of triangle (a, b, c) may reach `box`: they lie within
 // `bound` of the undisplaced triangle (the displacement bound the contributor grid relies on too).
 bool mayReach(const Vertices& vs, uint32_t a, uint32_t b, uint32_t c, float bound, const CullBox& box) {
@@ -275,6 +295,19 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
     const float cullGrow = std::max(0.0f, disp.boundWorld);
     edges.clear();
     // Returns the midpoint of edge (a, b), creating it if the edge wants splitting; -1 if kept.
+    // Simplification (flatness > 0): a long edge is still kept whole when its displaced midpoint
+    // lies within `flatness` of the chord between its displaced end points. The midpoint is
+    // displaced as a probe in the same batch; the test reads only the edge's own three points,
+    // taken in a canonical order, so both sides of a shared edge decide alike (no cracks).
+    //
+    // Only edges at most kFlatSpan target lengths long are probed: one midpoint says little about a
+    // long edge (a sinusoid can cross its chord there) and nothing about the triangle's interior,
+    // so merging is confined to the last two levels, where a missed feature is at most a few
+    // target edge lengths across. Within that span it removes most triangles of smooth regions.
+    const bool simplify = disp.flatness > 0.0f;
+    const float flatSpan2 = edgeLength2 * kFlatSpan * kFlatSpan;
+    using Probe = Scratch::ProbeSlot;
+    std::vector<Probe>& probes = scratch.probes;
     auto midpoint = [&](uint32_t a, uint32_t b) -> int64_t {
       const uint64_t key = (uint64_t(std::min(a, b)) << 32) | std::max(a, b);
       auto [value, inserted] = edges.tryEmplace(key);
@@ -282,7 +315,10 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
         const glm::vec3 d = vs.displaced[a] - vs.displaced[b];
         const bool wants = glm::dot(d, d) > edgeLength2;
         const bool allowed = std::max(vs.level[a], vs.level[b]) + 1 <= maxDepth;
-        if (wants && allowed) *value = addMidpoint(vs, a, b);
+        if (wants && allowed) {
+          *value = addMidpoint(vs, a, b);
+          if (simplify && glm::dot(d, d) <= flatSpan2) probes.push_back({key, a, b, uint32_t(*value)});
+        }
       }
       return *value;
     };
@@ -309,6 +345,11 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
       for (size_t k = 0; k < active.size(); k += 3)
         for (int e = 0; e < 3; ++e) midpoint(active[k + e], active[k + (e + 1) % 3]);
       displace(disp, frame, vs, firstNew, scratch.batch, counters);
+      for (const Probe& probe : probes)
+        if (nearChord(vs.displaced[probe.a], vs.displaced[probe.b], vs.displaced[probe.mid],
+                      disp.flatness))
+          *edges.tryEmplace(probe.key).first = -1;  // the probe vertex stays unreferenced
+      probes.clear();
       next.clear();
       nextCodes.clear();
       for (size_t k = 0; k < active.size(); k += 3) {

@@ -59,6 +59,7 @@ struct SphereOptions {
   float km = 0.1f, freq = 4.0f;
   float edgeLength = 0.05f;
   int maxDepth = 8;
+  float flatness = 0.0f;
   bool displaced = true;
   RlfShaderEntry entry = bumpyEntry;
 };
@@ -72,6 +73,7 @@ inline Scene makeSphereScene(const SphereOptions& o) {
     d.boundWorld = o.km;
     d.edgeLength = o.edgeLength;
     d.maxDepth = o.maxDepth;
+    d.flatness = o.flatness;
     scene.displacements.push_back(d);
     scene.meshes[0].displacementIndex = 0;
   }

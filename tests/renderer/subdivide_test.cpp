@@ -78,6 +78,26 @@ TEST(Subdivide, FlatShaderMeetsEdgeLengthAndKeepsArea) {
   EXPECT_EQ(counters.shaderPoints, mm.P.size());  // each vertex displaced exactly once
 }
 
+TEST(Subdivide, FlatnessMergesFlatGeometry) {
+  const Mesh quad = makeQuad();
+  Displacement d = makeDisplacement(testing::bumpyEntry, 0.0f, 1.0f, 0.1f, 12);
+  d.flatness = 1e-4f;
+  MicroMesh mm, unsimplified;
+  SubdivideCounters counters;
+  subdivideTriangle(quad, 0, &d, mm, counters);
+  d.flatness = 0.0f;
+  subdivideTriangle(quad, 0, &d, unsimplified, counters);
+  // Edges up to 4 target lengths long are merged when flat: 16x fewer triangles here.
+  EXPECT_EQ(mm.numTriangles() * 16, unsimplified.numTriangles());
+  d = makeDisplacement(testing::bumpyEntry, 0.1f, 2.0f, 0.05f, 12);
+  MicroMesh full, simple;
+  subdivideTriangle(quad, 0, &d, full, counters);
+  d.flatness = 0.002f;
+  subdivideTriangle(quad, 0, &d, simple, counters);
+  EXPECT_LT(simple.numTriangles(), full.numTriangles());
+  EXPECT_GT(simple.numTriangles(), 8u);
+}
+
 TEST(Subdivide, DepthGuardStopsSplitting) {
   const Mesh quad = makeQuad();
   const Displacement d = makeDisplacement(testing::bumpyEntry, 0.0f, 1.0f, 1e-6f, 3);

@@ -16,8 +16,9 @@ namespace {
 using testing::makeSphereScene;
 using testing::SphereOptions;
 
-SphereOptions watertightOptions() {
+SphereOptions watertightOptions(float flatness = 0.0f) {
   SphereOptions o;
+  o.flatness = flatness;
   o.nu = 24, o.nv = 12;
   o.km = 0.1f, o.freq = 4.0f;
   o.edgeLength = 0.04f;
@@ -53,8 +54,10 @@ TEST(Watertight, NeighboursSubdivideToDifferentDepths) {
   EXPECT_GT(differing, 10) << "of " << shared << " shared edges";
 }
 
-TEST(Watertight, TenThousandRaysAtTheCentreAllHit) {
-  Scene scene = makeSphereScene(watertightOptions());
+class WatertightSphere : public ::testing::TestWithParam<float> {};
+
+TEST_P(WatertightSphere, TenThousandRaysAtTheCentreAllHit) {
+  Scene scene = makeSphereScene(watertightOptions(GetParam()));
   auto accel = makeGridAccelerator(scene, AccelOptions{});
   int misses = 0;
   for (const Ray& ray : testing::randomRays(10000, 20261122, 3.0f, 0.0f)) {
@@ -70,12 +73,12 @@ TEST(Watertight, TenThousandRaysAtTheCentreAllHit) {
     }
   }
   EXPECT_EQ(misses, 0);
-  EXPECT_GT(accel->stats().uniqueDisplacedTriangles, 40000u);
+  EXPECT_GT(accel->stats().uniqueDisplacedTriangles, GetParam() > 0 ? 3000u : 40000u);
 }
 
 // Rays through micro-vertices and micro-edge midpoints: where neighbouring micro-triangles meet.
-TEST(Watertight, RaysThroughVerticesAndEdgesAllHit) {
-  Scene scene = makeSphereScene(watertightOptions());
+TEST_P(WatertightSphere, RaysThroughVerticesAndEdgesAllHit) {
+  Scene scene = makeSphereScene(watertightOptions(GetParam()));
   auto accel = makeGridAccelerator(scene, AccelOptions{});
   const Mesh& mesh = scene.meshes[0];
   std::mt19937 rng(99);
@@ -101,6 +104,22 @@ TEST(Watertight, RaysThroughVerticesAndEdgesAllHit) {
   }
   EXPECT_GT(numRays, 1000);
   EXPECT_EQ(misses, 0);
+}
+
+// Flatness 0: plain adaptive subdivision; 0.002: simplified (edges with flat midpoints kept whole).
+INSTANTIATE_TEST_SUITE_P(Flatness, WatertightSphere, ::testing::Values(0.0f, 0.002f));
+
+// Simplification removes a good share of the triangles without moving the surface much.
+TEST(Watertight, SimplificationReducesTriangles) {
+  const Scene full = makeSphereScene(watertightOptions(0.0f));
+  const Scene simple = makeSphereScene(watertightOptions(0.002f));
+  const testing::BruteForce fullMesh(full), simpleMesh(simple);
+  EXPECT_LT(simpleMesh.numTriangles() * 10, fullMesh.numTriangles() * 9);
+  for (const Ray& ray : testing::randomRays(200, 5, 3.0f, 0.0f)) {
+    auto a = fullMesh.intersect(ray), b = simpleMesh.intersect(ray);
+    ASSERT_TRUE(a && b);
+    EXPECT_NEAR(a->t * glm::length(ray.direction), b->t * glm::length(ray.direction), 0.01f);
+  }
 }
 
 }  // namespace
