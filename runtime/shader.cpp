@@ -93,10 +93,12 @@ bool ShaderInstance::bind(const ParamValue& value, std::string* error) {
   }
   const size_t elements = size_t(std::max(info->arrayLength, 1));
   auto mismatch = [&] {
-    *error = "parameter '" + value.name + "' of shader '" + shader_->name() + "' is declared '" +
-             std::string(paramTypeName(info->type)) +
-             (info->arrayLength ? "[" + std::to_string(info->arrayLength) + "]" : "") +
-             "' but was given '" + std::string(paramTypeName(value.type)) + "'";
+    // Appended piecewise: GCC 12 reports a false -Wrestrict on long operator+ chains at -O3.
+    std::string declared(paramTypeName(info->type));
+    if (info->arrayLength) declared.append("[").append(std::to_string(info->arrayLength)).append("]");
+    error->assign("parameter '").append(value.name).append("' of shader '");
+    error->append(shader_->name()).append("' is declared '").append(declared);
+    error->append("' but was given '").append(paramTypeName(value.type)).append("'");
     return false;
   };
   if (info->type == ParamType::String || value.type == ParamType::String) {
