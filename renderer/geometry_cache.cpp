@@ -88,6 +88,12 @@ const VoxelGeometry* GeometryCache::publish(uint32_t voxel, std::unique_ptr<Voxe
   return slot.geometry;
 }
 
+void GeometryCache::abandon(uint32_t voxel) {
+  Slot& slot = slots_[voxel];
+  slot.word.store(kEmpty << kStateShift, std::memory_order_release);
+  slot.word.notify_all();
+}
+
 void GeometryCache::release(uint32_t voxel) {
   slots_[voxel].word.fetch_sub(1, std::memory_order_release);
 }

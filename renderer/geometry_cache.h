@@ -5,9 +5,11 @@
 // Fill granularity: per voxel. A fill subdivides each contributor of the voxel and keeps only the
 // micro-triangles overlapping that voxel. Voxels are then independent (a fill touches one slot, so
 // the state machine below needs no cross-voxel locking) and the budget counts exactly what is
-// resident; the price is re-subdividing a contributor for each voxel it reaches, softened by a
-// small per-thread memo of recent micro-meshes in the accelerator. Because a voxel's content is a
-// pure function of the voxel (determinism rule 1), a refill after eviction is identical.
+// resident; the price is re-subdividing the parts of a contributor that lie within the
+// displacement bound of each voxel it reaches. Subdivision culls to the voxel (subdivide.h) and the
+// automatic grid keeps voxels several bounds wide (contributor_grid.h), which holds that repeated
+// work to a small factor. Because a voxel's content is a pure function of the voxel (determinism
+// rule 1), a refill after eviction is identical.
 //
 // Thread safety: each slot has one atomic word holding its state (empty, filling, ready) and a pin
 // count. Readers pin a ready slot with a compare-and-swap; exactly one thread wins empty -> filling
@@ -101,6 +103,7 @@ class GeometryCache {
   // Slow paths of acquire: returns the pinned geometry, or null if the caller must fill.
   const VoxelGeometry* tryPin(uint32_t voxel, bool& mustFill);
   const VoxelGeometry* publish(uint32_t voxel, std::unique_ptr<VoxelGeometry> geometry);
+  void abandon(uint32_t voxel);
 
   std::vector<Slot> slots_;
   uint64_t budget_;
@@ -121,7 +124,14 @@ const VoxelGeometry* GeometryCache::acquire(uint32_t voxel, uint64_t stamp, Buil
     slot.lastUse.store(stamp, std::memory_order_relaxed);
   bool mustFill = false;
   if (const VoxelGeometry* g = tryPin(voxel, mustFill)) return g;
-  return publish(voxel, build(voxel));
+  std::unique_ptr<VoxelGeometry> geometry;
+  try {
+    geometry = build(voxel);
+  } catch (...) {
+    abandon(voxel);  // e.g. bad_alloc: let waiting threads retry instead of waiting forever
+    throw;
+  }
+  return publish(voxel, std::move(geometry));
 }
 
 }  // namespace relief

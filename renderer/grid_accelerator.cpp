@@ -298,7 +298,9 @@ std::optional<Hit> GridAccelerator::intersect(const Ray& ray) {
   const glm::vec2 corner[3] = {{0, 0}, {1, 0}, {0, 1}};
   for (int c = 0; c < 3; ++c) {
     const uint32_t i = mesh.indices[3 * size_t(t) + c];
-    st[c] = !mesh.st.empty() ? mesh.st[i] : !mesh.uv.empty() ? mesh.uv[i] : corner[c];
+    st[c] = mesh.st.size() == mesh.P.size()   ? mesh.st[i]
+            : mesh.uv.size() == mesh.P.size() ? mesh.uv[i]
+                                              : corner[c];
   }
   hit.st = (1.0f - b.x - b.y) * st[0] + b.x * st[1] + b.y * st[2];
   hit.bary = b;

@@ -223,6 +223,10 @@ void push(std::vector<uint32_t>& list, uint32_t a, uint32_t b, uint32_t c) {
   list.push_back(a), list.push_back(b), list.push_back(c);
 }
 
+// Hard limit on Displacement::maxDepth: 4^16 micro-triangles per input triangle is already beyond
+// any memory; vertex levels are stored in 8 bits.
+constexpr int kMaxSubdivisionDepth = 16;
+
 // Simplification probes only edges up to this many target edge lengths long (see its use).
 constexpr float kFlatSpan = 4.0f;
 
@@ -261,14 +265,16 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
   for (int c = 0; c < 3; ++c) {
     const uint32_t i = mesh.indices[3 * size_t(triangle) + c];
     p[c] = mesh.P[i];
-    uv[c] = mesh.uv.empty() ? cornerBary[c] : mesh.uv[i];
-    st[c] = mesh.st.empty() ? uv[c] : mesh.st[i];
+    // Attribute arrays of the wrong length are treated as absent (the reader should reject them;
+    // here they must not be read out of bounds).
+    uv[c] = mesh.uv.size() != mesh.P.size() ? cornerBary[c] : mesh.uv[i];
+    st[c] = mesh.st.size() != mesh.P.size() ? uv[c] : mesh.st[i];
   }
   glm::vec3 faceN = glm::cross(p[1] - p[0], p[2] - p[0]);
   float faceLen = glm::length(faceN);
   faceN = faceLen > 0.0f && std::isfinite(faceLen) ? faceN / faceLen : glm::vec3(0, 0, 1);
   for (int c = 0; c < 3; ++c)
-    n[c] = mesh.N.empty() ? faceN : mesh.N[mesh.indices[3 * size_t(triangle) + c]];
+    n[c] = mesh.N.size() != mesh.P.size() ? faceN : mesh.N[mesh.indices[3 * size_t(triangle) + c]];
   for (int c = 0; c < 3; ++c) {
     vs.P.push_back(p[c]), vs.N.push_back(n[c]), vs.uv.push_back(uv[c]), vs.st.push_back(st[c]);
     vs.bary.push_back(cornerBary[c]), vs.level.push_back(0), vs.displaced.push_back(p[c]);
@@ -280,7 +286,7 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
   if (displaced) {
     const Displacement& disp = *displacement;
     const TriangleFrame frame = makeFrame(p, n, uv);
-    const int maxDepth = std::clamp(disp.maxDepth, 0, 255);
+    const int maxDepth = std::clamp(disp.maxDepth, 0, kMaxSubdivisionDepth);
     const float edgeLength2 = disp.edgeLength * disp.edgeLength;
     displace(disp, frame, vs, 0, scratch.batch, counters);
 
@@ -326,7 +332,10 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
     // code and its rank among that ancestor's finished descendants.
     auto finish = [&](uint32_t a, uint32_t b, uint32_t c, uint32_t code, int round) {
       push(out.indices, a, b, c);
-      const uint32_t rank = round > kCullRounds ? scratch.ranks[code]++ : 0;
+      // Ranks saturate rather than spill into the code bits: beyond 2^23 descendants of one
+      // ancestor (only near kMaxSubdivisionDepth) ids may repeat, which only weakens tie-breaks.
+      const uint32_t rank =
+          round > kCullRounds ? std::min(scratch.ranks[code]++, (1u << kMicroRankBits) - 1) : 0;
       out.ids.push_back((code << kMicroRankBits) | rank);
     };
     for (int round = 0; !active.empty(); ++round) {

@@ -20,6 +20,12 @@
 // 2 bits per round behind a leading 1) in the high bits, and its rank among the finished
 // descendants of that ancestor in the low kMicroRankBits bits.
 // Determinism rule 1: the result depends only on the input triangle, its shader and settings.
+// Simplification (Displacement::flatness > 0, paper 3.1): an edge at most a few target lengths
+// long also stays whole when its displaced midpoint (evaluated as a probe in the round's batch)
+// lies within `flatness` of its chord. That is again a decision on the edge alone, so it cannot
+// crack; unlike the paper's bottom-up merge it never samples the interior of a kept triangle, which
+// is why it is limited to short edges.
+//
 // Known limit: a shader reading dPdu/dPdv, du/dv or Ng (which are per input triangle) may displace
 // a shared edge differently from its two sides; P, N, u, v, s, t are shared exactly.
 #pragma once
