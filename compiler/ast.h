@@ -120,6 +120,7 @@ struct Stmt {
 };
 
 struct ShaderDecl {
+  uint32_t parseOrder = 0;  // position among top-level definitions (functions precede their use)
   std::string name;
   SourceLoc keywordLoc;
   SourceRange nameRange;
@@ -133,6 +134,7 @@ struct ShaderDecl {
 
 // function := (type | "void") IDENT "(" [formals] ")" block
 struct FunctionDecl {
+  uint32_t parseOrder = 0;
   Type returnType;
   std::string name;
   SourceLoc begin;

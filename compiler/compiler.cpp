@@ -12,32 +12,22 @@
 #include "compiler/jit.h"
 #include "compiler/lexer.h"
 #include "compiler/parser.h"
+#include "compiler/preprocessor.h"
 #include "compiler/typecheck.h"
 
 namespace relief::compiler {
 
 namespace {
 
-MacroTable makeMacros(SourceManager& sm, DiagnosticsEngine& diags, const CompileOptions& options) {
-  std::vector<std::pair<std::string, std::string>> defs = {
-      {"__DISP__", "1"},          {"M_PI", "3.14159265358979323846"}, {"M_PI_2", "1.57079632679489661923"},
-      {"M_2PI", "6.28318530717958647692"}, {"M_E", "2.71828182845904523536"}, {"M_SQRT2", "1.41421356237309504880"}};
-  for (const auto& d : options.defines) defs.push_back(d);
-  MacroTable table;
-  for (const auto& [name, value] : defs) {
-    const auto id = sm.addBuffer("<command line>", value.empty() ? "1" : value);
-    std::vector<Token> toks = Lexer(sm, id, diags).lexAll();
-    toks.pop_back();  // Eof
-    table[name] = std::move(toks);
-  }
-  return table;
-}
-
 void compileBuffer(CompileResult& result, SourceManager::FileId file, const CompileOptions& options,
                    const CompileFlags& flags) {
   DiagnosticsEngine& diags = *result.diagnostics;
-  const MacroTable macros = makeMacros(*result.sources, diags, options);
-  Parser parser(*result.sources, file, diags, &macros);
+  PreprocessorOptions ppOptions;
+  ppOptions.includeDirs = options.includeDirs;
+  ppOptions.defines = options.defines;
+  ppOptions.builtinIncludeDir = RELIEF_STDLIB_DIR;
+  std::vector<Token> tokens = Preprocessor(*result.sources, diags, ppOptions).run(file);
+  Parser parser(std::move(tokens), result.sources->name(file), diags);
   std::unique_ptr<TranslationUnit> unit = parser.parseTranslationUnit();
   typeCheck(*unit, diags);
   if (unit->shaders.empty() && !diags.hasErrors())

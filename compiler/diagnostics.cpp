@@ -112,6 +112,16 @@ std::vector<Diagnostic> DiagnosticsEngine::sorted() const {
   return out;
 }
 
+std::vector<Diagnostic> DiagnosticsEngine::sorted(const SourceManager& sm) const {
+  std::vector<std::pair<std::vector<uint32_t>, const Diagnostic*>> keyed;
+  for (const Diagnostic& d : diags_)
+    keyed.emplace_back(d.id == DiagId::FatalTooManyErrors ? std::vector<uint32_t>{UINT32_MAX} : sm.sortKey(d.loc), &d);
+  std::stable_sort(keyed.begin(), keyed.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  std::vector<Diagnostic> out;
+  for (const auto& k : keyed) out.push_back(*k.second);
+  return out;
+}
+
 namespace {
 const char* severityName(Severity s) {
   switch (s) {
@@ -136,6 +146,18 @@ constexpr const char* kReset = "\033[0m";
 void renderOne(std::ostream& out, const SourceManager& sm, const Diagnostic& d,
                const TextDiagnosticOptions& opt) {
   const PresumedLoc p = sm.presumed(d.loc);
+  if (p.isValid() && d.severity != Severity::Note) {
+    // The include stack, innermost first, as clang prints it.
+    SourceLoc at = sm.includedFrom(sm.fileOf(d.loc));
+    bool first = true;
+    for (int depth = 0; at.isValid() && depth < 100; ++depth) {
+      const PresumedLoc ip = sm.presumed(at);
+      out << (first ? "In file included from " : "                      from ") << ip.file << ':' << ip.line
+          << ":\n";
+      first = false;
+      at = sm.includedFrom(sm.fileOf(at));
+    }
+  }
   if (opt.color) out << kBold;
   if (p.isValid())
     out << p.file << ':' << p.line << ':' << p.column << ": ";
@@ -240,7 +262,7 @@ void renderText(std::ostream& out, const SourceManager& sm, const Diagnostic& d,
 
 void renderAllText(std::ostream& out, const SourceManager& sm, const DiagnosticsEngine& engine,
                    const TextDiagnosticOptions& options) {
-  for (const Diagnostic& d : engine.sorted()) renderText(out, sm, d, options);
+  for (const Diagnostic& d : engine.sorted(sm)) renderText(out, sm, d, options);
 }
 
 std::string summaryLine(unsigned numWarnings, unsigned numErrors) {

@@ -82,8 +82,10 @@ class DiagnosticsEngine {
   bool hasErrors() const { return numErrors_ > 0 || limitReached_; }
   unsigned numErrors() const { return numErrors_; }
   unsigned numWarnings() const { return numWarnings_; }
-  // Diagnostics sorted by location (then emission order).
+  // Diagnostics sorted by location (then emission order); with a SourceManager, an included
+  // file's diagnostics sort at its #include.
   std::vector<Diagnostic> sorted() const;
+  std::vector<Diagnostic> sorted(const SourceManager& sm) const;
   const std::vector<Diagnostic>& diagnostics() const { return diags_; }
 
   static const char* formatOf(DiagId id);

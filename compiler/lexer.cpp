@@ -33,6 +33,7 @@ std::string tokDescription(Tok kind) {
     case Tok::ReservedWord:
     case Tok::ShaderKindWord: return "reserved word";
     case Tok::Unknown: return "invalid character";
+    case Tok::Hash: return "'#'";
     default: return "'" + std::string(tokSpelling(kind)) + "'";
   }
 }
@@ -80,7 +81,7 @@ void Lexer::skipWhitespaceAndComments() {
       cur_ += 2;
       while (cur_ + 1 < end_ && !(cur_[0] == '*' && cur_[1] == '/')) ++cur_;
       if (cur_ + 1 >= end_) {
-        diags_.report(DiagId::ErrUnterminatedComment, locOf(start));
+        sink().report(DiagId::ErrUnterminatedComment, locOf(start));
         cur_ = end_;
         return;
       }
@@ -109,12 +110,12 @@ Token Lexer::lexNumber(const char* start) {
     while (cur_ < end_ && std::isxdigit(static_cast<unsigned char>(*cur_))) ++cur_;
     Token t = make(Tok::IntLiteral, start);
     if (t.length == 2) {
-      diags_.report(DiagId::ErrBadNumber, t.loc).arg(t.text).range(t.range());
+      sink().report(DiagId::ErrBadNumber, t.loc).arg(t.text).range(t.range());
       return t;
     }
     const unsigned long long v = std::strtoull(std::string(t.text.substr(2)).c_str(), nullptr, 16);
     if (t.length > 10 || v > 0xffffffffULL)
-      diags_.report(DiagId::ErrIntegerTooLarge, t.loc).range(t.range());
+      sink().report(DiagId::ErrIntegerTooLarge, t.loc).range(t.range());
     else
       t.intValue = int32_t(uint32_t(v));
     return t;
@@ -150,7 +151,7 @@ Token Lexer::lexNumber(const char* start) {
       if (errno != ERANGE && v == 0x80000000ULL)
         t.intValue = INT32_MIN;
       else
-        diags_.report(DiagId::ErrIntegerTooLarge, t.loc).range(t.range());
+        sink().report(DiagId::ErrIntegerTooLarge, t.loc).range(t.range());
     } else {
       t.intValue = int32_t(v);
     }
@@ -167,7 +168,7 @@ Token Lexer::lexString(const char* start) {
         continue;
       }
       if (cur_ + 1 < end_ && cur_[1] != '\n' && cur_[1] != '\r')
-        diags_.report(DiagId::ErrBadEscape, locOf(cur_))
+        sink().report(DiagId::ErrBadEscape, locOf(cur_))
             .arg(std::string_view(cur_ + 1, 1))
             .range({locOf(cur_), locOf(cur_ + 2)});
       ++cur_;
@@ -177,7 +178,7 @@ Token Lexer::lexString(const char* start) {
     ++cur_;
   }
   if (cur_ >= end_ || *cur_ != '"') {
-    diags_.report(DiagId::ErrUnterminatedString, locOf(start));
+    sink().report(DiagId::ErrUnterminatedString, locOf(start));
     return make(Tok::StringLiteral, start);
   }
   ++cur_;
@@ -216,10 +217,8 @@ Token Lexer::next() {
     if (isDigit(c) || (c == '.' && cur_ + 1 < end_ && isDigit(cur_[1]))) return lexNumber(start);
     if (c == '"') return lexString(start);
     if (c == '#' && atLineStart_) {
-      // Directives need the preprocessor (language.md §1.1), which is not written yet.
-      diags_.report(DiagId::ErrDirective, locOf(start));
-      while (cur_ < end_ && *cur_ != '\n' && *cur_ != '\r') ++cur_;
-      continue;
+      ++cur_;
+      return make(Tok::Hash, start);  // the preprocessor takes it from here
     }
     auto two = [&](char second) { return cur_ + 1 < end_ && cur_[1] == second; };
     Tok kind = Tok::Eof;
@@ -262,7 +261,7 @@ Token Lexer::next() {
     }
     if (kind == Tok::Eof) {
       // Any other byte: report at it and resume after it.
-      diags_.report(DiagId::ErrBadCharacter, locOf(start))
+      sink().report(DiagId::ErrBadCharacter, locOf(start))
           .arg(std::string_view(start, 1));
       ++cur_;
       return make(Tok::Unknown, start);

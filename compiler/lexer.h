@@ -19,6 +19,8 @@ class Lexer {
   std::vector<Token> lexAll();
   // Decoded contents of a string literal token (escapes resolved; bad escapes already reported).
   static std::string stringValue(const Token& token);
+  // While quiet, lexical errors are not reported (groups skipped by #if).
+  void setQuiet(bool quiet) { quiet_ = quiet; }
 
  private:
   void skipWhitespaceAndComments();
@@ -33,6 +35,9 @@ class Lexer {
   const char* end_;
   SourceLoc base_;
   bool atLineStart_ = true;
+  bool quiet_ = false;
+  DiagnosticsEngine quietSink_{DiagnosticOptions{false, false, 0}};
+  DiagnosticsEngine& sink() { return quiet_ ? quietSink_ : diags_; }
 };
 
 }  // namespace relief::compiler

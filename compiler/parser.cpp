@@ -35,31 +35,15 @@ bool isAssignOp(Tok k) {
 SourceRange join(SourceLoc b, SourceLoc e) { return {b, e}; }
 }  // namespace
 
-Parser::Parser(const SourceManager& sm, SourceManager::FileId file, DiagnosticsEngine& diags,
-               const MacroTable* macros)
-    : sm_(sm), diags_(diags) {
-  Lexer lexer(sm, file, diags);
-  std::vector<Token> raw = lexer.lexAll();
-  if (!macros || macros->empty()) {
-    toks_ = std::move(raw);
-  } else {
-    // Expanded tokens sit at the macro use (language.md §1.1); one level, no recursion.
-    for (const Token& t : raw) {
-      auto it = t.is(Tok::Identifier) ? macros->find(std::string(t.text)) : macros->end();
-      if (it == macros->end()) {
-        toks_.push_back(t);
-        continue;
-      }
-      for (Token r : it->second) {
-        r.loc = t.loc;
-        r.length = t.length;
-        toks_.push_back(r);
-      }
-    }
-  }
+Parser::Parser(std::vector<Token> tokens, std::string fileName, DiagnosticsEngine& diags)
+    : diags_(diags), toks_(std::move(tokens)) {
+  if (toks_.empty() || !toks_.back().is(Tok::Eof)) toks_.emplace_back();
   unit_ = std::make_unique<TranslationUnit>();
-  unit_->fileName = sm.name(file);
+  unit_->fileName = std::move(fileName);
 }
+
+Parser::Parser(const SourceManager& sm, SourceManager::FileId file, DiagnosticsEngine& diags)
+    : Parser(Lexer(sm, file, diags).lexAll(), sm.name(file), diags) {}
 
 bool Parser::accept(Tok k) {
   if (!tok().is(k)) return false;
@@ -179,7 +163,10 @@ std::unique_ptr<TranslationUnit> Parser::parseTranslationUnit() {
       syncTopLevel();
     } else if ((isTypeKeyword(tok().kind) || tok().is(Tok::KwVoid)) && peek().is(Tok::Identifier) &&
                peek(2).is(Tok::LParen)) {
-      if (auto f = parseFunction()) unit_->functions.push_back(std::move(f));
+      if (auto f = parseFunction()) {
+        f->parseOrder = uint32_t(unit_->shaders.size() + unit_->functions.size());
+        unit_->functions.push_back(std::move(f));
+      }
     } else {
       diags_.report(DiagId::ErrExpectedTopLevel, tok().loc).range(tok().range());
       consume();
@@ -283,6 +270,7 @@ void Parser::parseShader() {
     return;
   }
   shader->body = parseBlock();
+  shader->parseOrder = uint32_t(unit_->shaders.size() + unit_->functions.size());
   unit_->shaders.push_back(std::move(shader));
 }
 

@@ -14,14 +14,12 @@
 
 namespace relief::compiler {
 
-// Object-like macros (from -D and the predefined set): name → replacement tokens. The preprocessor
-// proper (language.md §1.1) is not written yet; this covers `-D NAME=value` and M_PI & co.
-using MacroTable = std::unordered_map<std::string, std::vector<Token>>;
-
 class Parser {
  public:
-  Parser(const SourceManager& sm, SourceManager::FileId file, DiagnosticsEngine& diags,
-         const MacroTable* macros = nullptr);
+  // Parses already preprocessed tokens (ending with Eof).
+  Parser(std::vector<Token> tokens, std::string fileName, DiagnosticsEngine& diags);
+  // Lexes `file` itself, without preprocessing (tests).
+  Parser(const SourceManager& sm, SourceManager::FileId file, DiagnosticsEngine& diags);
   std::unique_ptr<TranslationUnit> parseTranslationUnit();
   // Parses a single expression (tests); null after an error.
   ExprPtr parseStandaloneExpression();
@@ -69,7 +67,6 @@ class Parser {
   ExprPtr parseConstructor();
   bool parseArguments(std::vector<ExprPtr>& args, const Token& open);
 
-  const SourceManager& sm_;
   DiagnosticsEngine& diags_;
   std::vector<Token> toks_;
   size_t pos_ = 0;

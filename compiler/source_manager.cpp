@@ -7,9 +7,10 @@
 
 namespace relief::compiler {
 
-SourceManager::FileId SourceManager::addBuffer(std::string name, std::string text) {
+SourceManager::FileId SourceManager::addBuffer(std::string name, std::string text, SourceLoc includedFrom) {
   auto f = std::make_unique<File>();
   f->name = std::move(name);
+  f->includedFrom = includedFrom;
   f->text = std::move(text);
   f->base = next_;
   // One extra offset for the end-of-file position, one more as a gap so buffers never touch.
@@ -18,7 +19,7 @@ SourceManager::FileId SourceManager::addBuffer(std::string name, std::string tex
   return FileId(files_.size() - 1);
 }
 
-bool SourceManager::addFile(const std::string& path, FileId* id, std::string* error) {
+bool SourceManager::addFile(const std::string& path, FileId* id, std::string* error, SourceLoc includedFrom) {
   std::ifstream in(path, std::ios::binary);
   if (!in) {
     *error = "cannot open '" + path + "'";
@@ -30,8 +31,16 @@ bool SourceManager::addFile(const std::string& path, FileId* id, std::string* er
     *error = "cannot read '" + path + "'";
     return false;
   }
-  *id = addBuffer(path, ss.str());
+  *id = addBuffer(path, ss.str(), includedFrom);
   return true;
+}
+
+std::vector<uint32_t> SourceManager::sortKey(SourceLoc loc) const {
+  std::vector<uint32_t> key{loc.offset};
+  if (!loc.isValid() || files_.empty()) return key;
+  for (SourceLoc at = includedFrom(fileOf(loc)); at.isValid() && key.size() < 100; at = includedFrom(fileOf(at)))
+    key.insert(key.begin(), at.offset);
+  return key;
 }
 
 SourceManager::FileId SourceManager::fileOf(SourceLoc loc) const {

@@ -39,9 +39,14 @@ class SourceManager {
   using FileId = uint32_t;
 
   // Adds a buffer named `name` (what diagnostics print) and returns its id.
-  FileId addBuffer(std::string name, std::string text);
+  FileId addBuffer(std::string name, std::string text, SourceLoc includedFrom = {});
   // Reads a file from disk; returns false and sets *error on failure.
-  bool addFile(const std::string& path, FileId* id, std::string* error);
+  bool addFile(const std::string& path, FileId* id, std::string* error, SourceLoc includedFrom = {});
+  // Where the file was #included (invalid for main files and scratch buffers).
+  SourceLoc includedFrom(FileId id) const { return files_[id]->includedFrom; }
+  // Offsets from the outermost #include down to `loc`: diagnostics sort by this, so an included
+  // file sorts at its #include.
+  std::vector<uint32_t> sortKey(SourceLoc loc) const;
 
   std::string_view text(FileId id) const { return files_[id]->text; }
   const std::string& name(FileId id) const { return files_[id]->name; }
@@ -59,6 +64,7 @@ class SourceManager {
     std::string name;
     std::string text;
     uint32_t base = 0;                      // SourceLoc offset of text[0]
+    SourceLoc includedFrom;
     mutable std::vector<uint32_t> lineStarts;  // filled on first query
   };
   const File& file(SourceLoc loc) const { return *files_[fileOf(loc)]; }

@@ -34,6 +34,7 @@ enum class Tok : uint8_t {
   ReservedWord,  // gather, illuminance, ...: never an identifier
   ShaderKindWord,  // surface, light, volume, imager: a shader kind we do not support
   Unknown,  // a character the lexer already reported; the parser stays silent about it
+  Hash,     // '#' at the start of a line: a preprocessor directive follows
 #define RELIEF_TOK_ENUM(Name, Spelling) Name,
   RELIEF_PUNCTUATORS(RELIEF_TOK_ENUM)
 #define RELIEF_KW_ENUM(Name, Spelling) Kw##Name,

@@ -123,10 +123,10 @@ class Checker {
     functionScopes_.clear();
     functionScopes_.emplace_back();
     // Shaders and file-scope functions in source order: a function is visible after its definition.
-    std::vector<std::pair<uint32_t, size_t>> order;  // (offset, index; shaders first in index space)
-    for (size_t i = 0; i < unit_.shaders.size(); ++i) order.emplace_back(unit_.shaders[i]->keywordLoc.offset, i);
+    std::vector<std::pair<uint32_t, size_t>> order;  // (parse order, index; shaders first in index space)
+    for (size_t i = 0; i < unit_.shaders.size(); ++i) order.emplace_back(unit_.shaders[i]->parseOrder, i);
     for (size_t i = 0; i < unit_.functions.size(); ++i)
-      order.emplace_back(unit_.functions[i]->begin.offset, unit_.shaders.size() + i);
+      order.emplace_back(unit_.functions[i]->parseOrder, unit_.shaders.size() + i);
     std::sort(order.begin(), order.end());
     std::set<std::string> shaderNames;
     for (const auto& [offset, index] : order) {

@@ -262,7 +262,7 @@ int main(int argc, char** argv) {
     CompileResult result = relief::compiler::compileFile(file, args.options, flags);
     const auto& diags = *result.diagnostics;
     if (args.json) {
-      for (const auto& d : diags.sorted()) relief::compiler::renderJson(std::cerr, *result.sources, d);
+      for (const auto& d : diags.sorted(*result.sources)) relief::compiler::renderJson(std::cerr, *result.sources, d);
     } else {
       relief::compiler::TextDiagnosticOptions topts;
       topts.color = color;

@@ -109,6 +109,10 @@ TEST(GoldenDiagnosticsTest, AllCasesMatch) {
     if (entry.path().extension() == ".disp") cases.push_back(entry.path());
   std::sort(cases.begin(), cases.end());
   ASSERT_GE(cases.size(), 15u);
+  // Run from the cases' directory, as `cd diagnostics && reliefc <case>.disp` would, so that
+  // #include paths and file names print the same.
+  const std::filesystem::path savedCwd = std::filesystem::current_path();
+  std::filesystem::current_path(dir);
   for (const auto& path : cases) {
     SCOPED_TRACE(path.filename().string());
     CompileFlags flags;
@@ -126,6 +130,7 @@ TEST(GoldenDiagnosticsTest, AllCasesMatch) {
                                                        << " (run with RELIEF_UPDATE_GOLDEN=1)";
     EXPECT_EQ(actual, readFile(expectedPath));
   }
+  std::filesystem::current_path(savedCwd);
 }
 
 }  // namespace

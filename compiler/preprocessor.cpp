@@ -1,0 +1,561 @@
+// Preprocessor implementation (see preprocessor.h). Directives are recognized from Tok::Hash at
+// the start of a line and end at the next token that starts a line.
+#include "compiler/preprocessor.h"
+
+#include <filesystem>
+
+namespace relief::compiler {
+
+namespace {
+
+std::string tokenText(const Token& t) { return std::string(t.text); }
+
+bool isIdentifierLike(const Token& t) {
+  // Keywords can be directive names (#if, #else) and macro names.
+  return t.is(Tok::Identifier) || (t.kind >= Tok::KwBreak);
+}
+
+// Integer expressions of #if/#elif: precedence climbing over already expanded tokens.
+class ConditionParser {
+ public:
+  explicit ConditionParser(const std::vector<Token>& toks) : toks_(toks) {}
+  bool parse(int64_t* value) {
+    if (!expr(1, value)) return false;
+    return pos_ == toks_.size();
+  }
+
+ private:
+  static int precedence(Tok k) {
+    switch (k) {
+      case Tok::PipePipe: return 1;
+      case Tok::AmpAmp: return 2;
+      case Tok::EqEq:
+      case Tok::NotEq: return 3;
+      case Tok::Less:
+      case Tok::LessEq:
+      case Tok::Greater:
+      case Tok::GreaterEq: return 4;
+      case Tok::Plus:
+      case Tok::Minus: return 5;
+      case Tok::Star:
+      case Tok::Slash:
+      case Tok::Percent: return 6;
+      default: return 0;
+    }
+  }
+  bool primary(int64_t* v) {
+    if (pos_ >= toks_.size()) return false;
+    const Token& t = toks_[pos_++];
+    switch (t.kind) {
+      case Tok::IntLiteral: *v = t.intValue; return true;
+      case Tok::Minus:
+      case Tok::Plus:
+      case Tok::Bang: {
+        int64_t x;
+        if (!primary(&x)) return false;
+        *v = t.is(Tok::Minus) ? -x : t.is(Tok::Bang) ? !x : x;
+        return true;
+      }
+      case Tok::LParen:
+        if (!expr(1, v)) return false;
+        return pos_ < toks_.size() && toks_[pos_++].is(Tok::RParen);
+      default: return false;
+    }
+  }
+  bool expr(int minPrec, int64_t* v) {
+    if (!primary(v)) return false;
+    while (pos_ < toks_.size()) {
+      const Tok op = toks_[pos_].kind;
+      const int prec = precedence(op);
+      if (op == Tok::Question && minPrec <= 1) {
+        ++pos_;
+        int64_t a, b;
+        if (!expr(1, &a) || pos_ >= toks_.size() || !toks_[pos_++].is(Tok::Colon) || !expr(1, &b)) return false;
+        *v = *v ? a : b;
+        continue;
+      }
+      if (prec == 0 || prec < minPrec) return true;
+      ++pos_;
+      int64_t r;
+      if (!expr(prec + 1, &r)) return false;
+      switch (op) {
+        case Tok::PipePipe: *v = *v || r; break;
+        case Tok::AmpAmp: *v = *v && r; break;
+        case Tok::EqEq: *v = *v == r; break;
+        case Tok::NotEq: *v = *v != r; break;
+        case Tok::Less: *v = *v < r; break;
+        case Tok::LessEq: *v = *v <= r; break;
+        case Tok::Greater: *v = *v > r; break;
+        case Tok::GreaterEq: *v = *v >= r; break;
+        case Tok::Plus: *v = *v + r; break;
+        case Tok::Minus: *v = *v - r; break;
+        case Tok::Star: *v = *v * r; break;
+        case Tok::Slash: *v = r ? *v / r : 0; break;
+        case Tok::Percent: *v = r ? *v % r : 0; break;
+        default: return false;
+      }
+    }
+    return true;
+  }
+
+  const std::vector<Token>& toks_;
+  size_t pos_ = 0;
+};
+
+}  // namespace
+
+Preprocessor::Preprocessor(SourceManager& sm, DiagnosticsEngine& diags, PreprocessorOptions options)
+    : sm_(sm), diags_(diags), options_(std::move(options)) {}
+
+Preprocessor::~Preprocessor() = default;
+
+void Preprocessor::definePredefined(const std::string& name, const std::string& value) {
+  const auto id = sm_.addBuffer("<command line>", value);
+  std::vector<Token> toks = Lexer(sm_, id, diags_).lexAll();
+  toks.pop_back();  // Eof
+  Macro m;
+  m.body = std::move(toks);
+  macros_[name] = std::move(m);
+}
+
+std::vector<Token> Preprocessor::run(SourceManager::FileId file) {
+  static const std::pair<const char*, const char*> kPredefined[] = {
+      {"__DISP__", "1"},
+      {"M_PI", "3.14159265358979323846"},
+      {"M_PI_2", "1.57079632679489661923"},
+      {"M_2PI", "6.28318530717958647692"},
+      {"M_E", "2.71828182845904523536"},
+      {"M_SQRT2", "1.41421356237309504880"},
+  };
+  for (const auto& [name, value] : kPredefined) definePredefined(name, value);
+  for (const auto& [name, value] : options_.defines) definePredefined(name, value.empty() ? "1" : value);
+
+  Source main;
+  main.lexer = std::make_unique<Lexer>(sm_, file, diags_);
+  main.file = file;
+  main.dir = std::filesystem::path(sm_.name(file)).parent_path().string();
+  stack_.push_back(std::move(main));
+
+  std::vector<Token> out;
+  while (!stack_.empty() && !fatal_) {
+    Token t = nextRaw();
+    if (t.is(Tok::Eof)) {
+      for (const Conditional& c : stack_.back().conditionals)
+        diags_.report(DiagId::ErrUnterminatedConditional, c.loc);
+      stack_.pop_back();
+      continue;
+    }
+    if (t.is(Tok::Hash)) {
+      directive(t);
+      continue;
+    }
+    if (!active()) continue;
+    if (t.is(Tok::Identifier) && macros_.count(tokenText(t))) {
+      expand({t}, out, {}, true);
+      continue;
+    }
+    out.push_back(t);
+  }
+  Token eof;
+  eof.kind = Tok::Eof;
+  eof.loc = sm_.startOf(file).advanced(uint32_t(sm_.text(file).size()));
+  eof.atLineStart = true;
+  out.push_back(eof);
+  return out;
+}
+
+bool Preprocessor::active() const {
+  if (stack_.empty()) return true;
+  const auto& conds = stack_.back().conditionals;
+  return conds.empty() || conds.back().active;
+}
+
+Token Preprocessor::nextRaw() {
+  Source& s = stack_.back();
+  if (s.hasLookahead) {
+    s.hasLookahead = false;
+    return s.lookahead;
+  }
+  s.lexer->setQuiet(!active());
+  return s.lexer->next();
+}
+
+void Preprocessor::pushBack(const Token& t) {
+  Source& s = stack_.back();
+  s.lookahead = t;
+  s.hasLookahead = true;
+}
+
+std::vector<Token> Preprocessor::directiveLine() {
+  std::vector<Token> line;
+  for (;;) {
+    Token t = nextRaw();
+    if (t.is(Tok::Eof) || t.atLineStart) {
+      pushBack(t);
+      return line;
+    }
+    line.push_back(t);
+  }
+}
+
+void Preprocessor::directive(const Token& hash) {
+  std::vector<Token> line = directiveLine();
+  if (line.empty()) return;  // the null directive
+  const Token& name = line[0];
+  const std::string n = tokenText(name);
+  auto& conds = stack_.back().conditionals;
+  if (n == "if" || n == "ifdef" || n == "ifndef") {
+    const bool parent = active();
+    const bool value = parent && evaluateCondition(name, line);
+    conds.push_back({hash.loc, parent, value, value, false});
+    return;
+  }
+  if (n == "elif" || n == "else" || n == "endif") {
+    if (conds.empty()) {
+      diags_.report(DiagId::ErrStrayConditional, name.loc).arg(n).range(name.range());
+      return;
+    }
+    Conditional& c = conds.back();
+    if (n == "endif") {
+      conds.pop_back();
+      return;
+    }
+    if (c.sawElse) {
+      diags_.report(DiagId::ErrElseAfterElse, name.loc).arg(n).range(name.range());
+      return;
+    }
+    if (n == "else") {
+      c.sawElse = true;
+      c.active = c.parentActive && !c.taken;
+      c.taken = true;
+    } else {
+      c.active = c.parentActive && !c.taken && evaluateCondition(name, line);
+      c.taken |= c.active;
+    }
+    return;
+  }
+  if (!active()) return;  // other directives in skipped groups are ignored
+  if (n == "include") {
+    include(name, line);
+  } else if (n == "define") {
+    defineMacro(line);
+  } else if (n == "undef") {
+    if (line.size() < 2 || !isIdentifierLike(line[1]))
+      diags_.report(DiagId::ErrMacroName, line.size() < 2 ? name.end() : line[1].loc);
+    else
+      macros_.erase(tokenText(line[1]));
+  } else if (n == "error") {
+    std::string text;
+    if (line.size() > 1) {
+      const char* b = sm_.character(line[1].loc);
+      const char* e = sm_.character(line.back().end());
+      text.assign(b, e);
+    }
+    diags_.report(DiagId::ErrUserError, hash.loc).arg(text.empty() ? "#error" : text);
+  } else if (n == "pragma") {
+    if (line.size() > 1 && line[1].text == "once")
+      onceFiles_.insert(std::filesystem::weakly_canonical(sm_.name(stack_.back().file)).string());
+    // Unknown pragmas are ignored (§1.1).
+  } else {
+    diags_.report(DiagId::ErrUnknownDirective, name.loc).arg(n).range(name.range());
+  }
+}
+
+void Preprocessor::include(const Token& name, const std::vector<Token>& line) {
+  std::string file;
+  bool angled = false;
+  const Token* nameTok = line.size() > 1 ? &line[1] : nullptr;
+  if (nameTok && nameTok->is(Tok::StringLiteral)) {
+    file = Lexer::stringValue(*nameTok);
+  } else if (nameTok && nameTok->is(Tok::Less)) {
+    size_t close = 2;
+    while (close < line.size() && !line[close].is(Tok::Greater)) ++close;
+    if (close < line.size()) {
+      angled = true;
+      file.assign(sm_.character(nameTok->end()), sm_.character(line[close].loc));
+    }
+  }
+  if (file.empty()) {
+    diags_.report(DiagId::ErrIncludeSyntax, nameTok ? nameTok->loc : name.end());
+    return;
+  }
+  if (stack_.size() > size_t(kMaxIncludeDepth)) {
+    diags_.report(DiagId::ErrIncludeDepth, nameTok->loc).arg(kMaxIncludeDepth).range(nameTok->range());
+    return;
+  }
+  std::vector<std::string> dirs;
+  if (!angled) dirs.push_back(stack_.back().dir);
+  for (const std::string& d : options_.includeDirs) dirs.push_back(d);
+  if (!options_.builtinIncludeDir.empty()) dirs.push_back(options_.builtinIncludeDir);
+  std::string found;
+  for (const std::string& d : dirs) {
+    const std::filesystem::path candidate = d.empty() ? std::filesystem::path(file) : std::filesystem::path(d) / file;
+    std::error_code ec;
+    if (std::filesystem::is_regular_file(candidate, ec)) {
+      found = candidate.string();
+      break;
+    }
+  }
+  if (found.empty()) {
+    diags_.report(DiagId::FatalIncludeNotFound, nameTok->loc).arg(file).range(nameTok->range());
+    fatal_ = true;  // compilation stops: later errors would only be noise
+    return;
+  }
+  if (onceFiles_.count(std::filesystem::weakly_canonical(found).string())) return;
+  SourceManager::FileId id;
+  std::string error;
+  if (!sm_.addFile(found, &id, &error, name.loc)) {
+    diags_.report(DiagId::FatalIncludeNotFound, nameTok->loc).arg(file).range(nameTok->range());
+    fatal_ = true;
+    return;
+  }
+  Source s;
+  s.lexer = std::make_unique<Lexer>(sm_, id, diags_);
+  s.file = id;
+  s.dir = std::filesystem::path(found).parent_path().string();
+  stack_.push_back(std::move(s));
+}
+
+std::string Preprocessor::spelling(const std::vector<Token>& tokens) {
+  std::string out;
+  for (const Token& t : tokens) {
+    if (!out.empty()) out += ' ';
+    out += t.text;
+  }
+  return out;
+}
+
+void Preprocessor::defineMacro(const std::vector<Token>& line) {
+  if (line.size() < 2 || !isIdentifierLike(line[1])) {
+    diags_.report(DiagId::ErrMacroName, line.size() < 2 ? line[0].end() : line[1].loc);
+    return;
+  }
+  const Token& name = line[1];
+  Macro m;
+  m.loc = name.loc;
+  size_t bodyStart = 2;
+  // Function-like only when '(' touches the name.
+  if (line.size() > 2 && line[2].is(Tok::LParen) && line[2].loc == name.end()) {
+    m.functionLike = true;
+    size_t i = 3;
+    bool ok = false;
+    if (i < line.size() && line[i].is(Tok::RParen)) {
+      ok = true;
+      ++i;
+    } else {
+      while (i < line.size() && line[i].is(Tok::Identifier)) {
+        m.params.emplace_back(line[i].text);
+        ++i;
+        if (i < line.size() && line[i].is(Tok::Comma)) {
+          ++i;
+          continue;
+        }
+        if (i < line.size() && line[i].is(Tok::RParen)) {
+          ok = true;
+          ++i;
+        }
+        break;
+      }
+    }
+    if (!ok) {
+      diags_.report(DiagId::ErrMacroParams, i < line.size() ? line[i].loc : line.back().end());
+      return;
+    }
+    bodyStart = i;
+  }
+  m.body.assign(line.begin() + long(bodyStart), line.end());
+  const std::string key = tokenText(name);
+  auto it = macros_.find(key);
+  if (it != macros_.end() && (spelling(it->second.body) != spelling(m.body) || it->second.params != m.params ||
+                              it->second.functionLike != m.functionLike))
+    diags_.report(DiagId::WarnMacroRedefined, name.loc)
+        .arg(key)
+        .range(name.range())
+        .note(DiagId::NotePreviousDefinition, it->second.loc);
+  macros_[key] = std::move(m);
+}
+
+bool Preprocessor::evaluateCondition(const Token& directiveName, const std::vector<Token>& line) {
+  const std::string n = tokenText(directiveName);
+  if (n == "ifdef" || n == "ifndef") {
+    if (line.size() < 2 || !isIdentifierLike(line[1])) {
+      diags_.report(DiagId::ErrMacroName, line.size() < 2 ? directiveName.end() : line[1].loc);
+      return false;
+    }
+    const bool defined = macros_.count(tokenText(line[1])) != 0;
+    return n == "ifdef" ? defined : !defined;
+  }
+  // `defined X` / `defined(X)` first, then macro expansion, then unknown identifiers are 0.
+  static const char kOne[] = "1";
+  static const char kZero[] = "0";
+  auto literal = [&](bool value, const Token& at) {
+    Token t = at;
+    t.kind = Tok::IntLiteral;
+    t.intValue = value ? 1 : 0;
+    t.text = value ? kOne : kZero;
+    return t;
+  };
+  std::vector<Token> pre;
+  for (size_t i = 1; i < line.size(); ++i) {
+    if (line[i].is(Tok::Identifier) && line[i].text == "defined") {
+      size_t j = i + 1;
+      const bool paren = j < line.size() && line[j].is(Tok::LParen);
+      if (paren) ++j;
+      if (j < line.size() && isIdentifierLike(line[j]) && (!paren || (j + 1 < line.size() && line[j + 1].is(Tok::RParen)))) {
+        pre.push_back(literal(macros_.count(tokenText(line[j])) != 0, line[i]));
+        i = paren ? j + 1 : j;
+        continue;
+      }
+      diags_.report(DiagId::ErrIfExpression, directiveName.loc).arg(n).range(directiveName.range());
+      return false;
+    }
+    pre.push_back(line[i]);
+  }
+  std::vector<Token> expanded;
+  expand(pre, expanded, {}, false);
+  for (Token& t : expanded)
+    if (isIdentifierLike(t)) t = literal(false, t);
+  int64_t value = 0;
+  if (expanded.empty() || !ConditionParser(expanded).parse(&value)) {
+    diags_.report(DiagId::ErrIfExpression, directiveName.loc).arg(n).range(directiveName.range());
+    return false;
+  }
+  return value != 0;
+}
+
+bool Preprocessor::collectArguments(std::vector<Token>& input, size_t& pos, bool fromSource,
+                                    std::vector<std::vector<Token>>& args, const Token& name) {
+  auto next = [&](Token* t) {
+    if (pos < input.size()) {
+      *t = input[pos++];
+      return true;
+    }
+    if (!fromSource) return false;
+    *t = nextRaw();
+    return !t->is(Tok::Eof);
+  };
+  Token t;
+  next(&t);  // '('
+  args.emplace_back();
+  int depth = 0;
+  for (;;) {
+    if (!next(&t)) {
+      diags_.report(DiagId::ErrUnterminatedMacroCall, name.loc).arg(name.text).range(name.range());
+      return false;
+    }
+    if (t.is(Tok::LParen)) {
+      ++depth;
+    } else if (t.is(Tok::RParen)) {
+      if (depth == 0) return true;
+      --depth;
+    } else if (t.is(Tok::Comma) && depth == 0) {
+      args.emplace_back();
+      continue;
+    }
+    args.back().push_back(t);
+  }
+}
+
+void Preprocessor::expand(std::vector<Token> input, std::vector<Token>& out, const std::set<std::string>& disabled,
+                          bool fromSource) {
+  size_t pos = 0;
+  while (pos < input.size()) {
+    const Token t = input[pos++];
+    const std::string name = t.is(Tok::Identifier) ? tokenText(t) : std::string();
+    auto it = name.empty() || disabled.count(name) ? macros_.end() : macros_.find(name);
+    if (it == macros_.end()) {
+      out.push_back(t);
+      continue;
+    }
+    const Macro m = it->second;  // a copy: expansion never redefines, but keep it simple and safe
+    std::vector<Token> replacement;
+    if (!m.functionLike) {
+      replacement = m.body;
+    } else {
+      bool invoked = pos < input.size() && input[pos].is(Tok::LParen);
+      if (!invoked && pos >= input.size() && fromSource) {
+        const Token peek = nextRaw();
+        if (peek.is(Tok::LParen) && !peek.atLineStart) {
+          input.push_back(peek);
+          invoked = true;
+        } else {
+          pushBack(peek);
+        }
+      }
+      if (!invoked) {
+        out.push_back(t);  // a function-like macro name without arguments is just a name
+        continue;
+      }
+      std::vector<std::vector<Token>> args;
+      if (!collectArguments(input, pos, fromSource, args, t)) continue;
+      if (m.params.empty() && args.size() == 1 && args[0].empty()) args.clear();
+      if (args.size() != m.params.size()) {
+        diags_.report(DiagId::ErrMacroArgs, t.loc)
+            .arg(name)
+            .arg(static_cast<long long>(m.params.size()))
+            .arg(static_cast<long long>(args.size()))
+            .range(t.range());
+        continue;
+      }
+      for (const Token& b : m.body) {
+        size_t k = 0;
+        while (k < m.params.size() && !(b.is(Tok::Identifier) && b.text == m.params[k])) ++k;
+        if (k == m.params.size()) {
+          replacement.push_back(b);
+          continue;
+        }
+        std::vector<Token> arg;
+        expand(args[k], arg, disabled, false);
+        replacement.insert(replacement.end(), arg.begin(), arg.end());
+      }
+    }
+    // A replacement ending in a function-like macro name takes its arguments from what follows
+    // (`#define G F` then `G(1, 2)`): move that parenthesized group behind it before rescanning.
+    if (!replacement.empty() && replacement.back().is(Tok::Identifier)) {
+      auto last = macros_.find(tokenText(replacement.back()));
+      if (last != macros_.end() && last->second.functionLike && !disabled.count(last->first) &&
+          last->first != name) {
+        std::vector<Token> group;
+        int depth = 0;
+        auto take = [&](const Token& tk) {
+          group.push_back(tk);
+          if (tk.is(Tok::LParen)) ++depth;
+          if (tk.is(Tok::RParen)) --depth;
+        };
+        if (pos < input.size() && input[pos].is(Tok::LParen)) {
+          do take(input[pos++]);
+          while (depth > 0 && pos < input.size());
+        } else if (pos >= input.size() && fromSource) {
+          Token peek = nextRaw();
+          if (peek.is(Tok::LParen) && !peek.atLineStart) {
+            take(peek);
+            while (depth > 0) {
+              peek = nextRaw();
+              if (peek.is(Tok::Eof)) {
+                pushBack(peek);
+                break;
+              }
+              take(peek);
+            }
+          } else {
+            pushBack(peek);
+          }
+        }
+        for (Token& g : group) g.loc = t.loc, g.length = t.length;
+        replacement.insert(replacement.end(), group.begin(), group.end());
+      }
+    }
+    // Expanded tokens sit at the macro use (§1.1).
+    for (Token& r : replacement) {
+      r.loc = t.loc;
+      r.length = t.length;
+      r.atLineStart = false;
+    }
+    if (!replacement.empty()) replacement.front().atLineStart = t.atLineStart;
+    std::set<std::string> inner = disabled;
+    inner.insert(name);
+    expand(std::move(replacement), out, inner, false);
+  }
+}
+
+}  // namespace relief::compiler

@@ -1,0 +1,99 @@
+// Preprocessor unit tests (language.md §1.1): macros, conditionals, includes, and their errors.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "compiler/preprocessor.h"
+
+namespace relief::compiler {
+namespace {
+
+struct Run {
+  SourceManager sm;
+  DiagnosticsEngine diags;
+  std::string text;     // token spellings joined by spaces
+  std::string errors;   // "line:col: message" per diagnostic
+};
+
+std::unique_ptr<Run> preprocess(const std::string& source, PreprocessorOptions options = {},
+                                const std::string& name = "pp.disp") {
+  auto r = std::make_unique<Run>();
+  const auto id = r->sm.addBuffer(name, source);
+  std::vector<Token> toks = Preprocessor(r->sm, r->diags, options).run(id);
+  for (const Token& t : toks) {
+    if (t.is(Tok::Eof)) break;
+    if (!r->text.empty()) r->text += ' ';
+    r->text += t.text;
+  }
+  for (const Diagnostic& d : r->diags.sorted(r->sm)) {
+    const PresumedLoc p = r->sm.presumed(d.loc);
+    r->errors += std::to_string(p.line) + ":" + std::to_string(p.column) + ": " + d.message + "\n";
+  }
+  return r;
+}
+
+TEST(PreprocessorTest, ObjectAndFunctionLikeMacros) {
+  auto r = preprocess("#define A 1 + 2\n#define F(x, y) (x * y)\n#define G F\nA F(A, 3) G(1,2) F\n");
+  EXPECT_EQ(r->errors, "");
+  EXPECT_EQ(r->text, "1 + 2 ( 1 + 2 * 3 ) ( 1 * 2 ) F");
+}
+
+TEST(PreprocessorTest, ExpansionIsNotRecursiveAndSitsAtTheUse) {
+  auto r = preprocess("#define X X + 1\nfloat a = X;\n");
+  EXPECT_EQ(r->text, "float a = X + 1 ;");
+  auto loc = preprocess("#define K 42\n  K\n");
+  EXPECT_EQ(loc->text, "42");
+}
+
+TEST(PreprocessorTest, Conditionals) {
+  auto r = preprocess(
+      "#define TWO 2\n#if TWO * 2 == 4 && defined(TWO) && !defined NONE\na\n#elif 1\nb\n#else\nc\n#endif\n"
+      "#ifdef NONE\nd\n#elif TWO > 1\ne\n#endif\n#ifndef NONE\nf\n#endif\n#if 0\n#error skipped\n\"bad\n#endif\n");
+  EXPECT_EQ(r->errors, "");
+  EXPECT_EQ(r->text, "a e f");
+}
+
+TEST(PreprocessorTest, DirectiveErrors) {
+  auto r = preprocess("#bogus\n#if\n#endif\n#else\n#define 3\n#error stop here\n#if 1\n");
+  EXPECT_EQ(r->errors,
+            "1:2: invalid preprocessing directive 'bogus'\n"
+            "2:2: invalid integer expression in #if\n"
+            "4:2: #else without #if\n"
+            "5:9: macro name must be an identifier\n"
+            "6:1: stop here\n"
+            "7:1: unterminated conditional directive\n");
+}
+
+TEST(PreprocessorTest, MacroArgumentCountIsChecked) {
+  auto r = preprocess("#define F(a, b) a\nF(1)\n");
+  EXPECT_EQ(r->errors, "2:1: macro 'F' expects 2 arguments, but 1 were given\n");
+}
+
+TEST(PreprocessorTest, IncludesSearchPathsAndPragmaOnce) {
+  const std::filesystem::path dir = std::filesystem::path(::testing::TempDir()) / "relief_pp";
+  std::filesystem::create_directories(dir / "sys");
+  std::ofstream(dir / "local.h") << "#pragma once\nlocal\n";
+  std::ofstream(dir / "sys" / "lib.h") << "lib\n";
+  PreprocessorOptions options;
+  options.includeDirs = {(dir / "sys").string()};
+  auto r = preprocess("#include \"local.h\"\n#include \"local.h\"\n#include <lib.h>\n#include \"lib.h\"\n", options,
+                      (dir / "main.disp").string());
+  EXPECT_EQ(r->errors, "");
+  EXPECT_EQ(r->text, "local lib lib");
+
+  auto missing = preprocess("#include \"nope.h\"\nafter\n", options, (dir / "main.disp").string());
+  EXPECT_EQ(missing->errors, "1:10: 'nope.h' file not found\n");
+  EXPECT_EQ(missing->text, "");  // compilation stops at a missing include
+}
+
+TEST(PreprocessorTest, CommandLineDefines) {
+  PreprocessorOptions options;
+  options.defines = {{"LEVEL", "3"}, {"FLAG", ""}};
+  auto r = preprocess("#if LEVEL > 2 && FLAG\nyes M_PI\n#endif\n", options);
+  EXPECT_EQ(r->errors, "");
+  EXPECT_EQ(r->text, "yes 3.14159265358979323846");
+}
+
+}  // namespace
+}  // namespace relief::compiler
