@@ -43,6 +43,7 @@ struct AccelStats {
   uint64_t accesses = 0, hits = 0, compulsoryMisses = 0, capacityMisses = 0;
   uint64_t displacedTrianglesCreated = 0, uniqueDisplacedTriangles = 0;
   uint64_t peakResidentTriangles = 0, residentTriangles = 0;
+  uint64_t peakResidentBytes = 0, residentBytes = 0;  // the same resident sets, in bytes
   uint64_t shaderPoints = 0;
   double subdivideSeconds = 0, displaceSeconds = 0;
 };

@@ -130,7 +130,8 @@ GridAccelerator::GridAccelerator(const Scene& scene, const AccelOptions& options
     : scene_(scene),
       options_(options),
       grid_(scene, options),
-      voxelCounted_(grid_.numVoxels()) {
+      voxelCounted_(grid_.numVoxels()),
+      knownEmpty_(grid_.numVoxels()) {
   if (grid_.anyDisplaced())
     cache_ = std::make_unique<GeometryCache>(grid_.numVoxels(), options.cacheBudgetTriangles);
 }
@@ -194,6 +195,9 @@ std::unique_ptr<VoxelGeometry> GridAccelerator::buildVoxel(uint32_t voxel) {
   else g->indices32 = std::move(indices);
   buildSubGrid(*g, box, grid_.padding());
   const uint64_t n = g->numTriangles();
+  // Contributors whose displaced geometry misses the voxel: later rays skip it without a lookup.
+  // Safe to skip at any time, since a refill would be empty again (rule 1).
+  if (n == 0) knownEmpty_[voxel].store(1, std::memory_order_relaxed);
   uint64_t seen = maxVoxelTriangles_.load(std::memory_order_relaxed);
   while (n > seen && !maxVoxelTriangles_.compare_exchange_weak(seen, n)) {}
   fillNanos_.fetch_add(uint64_t(std::chrono::duration_cast<std::chrono::nanoseconds>(
@@ -272,7 +276,8 @@ void GridAccelerator::traverse(const Ray& ray, Best& best) {
   for (;;) {
     const float tExit = dda.tExit();
     const uint32_t voxel = grid_.voxelIndex(dda.cell);
-    if (!grid_.contributors(voxel).empty()) {
+    if (!grid_.contributors(voxel).empty() &&
+        !knownEmpty_[voxel].load(std::memory_order_relaxed)) {
       intersectVoxel(voxel, wr, ray, stamp, kAnyHit, best);
       if (kAnyHit && best.found) return;
       if (best.found && best.t < tExit) return;
@@ -324,6 +329,7 @@ AccelStats GridAccelerator::stats() const {
     s.compulsoryMisses = c.compulsoryMisses, s.capacityMisses = c.capacityMisses;
     s.displacedTrianglesCreated = c.createdTriangles;
     s.peakResidentTriangles = c.peakResidentTriangles, s.residentTriangles = c.residentTriangles;
+    s.peakResidentBytes = c.peakResidentBytes, s.residentBytes = c.residentBytes;
   }
   s.uniqueDisplacedTriangles = uniqueTriangles_.load(std::memory_order_relaxed);
   s.shaderPoints = shaderPoints_.load(std::memory_order_relaxed);

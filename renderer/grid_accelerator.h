@@ -55,6 +55,7 @@ class GridAccelerator final : public Accelerator {
   std::unique_ptr<GeometryCache> cache_;
   std::atomic<uint64_t> clock_{1};
   std::vector<std::atomic<uint8_t>> voxelCounted_;  // per voxel: its unique triangles counted
+  std::vector<std::atomic<uint8_t>> knownEmpty_;    // per voxel: filled once with no triangles
   std::atomic<uint64_t> uniqueTriangles_{0}, shaderPoints_{0}, fillNanos_{0}, displaceNanos_{0};
   std::atomic<uint64_t> maxVoxelTriangles_{0};
   std::atomic<uint32_t> nonFinite_{0}, loopLimit_{0}, indexClamped_{0}, unknownSpace_{0},
