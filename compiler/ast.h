@@ -50,6 +50,7 @@ struct Expr {
   std::string text;
   TypeKind constructType = TypeKind::Error;
   bool isCast = false;  // (T) e or prefix T e: numeric conversion
+  uint32_t depth = 1;   // height of this subtree (the parser bounds it; later passes recurse)
   std::vector<ExprPtr> operands;
 
   // Filled in by the type checker.

@@ -2,6 +2,8 @@
 // error a function reports once and returns null; statement and top-level loops resynchronize.
 #include "compiler/parser.h"
 
+#include <algorithm>
+
 #include "compiler/lexer.h"
 
 namespace relief::compiler {
@@ -53,7 +55,7 @@ bool Parser::accept(Tok k) {
 
 bool Parser::expectAfterPrev(Tok k, const char* context) {
   if (accept(k)) return true;
-  if (tok().is(Tok::Unknown)) return false;  // already reported by the lexer
+  if (tok().is(Tok::Unknown) || stopped_) return false;  // already reported
   const SourceLoc at = pos_ ? prev().end() : tok().loc;
   if (context)
     diags_.report(DiagId::ErrExpectedAfter, at).arg(tokDescription(k)).arg(context);
@@ -64,7 +66,7 @@ bool Parser::expectAfterPrev(Tok k, const char* context) {
 
 bool Parser::expectClosing(Tok k, const Token& opener) {
   if (accept(k)) return true;
-  if (tok().is(Tok::Unknown)) return false;
+  if (tok().is(Tok::Unknown) || stopped_) return false;
   const SourceLoc at = pos_ ? prev().end() : tok().loc;
   diags_.report(DiagId::ErrExpected, at)
       .arg(tokDescription(k))
@@ -72,12 +74,34 @@ bool Parser::expectClosing(Tok k, const Token& opener) {
   return false;
 }
 
+bool Parser::tooDeep(const char* what) {
+  if (nesting_ <= kMaxNesting) return false;
+  diags_.report(DiagId::ErrNestingTooDeep, tok().loc).arg(what).arg(kMaxNesting).range(tok().range());
+  // Skip to the end of the file: every enclosing level would report again otherwise.
+  while (!tok().is(Tok::Eof)) consume();
+  stopped_ = true;
+  return true;
+}
+
+// Computes the subtree height and rejects trees too tall for the recursive passes.
+ExprPtr Parser::bounded(ExprPtr e) {
+  if (!e) return e;
+  uint32_t d = 0;
+  for (const ExprPtr& c : e->operands) d = std::max(d, c->depth);
+  e->depth = d + 1;
+  if (e->depth <= kMaxExpressionDepth) return e;
+  diags_.report(DiagId::ErrNestingTooDeep, e->opLoc).arg("expression").arg(kMaxExpressionDepth);
+  while (!tok().is(Tok::Eof)) consume();
+  stopped_ = true;
+  return nullptr;
+}
+
 // After a missing ';' (already reported): if the next token starts a new line, the statement most
 // likely just lacks its ';', so keep it and carry on without skipping the next line.
 bool Parser::missingSemiAtLineEnd() const { return tok().atLineStart || tok().is(Tok::RBrace); }
 
 void Parser::errorExpectedExpression() {
-  if (tok().is(Tok::Unknown)) return;
+  if (tok().is(Tok::Unknown) || stopped_) return;
   if (tok().is(Tok::ReservedWord) || tok().is(Tok::ShaderKindWord))
     diags_.report(DiagId::ErrReservedWord, tok().loc).arg(tok().text).range(tok().range());
   else
@@ -357,6 +381,11 @@ bool Parser::parseDeclarators(std::vector<std::unique_ptr<VarDecl>>& out, Type t
 
 // stmt := block | decl ";" | expr ";" | ";" | if | while | do | for | break | continue | return
 StmtPtr Parser::parseStatement() {
+  struct Guard {
+    int& n;
+    ~Guard() { --n; }
+  } guard{++nesting_};
+  if (tooDeep("statements")) return nullptr;
   const Token& t = tok();
   switch (t.kind) {
     case Tok::LBrace: return parseBlock();
@@ -585,7 +614,7 @@ ExprPtr Parser::parseAssignment() {
   e->opRange = op.range();
   e->operands.push_back(std::move(lhs));
   e->operands.push_back(std::move(rhs));
-  return e;
+  return bounded(std::move(e));
 }
 
 // cond := binary ["?" expr ":" cond]
@@ -610,7 +639,7 @@ ExprPtr Parser::parseConditional() {
   e->operands.push_back(std::move(c));
   e->operands.push_back(std::move(a));
   e->operands.push_back(std::move(b));
-  return e;
+  return bounded(std::move(e));
 }
 
 // binary := unary { binop unary }, by precedence climbing (all binary operators are left-assoc.)
@@ -629,12 +658,18 @@ ExprPtr Parser::parseBinary(int minPrec) {
     e->opRange = op.range();
     e->operands.push_back(std::move(lhs));
     e->operands.push_back(std::move(rhs));
-    lhs = std::move(e);
+    lhs = bounded(std::move(e));
+    if (!lhs) return nullptr;
   }
 }
 
 // unary := ("-" | "+" | "!" | "++" | "--") unary | "(" type ")" unary | type unary | postfix
 ExprPtr Parser::parseUnary() {
+  struct Guard {
+    int& n;
+    ~Guard() { --n; }
+  } guard{++nesting_};
+  if (tooDeep("expressions")) return nullptr;
   const Token t = tok();
   if (t.is(Tok::Minus) || t.is(Tok::Plus) || t.is(Tok::Bang) || t.is(Tok::PlusPlus) ||
       t.is(Tok::MinusMinus)) {
@@ -648,7 +683,7 @@ ExprPtr Parser::parseUnary() {
     e->opLoc = t.loc;
     e->opRange = t.range();
     e->operands.push_back(std::move(operand));
-    return e;
+    return bounded(std::move(e));
   }
   if (t.is(Tok::LParen) && isTypeKeyword(peek().kind) && peek(2).is(Tok::RParen)) {
     consume();
@@ -662,7 +697,7 @@ ExprPtr Parser::parseUnary() {
     e->opLoc = t.loc;
     e->opRange = join(t.loc, type.end().advanced(1));
     e->operands.push_back(std::move(operand));
-    return e;
+    return bounded(std::move(e));
   }
   return parsePostfix();
 }
@@ -682,7 +717,8 @@ ExprPtr Parser::parsePostfix() {
       ix->opRange = open.range();
       ix->operands.push_back(std::move(e));
       ix->operands.push_back(std::move(index));
-      e = std::move(ix);
+      e = bounded(std::move(ix));
+      if (!e) return nullptr;
     } else if (tok().is(Tok::PlusPlus) || tok().is(Tok::MinusMinus)) {
       const Token op = consume();
       auto inc = std::make_unique<Expr>(ExprKind::PostIncDec, join(e->range.begin, op.end()));
@@ -690,7 +726,8 @@ ExprPtr Parser::parsePostfix() {
       inc->opLoc = op.loc;
       inc->opRange = op.range();
       inc->operands.push_back(std::move(e));
-      e = std::move(inc);
+      e = bounded(std::move(inc));
+      if (!e) return nullptr;
     } else {
       return e;
     }
@@ -725,14 +762,14 @@ ExprPtr Parser::parseConstructor() {
     const Token open = consume();
     if (!parseArguments(e->operands, open)) return nullptr;
     e->range.end = prev().end();
-    return e;
+    return bounded(std::move(e));
   }
   ExprPtr operand = parseUnary();
   if (!operand) return nullptr;
   e->isCast = true;
   e->range.end = operand->range.end;
   e->operands.push_back(std::move(operand));
-  return e;
+  return bounded(std::move(e));
 }
 
 // primary := number | string | IDENT | IDENT "(" args ")" | "(" expr ")" | "(" expr "," ... ")"
@@ -767,7 +804,7 @@ ExprPtr Parser::parsePrimary() {
         e->opRange = t.range();
         if (!parseArguments(e->operands, open)) return nullptr;
         e->range.end = prev().end();
-        return e;
+        return bounded(std::move(e));
       }
       auto e = std::make_unique<Expr>(ExprKind::Identifier, t.range());
       e->text = std::string(t.text);
@@ -788,7 +825,7 @@ ExprPtr Parser::parsePrimary() {
         }
         if (!expectClosing(Tok::RParen, open)) return nullptr;
         tuple->range.end = prev().end();
-        return tuple;
+        return bounded(std::move(tuple));
       }
       // A missing ')' right before ';' is most likely just that: keep the expression.
       if (!expectClosing(Tok::RParen, open) && !tok().is(Tok::Semi)) return nullptr;

@@ -14,6 +14,11 @@
 
 namespace relief::compiler {
 
+// Bounds that keep the recursive passes (parser, type checker, codegen) within the stack on
+// hostile input: nested parentheses/blocks, and the height of expression trees built by loops.
+inline constexpr int kMaxNesting = 256;
+inline constexpr uint32_t kMaxExpressionDepth = 1024;
+
 class Parser {
  public:
   // Parses already preprocessed tokens (ending with Eof).
@@ -72,6 +77,10 @@ class Parser {
   size_t pos_ = 0;
   std::unique_ptr<TranslationUnit> unit_;
   bool recovering_ = false;  // a statement was kept despite an error: resync after it
+  int nesting_ = 0;          // recursion depth of statements and unary expressions
+  bool stopped_ = false;     // gave up on the file (nesting limit): report nothing more
+  bool tooDeep(const char* what);
+  ExprPtr bounded(ExprPtr e);
 };
 
 }  // namespace relief::compiler

@@ -458,6 +458,16 @@ bool Preprocessor::collectArguments(std::vector<Token>& input, size_t& pos, bool
 
 void Preprocessor::expand(std::vector<Token> input, std::vector<Token>& out, const std::set<std::string>& disabled,
                           bool fromSource) {
+  struct Guard {
+    int& n;
+    ~Guard() { --n; }
+  } guard{++expansionDepth_};
+  if (expansionDepth_ > 200) {
+    if (!input.empty())
+      diags_.report(DiagId::ErrMacroNestingTooDeep, input.front().loc).arg(input.front().text);
+    fatal_ = true;
+    return;
+  }
   size_t pos = 0;
   while (pos < input.size()) {
     const Token t = input[pos++];

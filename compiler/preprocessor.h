@@ -82,6 +82,7 @@ class Preprocessor {
   std::unordered_map<std::string, Macro> macros_;
   std::set<std::string> onceFiles_;
   bool fatal_ = false;
+  int expansionDepth_ = 0;
 };
 
 }  // namespace relief::compiler

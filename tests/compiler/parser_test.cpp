@@ -143,5 +143,25 @@ TEST(ParserTest, OnlyDisplacementShadersAndNoReservedIdentifiers) {
             "2:26: 'solar' is a reserved word\n");
 }
 
+TEST(ParserTest, HostileNestingGivesOneErrorNotACrash) {
+  const std::string parens = "displacement d() { P += " + std::string(50000, '(') + "1" + std::string(50000, ')') + " * N; }";
+  EXPECT_EQ(errorsOf(parens), "1:280: expressions nested too deeply (the limit is 256 levels)\n");
+  const std::string blocks = "displacement d() " + std::string(50000, '{') + std::string(50000, '}');
+  EXPECT_EQ(errorsOf(blocks), "1:275: statements nested too deeply (the limit is 256 levels)\n");
+  std::string chain = "displacement d() { float a = 1";
+  for (int i = 0; i < 5000; ++i) chain += " + 1";
+  chain += "; P += a * N; }";
+  EXPECT_EQ(errorsOf(chain), "1:4124: expression nested too deeply (the limit is 1024 levels)\n");
+}
+
+TEST(ParserTest, LongButAllowedChainsCompileAndRun) {
+  std::string chain = "displacement d() { float a = 0";
+  for (int i = 0; i < 1000; ++i) chain += " + u";
+  chain += "; P += a * N; }";
+  CompileResult r = compileSource("chain.disp", chain);
+  ASSERT_TRUE(r.success()) << renderDiagnostics(r) << r.internalError;
+  EXPECT_EQ(r.shaders.size(), 1u);
+}
+
 }  // namespace
 }  // namespace relief::compiler
