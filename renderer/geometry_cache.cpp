@@ -4,6 +4,16 @@
 #include <algorithm>
 
 namespace relief {
+namespace {
+
+// A small per-thread number spreading threads over the hit shards.
+int threadShard() {
+  static std::atomic<int> nextThread{0};
+  thread_local const int shard = nextThread.fetch_add(1, std::memory_order_relaxed);
+  return shard;
+}
+
+}  // namespace
 
 uint64_t VoxelGeometry::bytes() const {
   return sizeof(VoxelGeometry) + P.size() * sizeof(glm::vec3) + bary.size() * sizeof(glm::vec2) +
@@ -26,7 +36,7 @@ const VoxelGeometry* GeometryCache::tryPin(uint32_t voxel, bool& mustFill) {
     if (state == kReady) {
       if (slot.word.compare_exchange_weak(word, word + 1, std::memory_order_acquire)) {
         // Waiting for another thread's fill costs no work here: count it as a hit.
-        hits_.fetch_add(1, std::memory_order_relaxed);
+        hitShards_[threadShard() % kHitShards].hits.fetch_add(1, std::memory_order_relaxed);
         return slot.geometry;
       }
     } else if (state == kEmpty) {
@@ -100,10 +110,10 @@ void GeometryCache::release(uint32_t voxel) {
 
 CacheStats GeometryCache::stats() const {
   CacheStats s;
-  s.accesses = accesses_.load(std::memory_order_relaxed);
-  s.hits = hits_.load(std::memory_order_relaxed);
+  for (const HitShard& shard : hitShards_) s.hits += shard.hits.load(std::memory_order_relaxed);
   s.compulsoryMisses = compulsory_.load(std::memory_order_relaxed);
   s.capacityMisses = capacity_.load(std::memory_order_relaxed);
+  s.accesses = s.hits + s.compulsoryMisses + s.capacityMisses;
   s.createdTriangles = created_.load(std::memory_order_relaxed);
   std::lock_guard lock(mutex_);
   s.residentTriangles = residentTriangles_;

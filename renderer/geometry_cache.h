@@ -91,6 +91,7 @@ class GeometryCache {
   static constexpr uint32_t kStateShift = 30;
   static constexpr uint32_t kEmpty = 0, kFilling = 1, kReady = 2;
   static constexpr uint32_t kPinMask = (1u << kStateShift) - 1;
+  static constexpr uint64_t kStampSlack = 32;
 
   struct Slot {
     std::atomic<uint32_t> word{0};
@@ -112,15 +113,23 @@ class GeometryCache {
   uint64_t residentTriangles_ = 0, peakResidentTriangles_ = 0;
   uint64_t residentBytes_ = 0, peakResidentBytes_ = 0;
   uint64_t evictions_ = 0;
-  std::atomic<uint64_t> accesses_{0}, hits_{0}, compulsory_{0}, capacity_{0}, created_{0};
+  // Hits are counted on every voxel visit of every ray, so they are sharded by thread to keep
+  // threads off one cache line; misses and fills are rare enough for plain atomics. Every access
+  // ends as exactly one hit or miss, so accesses are their sum.
+  static constexpr int kHitShards = 16;
+  struct alignas(64) HitShard {
+    std::atomic<uint64_t> hits{0};
+  };
+  HitShard hitShards_[kHitShards];
+  std::atomic<uint64_t> compulsory_{0}, capacity_{0}, created_{0};
 };
 
 template <typename Build>
 const VoxelGeometry* GeometryCache::acquire(uint32_t voxel, uint64_t stamp, Build&& build) {
-  accesses_.fetch_add(1, std::memory_order_relaxed);
   Slot& slot = slots_[voxel];
-  // Only raise the stamp (a relaxed load first keeps the line shared when it is already recent).
-  if (slot.lastUse.load(std::memory_order_relaxed) < stamp)
+  // Only raise the stamp, and only when it is kStampSlack rays stale: a voxel many threads visit
+  // then stays a shared cache line, at the price of LRU order within a few dozen rays.
+  if (slot.lastUse.load(std::memory_order_relaxed) + kStampSlack < stamp)
     slot.lastUse.store(stamp, std::memory_order_relaxed);
   bool mustFill = false;
   if (const VoxelGeometry* g = tryPin(voxel, mustFill)) return g;

@@ -49,7 +49,7 @@ void expectMatchesBruteForce(const Scene& scene, const AccelOptions& options, in
   }
   EXPECT_GT(numHits, numRays / 4);
   const AccelStats stats = accel->stats();
-  EXPECT_EQ(stats.accesses, stats.hits + stats.compulsoryMisses + stats.capacityMisses);
+  EXPECT_EQ(stats.capacityMisses, 0u);  // unlimited budget
   if (scene.meshes[0].displacementIndex != UINT32_MAX && options.displace) {
     // Unique counts each micro-triangle of the filled voxels once; created counts it per voxel.
     EXPECT_GT(stats.uniqueDisplacedTriangles, 0u);

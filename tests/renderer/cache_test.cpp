@@ -65,7 +65,8 @@ TEST(GeometryCache, HitsIndependentOfBudgetAndThreads) {
   const AccelStats ls = limited.stats();
   EXPECT_GT(ls.capacityMisses, 0u);
   EXPECT_EQ(ls.compulsoryMisses, full.compulsoryMisses);
-  EXPECT_EQ(ls.accesses, ls.hits + ls.compulsoryMisses + ls.capacityMisses);
+  // The same rays in the same order visit the same voxels, whatever is resident.
+  EXPECT_EQ(ls.accesses, full.accesses);
   EXPECT_GT(ls.displacedTrianglesCreated, full.displacedTrianglesCreated);
   EXPECT_LE(ls.peakResidentTriangles, small.cacheBudgetTriangles + limited.maxVoxelTriangles());
   EXPECT_LE(ls.residentTriangles, small.cacheBudgetTriangles);
@@ -81,7 +82,7 @@ TEST(GeometryCache, HitsIndependentOfBudgetAndThreads) {
   a.join(), b.join();
   EXPECT_EQ(threaded, expected);
   const AccelStats ts = shared.stats();
-  EXPECT_EQ(ts.accesses, ts.hits + ts.compulsoryMisses + ts.capacityMisses);
+  EXPECT_EQ(ts.compulsoryMisses, full.compulsoryMisses);  // every voxel is filled once first
   // Each thread pins at most one voxel at a time, so at most one voxel per thread overshoots.
   EXPECT_LE(ts.peakResidentTriangles, small.cacheBudgetTriangles + 2 * shared.maxVoxelTriangles());
 }
