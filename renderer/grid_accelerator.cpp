@@ -267,6 +267,9 @@ void GridAccelerator::intersectVoxel(uint32_t voxel, const WatertightRay& wr, co
 template <bool kAnyHit>
 void GridAccelerator::traverse(const Ray& ray, Best& best) {
   const Bounds3& bounds = grid_.bounds();
+  const glm::vec3 o = ray.origin, d = ray.direction;
+  // A ray with NaN/Inf parts, or no direction, hits nothing (callers get no hit, never a hang).
+  if (!std::isfinite(o.x + o.y + o.z + d.x + d.y + d.z) || d == glm::vec3(0.0f)) return;
   float t0 = std::max(ray.tMin, 0.0f), t1 = ray.tMax;
   if (!clipToBox(ray.origin, ray.direction, bounds.lo, bounds.hi, t0, t1)) return;
   Dda dda(ray.origin, ray.direction, bounds.lo, grid_.voxelSize(), grid_.resolution(), t0);

@@ -2,6 +2,10 @@
 // occlusion agrees with intersection, and hit attributes are consistent.
 #include "renderer/grid_accelerator.h"
 
+#include <cmath>
+#include <limits>
+#include <set>
+
 #include <gtest/gtest.h>
 
 #include "geometry_test_util.h"
@@ -119,6 +123,57 @@ TEST(GridAccelerator, RespectsRayInterval) {
   auto inside = accel->intersect(Ray{{0, 0, 0}, {0, 1, 0}, 0.0f, 1e30f});
   ASSERT_TRUE(inside);
   EXPECT_NEAR(inside->t, 1.0f, 1e-2f);
+}
+
+TEST(GridAccelerator, MalformedRaysNeverHit) {
+  SphereOptions o;
+  Scene scene = makeSphereScene(o);
+  auto accel = makeGridAccelerator(scene, AccelOptions{});
+  const float nan = std::nanf(""), inf = std::numeric_limits<float>::infinity();
+  for (Ray ray : {Ray{{0, 0, -5}, {0, 0, 0}, 0.0f, 1e30f}, Ray{{nan, 0, -5}, {0, 0, 1}, 0.0f, 1e30f},
+                  Ray{{0, 0, -5}, {0, inf, 1}, 0.0f, 1e30f}}) {
+    EXPECT_FALSE(accel->intersect(ray));
+    EXPECT_FALSE(accel->occluded(ray));
+  }
+}
+
+// The contributor grid lists every triangle in every voxel its box, grown by the displacement
+// bound, overlaps; an explicit resolution is honoured along the longest axis.
+TEST(ContributorGrid, ListsTrianglesInEveryOverlappedVoxel) {
+  SphereOptions o;
+  o.nu = 12, o.nv = 6;
+  const Scene scene = makeSphereScene(o);
+  AccelOptions options;
+  options.gridResolution = 7;
+  const ContributorGrid grid(scene, options);
+  EXPECT_EQ(std::max({grid.resolution().x, grid.resolution().y, grid.resolution().z}), 7);
+  const Mesh& mesh = scene.meshes[0];
+  const float bound = scene.displacements[0].boundWorld;
+  uint64_t expectedEntries = 0;
+  for (uint32_t v = 0; v < grid.numVoxels(); ++v) {
+    const Bounds3 box = grid.voxelBounds(v);
+    std::set<uint32_t> listed(grid.contributors(v).begin(), grid.contributors(v).end());
+    for (uint32_t t = 0; t < mesh.numTriangles(); ++t) {
+      Bounds3 tb;
+      for (int c = 0; c < 3; ++c) tb.extend(mesh.P[mesh.indices[3 * t + c]]);
+      // Shrunk a little: boxes that merely touch may go either way.
+      tb.lo -= glm::vec3(bound) - glm::vec3(1e-3f), tb.hi += glm::vec3(bound) - glm::vec3(1e-3f);
+      if (tb.overlaps(box)) {
+        EXPECT_TRUE(listed.count(grid.globalId(0, t))) << "voxel " << v << " triangle " << t;
+      }
+      // Far away triangles are not listed.
+      Bounds3 grown = tb;
+      grown.lo -= glm::vec3(0.01f), grown.hi += glm::vec3(0.01f);
+      if (!grown.overlaps(box)) {
+        EXPECT_FALSE(listed.count(grid.globalId(0, t)));
+      }
+    }
+    expectedEntries += listed.size();
+  }
+  EXPECT_EQ(expectedEntries, grid.numEntries());
+  // Automatic resolution: bounded, and at least 4 displacement bounds per voxel.
+  const ContributorGrid automatic(scene, AccelOptions{});
+  EXPECT_GE(automatic.voxelSize(), 4.0f * bound * 0.99f);
 }
 
 TEST(GridAccelerator, EmptySceneNeverHits) {
