@@ -6,6 +6,7 @@
 #include <unordered_map>
 
 #include "runtime/builtins_noise.h"
+#include "runtime/builtins_texture.h"
 
 namespace relief::compiler {
 
@@ -84,6 +85,7 @@ const RuntimeSymbol kSymbols[] = {
     {"rlf_noise3", reinterpret_cast<void*>(&rlf_noise3)},
     {"rlf_noise4", reinterpret_cast<void*>(&rlf_noise4)},
     {"rlf_cellnoise", reinterpret_cast<void*>(&rlf_cellnoise)},
+    {"rlf_texture", reinterpret_cast<void*>(&rlf_texture)},
 };
 }  // namespace
 

@@ -39,6 +39,7 @@ enum class BuiltinShape : uint8_t {
   Faceforward, // vector f(vector N, vector I[, vector Nref])
   Luminance,   // float f(color)
   Hypot,       // float f(float, float[, float])
+  Texture,     // context-typed: (string file[, float s, float t][, "option", value ...])
 };
 
 enum class BuiltinId : uint8_t {

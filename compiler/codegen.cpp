@@ -19,6 +19,7 @@
 #include <llvm/IR/Verifier.h>
 
 #include "runtime/abi.h"
+#include "runtime/builtins_texture.h"
 
 namespace relief::compiler {
 
@@ -394,6 +395,8 @@ class ShaderCodegen {
     orientation_ = cf(1);
     slots_.clear();
     gradient_ = cellInput_ = nullptr;
+    textureErrors_ = nullptr;
+    services_ = nullptr;
     for (const auto& p : shader_.params) {
       Val v = p->init ? convert(gen(*p->init), p->type) : zeroOf(p->type);
       store(slotFor(p.get()), v);
@@ -420,8 +423,10 @@ class ShaderCodegen {
     nonFinite_ = entryAlloca(i32_, "nonfinite");
     loopLimitHits_ = entryAlloca(i32_, "looplimit");
     loopCounter_ = entryAlloca(i32_, "iterations");
+    textureErrors_ = entryAlloca(i32_, "textureerrors");
     b_.CreateStore(ci(0), nonFinite_);
     b_.CreateStore(ci(0), loopLimitHits_);
+    b_.CreateStore(ci(0), textureErrors_);
     llvm::AllocaInst* index = entryAlloca(i64_, "i");
     b_.CreateStore(llvm::ConstantInt::get(i64_, 0), index);
     Value* count = b_.CreateZExt(b_.CreateLoad(i32_, bytePtr(batch, offsetof(RlfShadingBatch, count))), i64_);
@@ -451,6 +456,7 @@ class ShaderCodegen {
     Value* dtduPtr = field(offsetof(RlfShadingBatch, dtdu));
     Value* dtdvPtr = field(offsetof(RlfShadingBatch, dtdv));
     spaces_ = field(offsetof(RlfShadingBatch, spaces));
+    services_ = field(offsetof(RlfShadingBatch, services));
     Value* dNduPresent = b_.CreateIsNotNull(dNdu[0]);
     Value* dNdvPresent = b_.CreateIsNotNull(dNdv[0]);
 
@@ -573,6 +579,7 @@ class ShaderCodegen {
     };
     bump(offsetof(RlfStatus, nonFinite), nonFinite_);
     bump(offsetof(RlfStatus, loopLimit), loopLimitHits_);
+    bump(offsetof(RlfStatus, textureErrors), textureErrors_);
     b_.CreateRetVoid();
   }
 
@@ -1204,6 +1211,85 @@ class ShaderCodegen {
     return r;
   }
 
+  // texture(): the footprint is (Du(s)·du, Du(t)·du, Dv(s)·dv, Dv(t)·dv) (§6.7), and the result's
+  // derivatives follow from the texture's own ∂/∂s and ∂/∂t by the chain rule.
+  Val genTexture(const Expr& e, const std::vector<Val>& args) {
+    const Type rt = e.type;
+    const int n = numComponents(rt);
+    Dual s, t;
+    size_t first = 1;
+    if (args.size() >= 3 && args[1].type.isScalar() && args[2].type.isScalar()) {
+      s = toFloatScalar(args[1]).c[0];
+      t = toFloatScalar(args[2]).c[0];
+      first = 3;
+    } else {
+      s = load(slotFor(globals_[size_t(GlobalId::s)])).c[0];
+      t = load(slotFor(globals_[size_t(GlobalId::t)])).c[0];
+    }
+    Value* du = load(slotFor(globals_[size_t(GlobalId::du)])).c[0].v;
+    Value* dv = load(slotFor(globals_[size_t(GlobalId::dv)])).c[0].v;
+    auto lane = [&](Value* l) { return l ? l : cf(0); };
+    Value* dsdx = b_.CreateFMul(lane(s.du), du);
+    Value* dtdx = b_.CreateFMul(lane(t.du), du);
+    Value* dsdy = b_.CreateFMul(lane(s.dv), dv);
+    Value* dtdy = b_.CreateFMul(lane(t.dv), dv);
+
+    llvm::AllocaInst* opts = entryAlloca(llvm::ArrayType::get(i8_, sizeof(RlfTextureOptions)), "texopts");
+    opts->setAlignment(llvm::Align(8));
+    auto field = [&](size_t off) { return bytePtr(opts, off); };
+    auto setF = [&](size_t off, Value* v) { b_.CreateStore(v, field(off)); };
+    setF(offsetof(RlfTextureOptions, sblur), cf(0));
+    setF(offsetof(RlfTextureOptions, tblur), cf(0));
+    setF(offsetof(RlfTextureOptions, swidth), cf(1));
+    setF(offsetof(RlfTextureOptions, twidth), cf(1));
+    setF(offsetof(RlfTextureOptions, fill), cf(0));
+    for (int k = 0; k < 3; ++k) setF(offsetof(RlfTextureOptions, missingcolor) + 4 * size_t(k), cf(0));
+    setF(offsetof(RlfTextureOptions, hasMissingColor), ci(0));
+    setF(offsetof(RlfTextureOptions, firstchannel), ci(0));
+    setF(offsetof(RlfTextureOptions, swrap), llvm::ConstantPointerNull::get(ptr_));
+    setF(offsetof(RlfTextureOptions, twrap), llvm::ConstantPointerNull::get(ptr_));
+    for (size_t i = first; i + 1 < args.size(); i += 2) {
+      const std::string& name = e.operands[i]->text;
+      const Val& value = args[i + 1];
+      auto f = [&] { return toFloatScalar(value).c[0].v; };
+      if (name == "blur" || name == "sblur") setF(offsetof(RlfTextureOptions, sblur), f());
+      if (name == "blur" || name == "tblur") setF(offsetof(RlfTextureOptions, tblur), f());
+      if (name == "width" || name == "swidth") setF(offsetof(RlfTextureOptions, swidth), f());
+      if (name == "width" || name == "twidth") setF(offsetof(RlfTextureOptions, twidth), f());
+      if (name == "fill") setF(offsetof(RlfTextureOptions, fill), f());
+      if (name == "firstchannel") setF(offsetof(RlfTextureOptions, firstchannel), convert(value, Type(TypeKind::Int)).c[0].v);
+      if (name == "wrap" || name == "swrap") setF(offsetof(RlfTextureOptions, swrap), value.c[0].v);
+      if (name == "wrap" || name == "twrap") setF(offsetof(RlfTextureOptions, twrap), value.c[0].v);
+      if (name == "missingcolor") {
+        const Val c = convert(value, Type(TypeKind::Color));
+        for (int k = 0; k < 3; ++k) setF(offsetof(RlfTextureOptions, missingcolor) + 4 * size_t(k), c.c[k].v);
+        setF(offsetof(RlfTextureOptions, hasMissingColor), ci(1));
+      }
+    }
+    auto* arr = llvm::ArrayType::get(f32_, 4);
+    llvm::AllocaInst* out = entryAlloca(arr, "texout");
+    llvm::AllocaInst* dds = entryAlloca(arr, "texds");
+    llvm::AllocaInst* ddt = entryAlloca(arr, "texdt");
+    llvm::FunctionCallee fnc = module_.getOrInsertFunction(
+        "rlf_texture", llvm::FunctionType::get(i32_, {ptr_, ptr_, f32_, f32_, f32_, f32_, f32_, f32_, ptr_, i32_, ptr_, ptr_, ptr_}, false));
+    if (auto* fn = llvm::dyn_cast<llvm::Function>(fnc.getCallee())) fn->setDoesNotThrow();
+    Value* services = services_ ? services_ : llvm::ConstantPointerNull::get(ptr_);
+    Value* ok = b_.CreateCall(fnc, {services, args[0].c[0].v, s.v, t.v, dsdx, dtdx, dsdy, dtdy, opts, ci(n), out, dds, ddt});
+    if (textureErrors_) {
+      Value* failed = b_.CreateZExt(b_.CreateICmpEQ(ok, ci(0)), i32_);
+      b_.CreateStore(b_.CreateAdd(b_.CreateLoad(i32_, textureErrors_), failed), textureErrors_);
+    }
+    Val r;
+    r.type = rt;
+    for (int k = 0; k < n; ++k) {
+      auto at = [&](llvm::AllocaInst* a) { return b_.CreateLoad(f32_, b_.CreateConstInBoundsGEP2_32(arr, a, 0, unsigned(k))); };
+      Value* ds = at(dds);
+      Value* dt = at(ddt);
+      r.c[k] = {at(out), lAdd(lMul(s.du, ds), lMul(t.du, dt)), lAdd(lMul(s.dv, ds), lMul(t.dv, dt))};
+    }
+    return r;
+  }
+
   Val genCall(const Expr& e) {
     if (e.function) return genUserCall(e);
     std::vector<Val> args;
@@ -1385,6 +1471,7 @@ class ShaderCodegen {
         return makeFloat(dadd(dadd(dmul(c.c[0], dconst(0.2126f)), dmul(c.c[1], dconst(0.7152f))),
                               dmul(c.c[2], dconst(0.0722f))));
       }
+      case BuiltinShape::Texture: return genTexture(e, args);
       case BuiltinShape::Hypot: {
         Dual sum = dconst(0);
         for (const Val& a : args) {
@@ -1462,6 +1549,8 @@ class ShaderCodegen {
   llvm::AllocaInst* loopCounter_ = nullptr;
   llvm::AllocaInst* gradient_ = nullptr;
   llvm::AllocaInst* cellInput_ = nullptr;
+  llvm::AllocaInst* textureErrors_ = nullptr;  // entry function only
+  Value* services_ = nullptr;                  // batch->services (entry function only)
   Value* spaces_ = nullptr;
   Value* orientation_ = nullptr;
 };

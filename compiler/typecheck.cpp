@@ -81,7 +81,7 @@ bool hasContextCall(const Expr& e) {
   switch (e.kind) {
     case ExprKind::Call: {
       const BuiltinInfo* b = findBuiltin(e.text);
-      return b && b->shape == BuiltinShape::Noise;
+      return b && (b->shape == BuiltinShape::Noise || b->shape == BuiltinShape::Texture);
     }
     case ExprKind::Unary: return e.op == Tok::Minus && hasContextCall(*e.operands[0]);
     case ExprKind::Conditional:
@@ -268,6 +268,7 @@ class Checker {
           case BuiltinShape::Deriv:
           case BuiltinShape::CalcNormal:
           case BuiltinShape::Area:
+          case BuiltinShape::Texture:
           case BuiltinShape::Displace: return &e;
           default: break;
         }
@@ -963,6 +964,7 @@ class Checker {
       return set(e, kError);
     }
     if (!ok) return set(e, kError);
+    if (b->shape == BuiltinShape::Texture) return checkTexture(e, expected);
     const Type r = callResult(*b, args, expected);
     if (r.isError()) {
       report(DiagId::ErrNoMatchingCall, e.range.begin).arg(e.text).arg(typeList(args)).range(e.opRange);
@@ -992,6 +994,62 @@ class Checker {
       }
     }
     return set(e, r);
+  }
+
+  // texture(string file[, float s, float t][, "option", value ...]) (§6.7), context-typed.
+  Type checkTexture(Expr& e, Type expected) {
+    std::vector<ExprPtr>& args = e.operands;
+    if (args.empty() || args[0]->type.kind != TypeKind::String) {
+      report(DiagId::ErrNoMatchingCall, e.range.begin).arg(e.text).arg(typeList(args)).range(e.opRange);
+      return set(e, kError);
+    }
+    size_t first = 1;
+    if (args.size() >= 3 && args[1]->type.isScalar() && args[2]->type.isScalar()) first = 3;
+    if ((args.size() - first) % 2 != 0) {
+      report(DiagId::ErrNoMatchingCall, e.range.begin).arg(e.text).arg(typeList(args)).range(e.opRange);
+      return set(e, kError);
+    }
+    for (size_t i = first; i < args.size(); i += 2) {
+      const Expr& name = *args[i];
+      const Expr& value = *args[i + 1];
+      if (name.kind != ExprKind::StringLiteral) {
+        report(DiagId::ErrTextureOptionName, name.range.begin).range(name.range);
+        return set(e, kError);
+      }
+      static const std::set<std::string> kFloat = {"blur", "sblur", "tblur", "width", "swidth", "twidth",
+                                                   "fill", "samples", "lerp"};
+      static const std::set<std::string> kString = {"wrap", "swrap", "twrap", "filter"};
+      const char* want = nullptr;
+      bool fitsValue = false;
+      if (kFloat.count(name.text)) {
+        want = "float";
+        fitsValue = value.type.isScalar();
+      } else if (kString.count(name.text)) {
+        want = "string";
+        fitsValue = value.type.kind == TypeKind::String;
+      } else if (name.text == "firstchannel") {
+        want = "int";
+        fitsValue = value.type.isScalar();
+      } else if (name.text == "missingcolor") {
+        want = "color";
+        fitsValue = value.type.kind == TypeKind::Color || value.type.isScalar();
+      } else {
+        report(DiagId::ErrTextureOption, name.range.begin).arg(name.text).range(name.range);
+        return set(e, kError);
+      }
+      if (!fitsValue) {
+        report(DiagId::ErrTextureOptionType, name.range.begin)
+            .arg(name.text)
+            .arg(want)
+            .arg(typeName(value.type))
+            .range(name.range)
+            .range(value.range);
+        return set(e, kError);
+      }
+    }
+    if (first == 1) e.isVarying = true;
+    if (contextFloat_) return set(e, kFloat);
+    return set(e, expected.isTriple() ? expected.element() : kFloat);
   }
 
   // The §6 "T" binding: first triple argument, else int when `allowInt` and all are int, else float.
@@ -1129,6 +1187,7 @@ class Checker {
         return kVector;
       case BuiltinShape::Luminance: return n == 1 && args[0]->type.kind == TypeKind::Color ? kFloat : kError;
       case BuiltinShape::Hypot: return (n == 2 || n == 3) && allFit(args, kFloat) ? kFloat : kError;
+      case BuiltinShape::Texture: return kError;  // checkTexture
     }
     return kError;
   }

@@ -8,6 +8,8 @@
 #include <random>
 #include <sstream>
 
+#include <OpenImageIO/imageio.h>
+
 #include "compiler/compiler.h"
 #include "compiler/shader_library.h"
 #include "runtime/builtins_noise.h"
@@ -493,6 +495,57 @@ displacement d()
   EXPECT_FLOAT_EQ(b.Pout[2][0], 0.5f);
   EXPECT_FLOAT_EQ(b.Nout[0][0], 10);  // the object origin in current space
   EXPECT_FLOAT_EQ(b.Nout[2][0], 0);
+}
+
+// Writes a constant image of `channels` channels with OIIO.
+std::string writeConstantImage(const std::string& name, const std::vector<float>& value) {
+  const std::string path = ::testing::TempDir() + "/" + name;
+  const int channels = int(value.size());
+  std::vector<float> pixels;
+  for (int i = 0; i < 16; ++i) pixels.insert(pixels.end(), value.begin(), value.end());
+  auto out = OIIO::ImageOutput::create(path);
+  EXPECT_TRUE(out);
+  if (!out) return path;
+  OIIO::ImageSpec spec(4, 4, channels, OIIO::TypeDesc::FLOAT);
+  EXPECT_TRUE(out->open(path, spec));
+  EXPECT_TRUE(out->write_image(OIIO::TypeDesc::FLOAT, pixels.data()));
+  out->close();
+  return path;
+}
+
+TEST(JitTest, TextureLookupsReadFilesAndReportMissingOnes) {
+  const std::string gray = writeConstantImage("relief_gray.exr", {0.75f});
+  const std::string rgb = writeConstantImage("relief_rgb.exr", {0.1f, 0.2f, 0.3f});
+  CompileResult r = compileSource("tex.disp", R"(
+displacement tex(string a = ""; string b = ""; string missing = "/no/such/texture.exr")
+{
+    float h = texture(a, s, t, "blur", 0.01, "wrap", "periodic");
+    color c = texture(b, "wrap", "clamp");
+    color m = texture(missing, 0.5, 0.5, "missingcolor", color(7, 8, 9));
+    float f = texture(missing, "fill", 0.25);
+    P = point(h, f, m[2]);
+    N = normal(c);
+})");
+  ASSERT_TRUE(r.success()) << renderDiagnostics(r);
+  runtime::ShaderInstance instance(r.shaders.front());
+  std::string error;
+  ASSERT_TRUE(instance.bind({"a", runtime::ParamType::String, {}, {gray}}, &error)) << error;
+  ASSERT_TRUE(instance.bind({"b", runtime::ParamType::String, {}, {rgb}}, &error)) << error;
+  TestBatch b(2);
+  fillSphere(b, 0, 0.3, 0.4);
+  fillSphere(b, 1, 0.6, 0.7);
+  RlfStatus status{};
+  RlfShadingBatch view = b.all();
+  instance.evaluate(view, status);
+  for (size_t i = 0; i < 2; ++i) {
+    EXPECT_NEAR(b.Pout[0][i], 0.75f, 1e-4);
+    EXPECT_FLOAT_EQ(b.Pout[1][i], 0.25f);  // fill of the missing file
+    EXPECT_FLOAT_EQ(b.Pout[2][i], 9);      // missingcolor
+    EXPECT_NEAR(b.Nout[0][i], 0.1f, 1e-4);
+    EXPECT_NEAR(b.Nout[1][i], 0.2f, 1e-4);
+    EXPECT_NEAR(b.Nout[2][i], 0.3f, 1e-4);
+  }
+  EXPECT_EQ(status.textureErrors, 4u);  // two failing lookups per point
 }
 
 TEST(ShaderLibraryTest, FindsCompilesAndCaches) {
