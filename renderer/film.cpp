@@ -18,7 +18,8 @@ namespace fs = std::filesystem;
 Film::Film(int width, int height)
     : width_(std::max(width, 1)),
       height_(std::max(height, 1)),
-      rgb_(size_t(width_) * size_t(height_) * 3, 0.0f) {}
+      rgb_(size_t(width_) * size_t(height_) * 3, 0.0f),
+      alpha_(size_t(width_) * size_t(height_), 0.0f) {}
 
 float linearToSrgb(float v) {
   if (!(v > 0.0f)) return 0.0f;  // also maps NaN to black
@@ -26,7 +27,7 @@ float linearToSrgb(float v) {
   return v <= 0.0031308f ? 12.92f * v : 1.055f * std::pow(v, 1.0f / 2.4f) - 0.055f;
 }
 
-bool Film::write(const std::string& path, std::string* error) const {
+bool Film::write(const std::string& path, std::string* error, bool withAlpha) const {
   std::string extension = fs::path(path).extension().string();
   std::transform(extension.begin(), extension.end(), extension.begin(),
                  [](unsigned char c) { return char(std::tolower(c)); });
@@ -40,22 +41,39 @@ bool Film::write(const std::string& path, std::string* error) const {
     return false;
   }
   const bool floatOutput = extension == ".exr" || extension == ".hdr";
-  OIIO::ImageSpec spec(width_, height_, 3, floatOutput ? OIIO::TypeDesc::FLOAT : OIIO::TypeDesc::UINT8);
+  const int channels = withAlpha ? 4 : 3;
+  OIIO::ImageSpec spec(width_, height_, channels,
+                       floatOutput ? OIIO::TypeDesc::FLOAT : OIIO::TypeDesc::UINT8);
   spec.attribute("oiio:ColorSpace", floatOutput ? "linear" : "sRGB");
   spec.attribute("Software", "relief");
+  if (withAlpha) {
+    spec.alpha_channel = 3;
+    if (!floatOutput) spec.attribute("oiio:UnassociatedAlpha", 1);
+  }
 
+  const size_t numPixels = size_t(width_) * size_t(height_);
   std::vector<float> floats;
   std::vector<uint8_t> bytes;
   const void* pixels;
   if (floatOutput) {
-    floats = rgb_;
-    for (float& f : floats)
-      if (!std::isfinite(f)) f = 0.0f;
+    floats.resize(numPixels * size_t(channels));
+    for (size_t i = 0; i < numPixels; ++i)
+      for (int c = 0; c < channels; ++c) {
+        const float v = c < 3 ? rgb_[3 * i + size_t(c)] : alpha_[i];
+        floats[i * size_t(channels) + size_t(c)] = std::isfinite(v) ? v : 0.0f;
+      }
     pixels = floats.data();
   } else {
-    bytes.resize(rgb_.size());
-    for (size_t i = 0; i < rgb_.size(); ++i)
-      bytes[i] = uint8_t(std::lround(linearToSrgb(rgb_[i]) * 255.0f));
+    bytes.resize(numPixels * size_t(channels));
+    for (size_t i = 0; i < numPixels; ++i) {
+      const float a = std::clamp(alpha_[i], 0.0f, 1.0f);
+      // Colour is premultiplied; PNG wants it straight, and encoded after the division.
+      const float scale = withAlpha && a > 0.0f ? 1.0f / a : 1.0f;
+      for (int c = 0; c < 3; ++c)
+        bytes[i * size_t(channels) + size_t(c)] =
+            uint8_t(std::lround(linearToSrgb(rgb_[3 * i + size_t(c)] * scale) * 255.0f));
+      if (withAlpha) bytes[i * 4 + 3] = uint8_t(std::lround(a * 255.0f));
+    }
     pixels = bytes.data();
   }
 

@@ -17,10 +17,14 @@ class Film {
   int width() const { return width_; }
   int height() const { return height_; }
 
-  void setPixel(int x, int y, const glm::vec3& rgb) {
-    float* p = &rgb_[3 * (size_t(y) * size_t(width_) + size_t(x))];
+  // `alpha` is the pixel's coverage; rgb is premultiplied by it (misses contribute black).
+  void setPixel(int x, int y, const glm::vec3& rgb, float alpha = 1.0f) {
+    const size_t i = size_t(y) * size_t(width_) + size_t(x);
+    float* p = &rgb_[3 * i];
     p[0] = rgb.r, p[1] = rgb.g, p[2] = rgb.b;
+    alpha_[i] = alpha;
   }
+  float alpha(int x, int y) const { return alpha_[size_t(y) * size_t(width_) + size_t(x)]; }
   glm::vec3 pixel(int x, int y) const {
     const float* p = &rgb_[3 * (size_t(y) * size_t(width_) + size_t(x))];
     return {p[0], p[1], p[2]};
@@ -31,11 +35,14 @@ class Film {
   // (exr, hdr) keep linear values; the others are sRGB-encoded 8-bit. The file appears atomically:
   // it is written under a temporary name in the same directory and renamed into place, so a failed
   // or interrupted render never leaves a partial image. Returns false with *error set.
-  bool write(const std::string& path, std::string* error) const;
+  // With `withAlpha`, a fourth channel holds coverage (EXR: premultiplied colour, as EXR expects;
+  // 8-bit formats: unpremultiplied before sRGB encoding, as PNG expects).
+  bool write(const std::string& path, std::string* error, bool withAlpha = false) const;
 
  private:
   int width_, height_;
   std::vector<float> rgb_;
+  std::vector<float> alpha_;
 };
 
 // Linear to sRGB transfer for one channel, clamped to [0, 1].

@@ -128,8 +128,9 @@ Integrator::Integrator(const Scene& scene, Accelerator& accel) : scene_(scene), 
   epsilon_ = std::max(extent, 1e-3f) * 2e-5f;
 }
 
-glm::vec3 Integrator::radiance(const Ray& ray, RenderStats* stats) const {
+glm::vec3 Integrator::radiance(const Ray& ray, RenderStats* stats, bool* hitSomething) const {
   const std::optional<Hit> hit = accel_.intersect(ray);
+  if (hitSomething) *hitSomething = hit.has_value();
   if (!hit) return glm::vec3(0.0f);
   ++stats->cameraHits;
   const Material defaultMaterial;
@@ -188,13 +189,16 @@ RenderStats render(const Scene& scene, Accelerator& accel, const RenderOptions& 
         const uint32_t pixel = order[i];
         const int x = int(pixel % uint32_t(width)), y = int(pixel / uint32_t(width));
         glm::vec3 sum(0.0f);
+        int covered = 0;
         for (int s = 0; s < spp; ++s) {
           const glm::vec2 offset = sampleOffset(pixel, s, spp);
           const Ray ray = camera.generate(float(x) + offset.x, float(y) + offset.y);
           ++stats.cameraRays;
-          sum += integrator.radiance(ray, &stats);
+          bool hit = false;
+          sum += integrator.radiance(ray, &stats, &hit);
+          covered += hit ? 1 : 0;
         }
-        film->setPixel(x, y, sum / float(spp));
+        film->setPixel(x, y, sum / float(spp), float(covered) / float(spp));
       }
     }
   };

@@ -47,7 +47,8 @@ class Integrator {
  public:
   Integrator(const Scene& scene, Accelerator& accel);
 
-  glm::vec3 radiance(const Ray& ray, RenderStats* stats) const;
+  // *hit (optional) says whether the ray hit anything (for coverage / alpha).
+  glm::vec3 radiance(const Ray& ray, RenderStats* stats, bool* hit = nullptr) const;
 
   // Distance a shadow ray starts off the surface, scaled to the scene's extent.
   float shadowEpsilon() const { return epsilon_; }

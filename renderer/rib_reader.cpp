@@ -696,14 +696,18 @@ bool RibParser::executeCamera(const Call& call, bool* handled) {
     if (type != "file" && type != "framebuffer" && type != "tiff" && type != "openexr" &&
         type != "png")
       warnOnce(call.line, "display/" + type, "display type '" + type + "' treated as 'file'");
-    if (mode != "rgb" && mode != "rgba")
+    if (mode != "rgb" && mode != "rgba") {
       warnOnce(call.line, "mode/" + mode, "display mode '" + mode + "' written as 'rgb'");
+      mode = "rgb";
+    }
     if (!name.empty() && name[0] == '+') {
-      scene_.displays.push_back(name.substr(1));
+      name = name.substr(1);
     } else {
       scene_.displays.clear();
-      scene_.displays.push_back(name);
+      scene_.displayModes.clear();
     }
+    scene_.displays.push_back(name);
+    scene_.displayModes.push_back(mode);
   } else if (n == "Option") {
     std::string category;
     if (!positionalString(call, 0, &category)) return false;

@@ -70,6 +70,7 @@ struct Scene {
   std::vector<Displacement> displacements;
   std::vector<Mesh> meshes;
   std::vector<std::string> displays;  // output file names, first is the main image
+  std::vector<std::string> displayModes;  // parallel to displays: "rgb" or "rgba"
 };
 
 }  // namespace relief

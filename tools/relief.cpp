@@ -240,11 +240,16 @@ int run(const CommandLine& cl) {
   }
 
   std::vector<std::string> outputs;
+  std::vector<bool> alpha;
   if (!cl.output.empty()) {
     outputs.push_back(cl.output);
+    alpha.push_back(!scene.displayModes.empty() && scene.displayModes[0] == "rgba");
   } else if (!scene.displays.empty()) {
     outputs = scene.displays;
+    for (size_t i = 0; i < outputs.size(); ++i)
+      alpha.push_back(i < scene.displayModes.size() && scene.displayModes[i] == "rgba");
   } else {
+    alpha.push_back(false);
     outputs.push_back(std::filesystem::path(cl.scene).stem().string() + ".png");
     if (warnings)
       *warnings << cl.scene << ": warning: no Display in the scene; writing '" << outputs[0]
@@ -268,13 +273,14 @@ int run(const CommandLine& cl) {
   relief::Film film(scene.width, scene.height);
   const relief::RenderStats renderStats = relief::render(scene, *accel, renderOptions, &film);
 
-  for (const std::string& path : outputs) {
+  for (size_t i = 0; i < outputs.size(); ++i) {
+    const std::string& path = outputs[i];
     // `-o out/image.png` into a fresh checkout should just work; a failure surfaces in write().
     const std::filesystem::path parent = std::filesystem::path(path).parent_path();
     std::error_code ignored;
     if (!parent.empty()) std::filesystem::create_directories(parent, ignored);
     std::string writeError;
-    if (!film.write(path, &writeError)) {
+    if (!film.write(path, &writeError, alpha[i])) {
       std::cerr << "relief: error: " << writeError << "\n";
       return 1;
     }

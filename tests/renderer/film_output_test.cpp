@@ -30,8 +30,11 @@ Film testFilm() {
   return film;
 }
 
+// Reads pixels as stored: 8-bit alpha files are not premultiplied on the way in.
 std::vector<float> readBack(const fs::path& path, OIIO::TypeDesc type, int* channels) {
-  auto in = OIIO::ImageInput::open(path.string());
+  OIIO::ImageSpec config;
+  config.attribute("oiio:UnassociatedAlpha", 1);
+  auto in = OIIO::ImageInput::open(path.string(), &config);
   EXPECT_TRUE(in) << OIIO::geterror();
   if (!in) return {};
   const OIIO::ImageSpec& spec = in->spec();
@@ -73,6 +76,26 @@ TEST(FilmOutput, ExrKeepsLinearFloats) {
   EXPECT_EQ(px[1], 0.5f);
   EXPECT_EQ(px[15], 2.0f);
   EXPECT_EQ(px[16], -1.0f);
+}
+
+TEST(FilmOutput, AlphaChannel) {
+  Film film(2, 1);
+  film.setPixel(0, 0, {0.25f, 0.25f, 0.25f}, 0.5f);  // half-covered mid grey, premultiplied
+  film.setPixel(1, 0, {0, 0, 0}, 0.0f);
+  const fs::path dir = scratch();
+  std::string error;
+  ASSERT_TRUE(film.write((dir / "a.exr").string(), &error, true)) << error;
+  int channels = 0;
+  std::vector<float> px = readBack(dir / "a.exr", OIIO::TypeDesc::FLOAT, &channels);
+  ASSERT_EQ(channels, 4);
+  EXPECT_EQ(px[0], 0.25f);  // EXR keeps premultiplied colour
+  EXPECT_EQ(px[3], 0.5f);
+  ASSERT_TRUE(film.write((dir / "a.png").string(), &error, true)) << error;
+  px = readBack(dir / "a.png", OIIO::TypeDesc::UINT8, &channels);
+  ASSERT_EQ(channels, 4);
+  EXPECT_EQ(px[0], 188.0f);  // straight colour 0.5, sRGB-encoded
+  EXPECT_EQ(px[3], 128.0f);
+  EXPECT_EQ(px[7], 0.0f);
 }
 
 TEST(FilmOutput, TiffIsWritten) {

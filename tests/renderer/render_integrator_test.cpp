@@ -149,6 +149,9 @@ TEST(RenderIntegrator, SamplesJitterInsideThePixel) {
   const Film one = renderScene(scene, PixelOrder::Scanline, 1, 1);
   const Film many = renderScene(scene, PixelOrder::Scanline, 1, 16);
   EXPECT_EQ(one.pixel(1, 0).r, 0.0f);
+  EXPECT_EQ(one.alpha(1, 0), 0.0f);
+  EXPECT_EQ(one.alpha(3, 0), 1.0f);
+  EXPECT_EQ(many.alpha(2, 0), many.pixel(2, 0).r);  // coverage = premultiplied white
   EXPECT_EQ(many.pixel(1, 0).r, 0.0f);
   EXPECT_EQ(many.pixel(3, 0).r, 1.0f);
   EXPECT_GT(many.pixel(2, 0).r, 0.2f);
