@@ -11,7 +11,6 @@
 namespace relief {
 namespace {
 
-
 bool overlaps(const Bounds3& box, const glm::vec3& a, const glm::vec3& b, const glm::vec3& c) {
   const glm::vec3 lo = glm::min(a, glm::min(b, c)), hi = glm::max(a, glm::max(b, c));
   return lo.x <= box.hi.x && box.lo.x <= hi.x && lo.y <= box.hi.y && box.lo.y <= hi.y &&
@@ -193,6 +192,9 @@ std::unique_ptr<VoxelGeometry> GridAccelerator::buildVoxel(uint32_t voxel) {
   if (unique) uniqueTriangles_.fetch_add(unique, std::memory_order_relaxed);
   if (g->P.size() <= 65536) g->indices16.assign(indices.begin(), indices.end());
   else g->indices32 = std::move(indices);
+  // Resident memory is what the budget and the byte statistics describe: no growth slack.
+  g->P.shrink_to_fit(), g->bary.shrink_to_fit(), g->indices32.shrink_to_fit();
+  g->triangleIds.shrink_to_fit(), g->microIds.shrink_to_fit();
   buildSubGrid(*g, box, grid_.padding());
   const uint64_t n = g->numTriangles();
   // Contributors whose displaced geometry misses the voxel: later rays skip it without a lookup.
