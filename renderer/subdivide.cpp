@@ -192,16 +192,19 @@ void displace(const Displacement& disp, const TriangleFrame& frame, Vertices& vs
   counters.status.indexClamped += status.indexClamped;
   counters.status.unknownSpace += status.unknownSpace;
   counters.status.textureErrors += status.textureErrors;
-  counters.status.nonFinite += status.nonFinite;
+  uint32_t replaced = 0;
   for (uint32_t i = 0; i < n; ++i) {
     glm::vec3 p = batch.Pout.get(i);
     if (finite(p)) {
       vs.displaced[first + i] = p;
     } else {
       vs.displaced[first + i] = vs.P[first + i];
-      ++counters.status.nonFinite;
+      ++replaced;
     }
   }
+  // The shader may count the points it knows are non-finite and the host counts what it had to
+  // replace; they are the same points, so take the larger rather than the sum.
+  counters.status.nonFinite += std::max(status.nonFinite, replaced);
 }
 
 // Appends the midpoint of edge (a, b). Every attribute is 0.5 * (x_a + x_b): addition commutes
