@@ -85,6 +85,7 @@ const RuntimeSymbol kSymbols[] = {
     {"rlf_noise3", reinterpret_cast<void*>(&rlf_noise3)},
     {"rlf_noise4", reinterpret_cast<void*>(&rlf_noise4)},
     {"rlf_cellnoise", reinterpret_cast<void*>(&rlf_cellnoise)},
+    {"rlf_random", reinterpret_cast<void*>(&rlf_random)},
     {"rlf_texture", reinterpret_cast<void*>(&rlf_texture)},
 };
 }  // namespace

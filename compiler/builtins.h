@@ -40,6 +40,13 @@ enum class BuiltinShape : uint8_t {
   Luminance,   // float f(color)
   Hypot,       // float f(float, float[, float])
   Texture,     // context-typed: (string file[, float s, float t][, "option", value ...])
+  Comp,        // float f(triple, int)
+  Setcomp,     // void f(output triple, int, float)
+  SetXyz,      // void f(output S, float)
+  DerivRatio,  // Deriv: float f(float, float), vector f(S, float)
+  Ptlined,     // float f(point a, point b, point q)
+  Rotate,      // point f(point q, float angle, point a, point b)
+  Random,      // context-typed, no arguments
 };
 
 enum class BuiltinId : uint8_t {

@@ -397,6 +397,7 @@ class ShaderCodegen {
     gradient_ = cellInput_ = nullptr;
     textureErrors_ = nullptr;
     services_ = nullptr;
+    randomInputs_ = randomOrdinal_ = nullptr;
     for (const auto& p : shader_.params) {
       Val v = p->init ? convert(gen(*p->init), p->type) : zeroOf(p->type);
       store(slotFor(p.get()), v);
@@ -424,6 +425,8 @@ class ShaderCodegen {
     loopLimitHits_ = entryAlloca(i32_, "looplimit");
     loopCounter_ = entryAlloca(i32_, "iterations");
     textureErrors_ = entryAlloca(i32_, "textureerrors");
+    randomInputs_ = entryAlloca(llvm::ArrayType::get(f32_, 5), "randominputs");
+    randomOrdinal_ = entryAlloca(i32_, "randomordinal");
     b_.CreateStore(ci(0), nonFinite_);
     b_.CreateStore(ci(0), loopLimitHits_);
     b_.CreateStore(ci(0), textureErrors_);
@@ -526,6 +529,13 @@ class ShaderCodegen {
     }
     for (const auto& prm : shader_.params) store(slotFor(prm.get()), loadParam(*prm, params));
     b_.CreateStore(ci(0), loopCounter_);
+    {
+      Value* in[5] = {pIn[0], pIn[1], pIn[2], load(slotFor(global(GlobalId::u))).c[0].v,
+                      load(slotFor(global(GlobalId::v))).c[0].v};
+      for (unsigned k = 0; k < 5; ++k)
+        b_.CreateStore(in[k], b_.CreateConstInBoundsGEP2_32(randomInputs_->getAllocatedType(), randomInputs_, 0, k));
+      b_.CreateStore(ci(0), randomOrdinal_);
+    }
 
     exitBlock_ = exitPoint;
     abortBlock_ = abortPoint;
@@ -1290,6 +1300,56 @@ class ShaderCodegen {
     return r;
   }
 
+  // Distance from q to the segment ab.
+  Dual pointLineDistance(const Val& a, const Val& b, const Val& q) {
+    const Val ab = map2(Type(TypeKind::Vector), b, a, [&](Dual x, Dual y) { return dsub(x, y); });
+    const Val aq = map2(Type(TypeKind::Vector), q, a, [&](Dual x, Dual y) { return dsub(x, y); });
+    const Dual t = dclamp01(ddiv(dot3(aq, ab), dot3(ab, ab)));
+    Val d;
+    d.type = Type(TypeKind::Vector);
+    for (int k = 0; k < 3; ++k) d.c[k] = dsub(aq.c[k], dmul(t, ab.c[k]));
+    return dsqrtSafe(dot3(d, d));
+  }
+
+  // Rodrigues rotation of q by `angle` radians about the axis through a and b.
+  Val rotatePoint(const Val& q, Dual angle, const Val& a, const Val& b) {
+    const Val axis = normalize3(map2(Type(TypeKind::Vector), b, a, [&](Dual x, Dual y) { return dsub(x, y); }));
+    const Val p = map2(Type(TypeKind::Vector), q, a, [&](Dual x, Dual y) { return dsub(x, y); });
+    const Dual c = unaryMath(BuiltinId::Cos, angle);
+    const Dual s = unaryMath(BuiltinId::Sin, angle);
+    const Val kxp = cross3(axis, p);
+    const Dual kdp = dot3(axis, p);
+    Val r;
+    r.type = Type(TypeKind::Point);
+    for (int k = 0; k < 3; ++k)
+      r.c[k] = dadd(a.c[k], dadd(dadd(dmul(p.c[k], c), dmul(kxp.c[k], s)), dmul(axis.c[k], dmul(kdp, dsub(dconst(1), c)))));
+    return r;
+  }
+
+  // random(): a hash of the invocation's input P, u, v and the call's ordinal (§6.5).
+  Val randomOf(Type rt) {
+    if (!randomInputs_) {
+      Val r;
+      r.type = rt;
+      for (int k = 0; k < numComponents(rt); ++k) r.c[k] = dconst(0.5f);  // no invocation (defaults)
+      return r;
+    }
+    Value* ordinal = b_.CreateLoad(i32_, randomOrdinal_);
+    b_.CreateStore(b_.CreateAdd(ordinal, ci(1)), randomOrdinal_);
+    llvm::FunctionCallee fnc = module_.getOrInsertFunction(
+        "rlf_random", llvm::FunctionType::get(f32_, {ptr_, i32_, i32_}, false));
+    if (auto* fn = llvm::dyn_cast<llvm::Function>(fnc.getCallee())) {
+      fn->setDoesNotThrow();
+      fn->setWillReturn();
+      fn->setMemoryEffects(llvm::MemoryEffects::argMemOnly(llvm::ModRefInfo::Ref));
+    }
+    Val r;
+    r.type = rt;
+    for (int k = 0; k < numComponents(rt); ++k)
+      r.c[k] = {b_.CreateCall(fnc, {randomInputs_, ordinal, ci(k)}), nullptr, nullptr};
+    return r;
+  }
+
   Val genCall(const Expr& e) {
     if (e.function) return genUserCall(e);
     std::vector<Val> args;
@@ -1383,10 +1443,48 @@ class ShaderCodegen {
       case BuiltinShape::Cross: return cross3(args[0], args[1]);
       case BuiltinShape::Length: return makeFloat(dsqrtSafe(dot3(args[0], args[0])));
       case BuiltinShape::Normalize: return normalize3(args[0]);
-      case BuiltinShape::Distance: {
+      case BuiltinShape::Distance:
+      case BuiltinShape::Ptlined: {
+        if (args.size() == 3) return makeFloat(pointLineDistance(args[0], args[1], args[2]));
         Val d = map2(Type(TypeKind::Vector), args[0], args[1], [&](Dual x, Dual y) { return dsub(x, y); });
         return makeFloat(dsqrtSafe(dot3(d, d)));
       }
+      case BuiltinShape::Comp: return makeFloat(component(args[0], args[1].c[0].v));
+      case BuiltinShape::Setcomp:
+      case BuiltinShape::SetXyz: {
+        const Expr& target = *e.operands[0];
+        Val base = args[0];
+        Value* index = e.builtin->shape == BuiltinShape::Setcomp ? args[1].c[0].v
+                       : id == BuiltinId::Setxcomp              ? ci(0)
+                       : id == BuiltinId::Setycomp              ? ci(1)
+                                                                : ci(2);
+        const Dual x = toFloatScalar(args.back()).c[0];
+        for (int k = 0; k < 3; ++k) {
+          Value* hit = k == 0   ? b_.CreateICmpSLE(index, ci(0))
+                       : k == 1 ? b_.CreateICmpEQ(index, ci(1))
+                                : b_.CreateICmpSGE(index, ci(2));
+          base.c[k] = dselect(hit, x, base.c[k]);
+        }
+        assignTo(target, base);
+        Val r;
+        r.type = Type(TypeKind::Void);
+        return r;
+      }
+      case BuiltinShape::DerivRatio: {
+        // Du(n)/Du(d) + Dv(n)/Dv(d), each quotient 0 where its denominator is 0.
+        Val num = args[0].type.isScalar() ? toFloatScalar(args[0]) : args[0];
+        const Dual den = toFloatScalar(args[1]).c[0];
+        Val r;
+        r.type = rt;
+        for (int k = 0; k < numComponents(rt); ++k) {
+          const Dual qu = ddiv({num.c[k].du ? num.c[k].du : cf(0), nullptr, nullptr}, {den.du ? den.du : cf(0), nullptr, nullptr});
+          const Dual qv = ddiv({num.c[k].dv ? num.c[k].dv : cf(0), nullptr, nullptr}, {den.dv ? den.dv : cf(0), nullptr, nullptr});
+          r.c[k] = {b_.CreateFAdd(qu.v, qv.v), nullptr, nullptr};
+        }
+        return r;
+      }
+      case BuiltinShape::Rotate: return rotatePoint(args[0], toFloatScalar(args[1]).c[0], args[2], args[3]);
+      case BuiltinShape::Random: return randomOf(rt);
       case BuiltinShape::Component:
         return makeFloat(args[0].c[id == BuiltinId::Xcomp ? 0 : id == BuiltinId::Ycomp ? 1 : 2]);
       case BuiltinShape::Deriv: {
@@ -1550,6 +1648,8 @@ class ShaderCodegen {
   llvm::AllocaInst* gradient_ = nullptr;
   llvm::AllocaInst* cellInput_ = nullptr;
   llvm::AllocaInst* textureErrors_ = nullptr;  // entry function only
+  llvm::AllocaInst* randomInputs_ = nullptr;   // input P, u, v of the invocation (entry only)
+  llvm::AllocaInst* randomOrdinal_ = nullptr;
   Value* services_ = nullptr;                  // batch->services (entry function only)
   Value* spaces_ = nullptr;
   Value* orientation_ = nullptr;

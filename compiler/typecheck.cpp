@@ -81,7 +81,8 @@ bool hasContextCall(const Expr& e) {
   switch (e.kind) {
     case ExprKind::Call: {
       const BuiltinInfo* b = findBuiltin(e.text);
-      return b && (b->shape == BuiltinShape::Noise || b->shape == BuiltinShape::Texture);
+      return b && (b->shape == BuiltinShape::Noise || b->shape == BuiltinShape::Texture ||
+                   b->shape == BuiltinShape::Random);
     }
     case ExprKind::Unary: return e.op == Tok::Minus && hasContextCall(*e.operands[0]);
     case ExprKind::Conditional:
@@ -269,6 +270,10 @@ class Checker {
           case BuiltinShape::CalcNormal:
           case BuiltinShape::Area:
           case BuiltinShape::Texture:
+          case BuiltinShape::Random:
+          case BuiltinShape::DerivRatio:
+          case BuiltinShape::Setcomp:
+          case BuiltinShape::SetXyz:
           case BuiltinShape::Displace: return &e;
           default: break;
         }
@@ -977,6 +982,12 @@ class Checker {
       case BuiltinShape::Filterwidth:
       case BuiltinShape::Filterstep: e.isVarying = true; break;
       case BuiltinShape::Displace: markWrites(true, true); break;
+      case BuiltinShape::Random: e.isVarying = true; break;
+      case BuiltinShape::Setcomp:
+      case BuiltinShape::SetXyz:
+        // The first argument is an output: it must be a writable variable or component.
+        if (!checkAssignable(*args[0], args[0]->range.begin, args[0]->range)) return set(e, kError);
+        break;
       default: break;
     }
     const size_t numSpaces = b->shape == BuiltinShape::Displace && args.size() == 2 ? 1
@@ -1063,6 +1074,11 @@ class Checker {
     }
     return kFloat;
   }
+  static bool allSpatial(const std::vector<ExprPtr>& args) {
+    for (const ExprPtr& a : args)
+      if (!a->type.isSpatial()) return false;
+    return true;
+  }
   static bool fits(const Expr& a, Type t) { return conversion(a.type, t) != Conversion::None; }
   static bool allFit(const std::vector<ExprPtr>& args, Type t, size_t from = 0, size_t to = SIZE_MAX) {
     for (size_t i = from; i < args.size() && i < to; ++i)
@@ -1129,7 +1145,29 @@ class Checker {
       case BuiltinShape::Normalize: return n == 1 && args[0]->type.isSpatial() ? args[0]->type : kError;
       case BuiltinShape::CalcNormal: return n == 1 && args[0]->type.isSpatial() ? kVector : kError;
       case BuiltinShape::Distance:
+        if (n == 3) return allSpatial(args) ? kFloat : kError;  // distance(a, b, q) = ptlined
         return n == 2 && args[0]->type.isSpatial() && args[1]->type.isSpatial() ? kFloat : kError;
+      case BuiltinShape::Ptlined: return n == 3 && allSpatial(args) ? kFloat : kError;
+      case BuiltinShape::Comp:
+        return n == 2 && args[0]->type.isTriple() && args[1]->type.kind == TypeKind::Int ? kFloat : kError;
+      case BuiltinShape::Setcomp:
+        return n == 3 && args[0]->type.isTriple() && args[1]->type.kind == TypeKind::Int && args[2]->type.isScalar()
+                   ? kVoid
+                   : kError;
+      case BuiltinShape::SetXyz: return n == 2 && args[0]->type.isSpatial() && args[1]->type.isScalar() ? kVoid : kError;
+      case BuiltinShape::DerivRatio:
+        if (n != 2 || !args[1]->type.isScalar()) return kError;
+        if (args[0]->type.isScalar()) return kFloat;
+        return args[0]->type.isSpatial() ? kVector : kError;
+      case BuiltinShape::Rotate:
+        return n == 4 && args[0]->type.isSpatial() && args[1]->type.isScalar() && args[2]->type.isSpatial() &&
+                       args[3]->type.isSpatial()
+                   ? Type(TypeKind::Point)
+                   : kError;
+      case BuiltinShape::Random:
+        if (n != 0) return kError;
+        if (contextFloat_) return kFloat;
+        return expected.isTriple() || expected.kind == TypeKind::Float ? expected.element() : kFloat;
       case BuiltinShape::Deriv: {
         if (n != 1) return kError;
         const Type t = args[0]->type;

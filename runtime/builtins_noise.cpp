@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 
 namespace {
 
@@ -139,6 +140,16 @@ float rlf_noise3(float x, float y, float z, float* grad3) {
 float rlf_noise4(float x, float y, float z, float w, float* grad4) {
   const float p[4] = {x, y, z, w};
   return noise<4>(p, grad4);
+}
+
+float rlf_random(const float* inputs5, int ordinal, int channel) {
+  uint32_t h = mix32(0x3c6ef372u ^ uint32_t(ordinal) * 0x9e3779b9u ^ uint32_t(channel) * 0x85ebca77u);
+  for (int i = 0; i < 5; ++i) {
+    uint32_t bits;
+    std::memcpy(&bits, &inputs5[i], 4);
+    h = mix32(h ^ bits);
+  }
+  return float(h >> 8) * (1.0f / 16777216.0f);
 }
 
 float rlf_cellnoise(const float* p, int dims, int channel) {

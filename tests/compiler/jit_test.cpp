@@ -439,6 +439,37 @@ displacement d() { push(0.1 * sin(10 * u)); })");
   EXPECT_GT(tilt, 0.05);  // N was recomputed from the displaced P
 }
 
+TEST(JitTest, ComponentSettersDerivRotateDistanceAndRandom) {
+  auto shader = compileOne(R"(
+displacement b1()
+{
+    vector w = vector(1, 2, 3);
+    setycomp(w, 5);
+    setcomp(w, 2, comp(w, 0) + 10);
+    float r1 = random();
+    float r2 = random();
+    float dd = Deriv(u * u * 3, u);
+    point q = rotate(point(1, 0, 0), PI / 2, point(0, 0, 0), point(0, 0, 1));
+    P = point(w) + vector(q) * 100;
+    N = normal(dd, distance(point(0,0,0), point(2,0,0), point(1,1,0)), r1 != r2 && r1 >= 0 && r1 < 1);
+})");
+  ASSERT_TRUE(shader);
+  runtime::ShaderInstance instance(shader);
+  TestBatch b(2);
+  fillSphere(b, 0, 0.5, 0.3);
+  fillSphere(b, 1, 0.5, 0.3);  // identical inputs: identical random numbers (purity, §7)
+  RlfStatus status{};
+  RlfShadingBatch view = b.all();
+  instance.evaluate(view, status);
+  EXPECT_NEAR(b.Pout[0][0], 1, 1e-5);
+  EXPECT_NEAR(b.Pout[1][0], 105, 1e-4);
+  EXPECT_FLOAT_EQ(b.Pout[2][0], 11);
+  EXPECT_NEAR(b.Nout[0][0], 3, 1e-5);  // Deriv(3u², u) = 6u
+  EXPECT_FLOAT_EQ(b.Nout[1][0], 1);
+  EXPECT_FLOAT_EQ(b.Nout[2][0], 1);
+  for (int k = 0; k < 3; ++k) EXPECT_EQ(b.Pout[k][0], b.Pout[k][1]);
+}
+
 TEST(JitTest, EveryExampleShaderCompilesAndEvaluatesFinite) {
   int numFiles = 0;
   for (const auto& entry : std::filesystem::directory_iterator(RELIEF_SOURCE_DIR "/examples/shaders")) {
