@@ -8,8 +8,12 @@
 // resident; the price is re-subdividing the parts of a contributor that lie within the
 // displacement bound of each voxel it reaches. Subdivision culls to the voxel (subdivide.h) and the
 // automatic grid keeps voxels several bounds wide (contributor_grid.h), which holds that repeated
-// work to a small factor. Because a voxel's content is a pure function of the voxel (determinism
-// rule 1), a refill after eviction is identical.
+// work to a small factor. Measured on a bumpy sphere (4096 input triangles, 831K micro-triangles,
+// all voxels filled): subdividing each triangle once, whole, evaluates 506K shader points; per-voxel
+// fills evaluate 1.72M at the automatic 10^3 grid, 3.07M at 16^3 and 8.85M at 32^3, and store
+// 897K triangles (8% duplicates across voxel borders). With costly shaders this factor is the
+// price of independent voxels. Because a voxel's content is a pure function of the voxel
+// (determinism rule 1), a refill after eviction is identical.
 //
 // Thread safety: each slot has one atomic word holding its state (empty, filling, ready) and a pin
 // count. Readers pin a ready slot with a compare-and-swap; exactly one thread wins empty -> filling
