@@ -90,6 +90,7 @@ CompileResult makeResult(const CompileOptions& options, const CompileFlags& flag
   dopts.warningsAsErrors = options.warningsAsErrors;
   dopts.noWarnings = options.noWarnings;
   dopts.errorLimit = flags.errorLimit;
+  dopts.disabledWarnings = flags.disabledWarnings;
   r.diagnostics = std::make_unique<DiagnosticsEngine>(dopts);
   return r;
 }

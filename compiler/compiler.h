@@ -19,6 +19,7 @@ struct CompileFlags {
   bool emitLlvm = false;   // keep the optimized IR text in CompileResult::llvmIr
   bool keepAst = false;    // keep the checked AST in CompileResult::ast
   unsigned errorLimit = 20;
+  std::vector<std::string> disabledWarnings;  // -Wno-<name>, without the "-Wno-"
 };
 
 struct CompileResult {

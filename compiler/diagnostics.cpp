@@ -17,6 +17,13 @@ constexpr DiagInfo kDiagInfos[] = {
 };
 }  // namespace
 
+std::vector<std::string> warningFlags() {
+  std::vector<std::string> out;
+  for (const DiagInfo& info : kDiagInfos)
+    if (*info.flag && std::find(out.begin(), out.end(), info.flag) == out.end()) out.push_back(info.flag);
+  return out;
+}
+
 const char* DiagnosticsEngine::formatOf(DiagId id) { return kDiagInfos[size_t(id)].format; }
 Severity DiagnosticsEngine::defaultSeverity(DiagId id) { return kDiagInfos[size_t(id)].severity; }
 
@@ -79,6 +86,8 @@ void DiagnosticsEngine::record(Diagnostic d) {
   if (limitReached_) return;
   if (d.severity == Severity::Warning) {
     if (options_.noWarnings) return;
+    for (const std::string& off : options_.disabledWarnings)
+      if (off == d.flag) return;
     if (options_.warningsAsErrors) d.severity = Severity::Error;
   }
   if (d.severity >= Severity::Error) {

@@ -34,7 +34,11 @@ struct DiagnosticOptions {
   bool warningsAsErrors = false;
   bool noWarnings = false;
   unsigned errorLimit = 20;  // 0: unlimited
+  std::vector<std::string> disabledWarnings;  // -Wno-<name>
 };
+
+// The -W names of all warnings, for validating command-line flags.
+std::vector<std::string> warningFlags();
 
 class DiagnosticsEngine {
  public:

@@ -36,7 +36,7 @@ class Lexer {
   SourceLoc base_;
   bool atLineStart_ = true;
   bool quiet_ = false;
-  DiagnosticsEngine quietSink_{DiagnosticOptions{false, false, 0}};
+  DiagnosticsEngine quietSink_;
   DiagnosticsEngine& sink() { return quiet_ ? quietSink_ : diags_; }
 };
 

@@ -1232,7 +1232,7 @@ class Checker {
 
   TranslationUnit& unit_;
   DiagnosticsEngine& diags_;
-  DiagnosticsEngine scratch_{DiagnosticOptions{false, false, 0}};
+  DiagnosticsEngine scratch_;
   std::vector<std::unordered_map<std::string, VarDecl*>> scopes_;
   std::vector<std::vector<VarDecl*>> scopeDecls_;
   std::set<std::string> undeclaredReported_;

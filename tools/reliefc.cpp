@@ -2,6 +2,7 @@
 // Exit codes: 0 success (warnings allowed), 1 compile errors, 2 usage or I/O error, 3 internal error.
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -28,6 +29,7 @@ constexpr const char* kUsage =
     "  -O0 -O1 -O2 -O3            optimization level (default -O2)\n"
     "  -Werror                    treat warnings as errors\n"
     "  -w                         suppress warnings\n"
+    "  -W<name>, -Wno-<name>      enable or disable one warning (e.g. -Wno-unused-parameter)\n"
     "  -ferror-limit=N            stop after N errors (default 20, 0: no limit)\n"
     "  --emit-llvm                print the optimized LLVM IR\n"
     "  --emit-ast                 print the syntax tree\n"
@@ -51,6 +53,7 @@ struct Args {
   std::vector<std::pair<std::string, std::string>> params;
   std::string at;
   unsigned errorLimit = 20;
+  std::vector<std::string> disabledWarnings;
 };
 
 int usageError(const std::string& message) {
@@ -213,6 +216,15 @@ int main(int argc, char** argv) {
       args.options.warningsAsErrors = true;
     } else if (a == "-w") {
       args.options.noWarnings = true;
+    } else if (a.rfind("-W", 0) == 0 && a.size() > 2) {
+      // -W<name> enables (every warning is on by default), -Wno-<name> disables.
+      const bool off = a.rfind("-Wno-", 0) == 0;
+      const std::string name = a.substr(off ? 5 : 2);
+      const auto known = relief::compiler::warningFlags();
+      if (std::find(known.begin(), known.end(), name) == known.end())
+        std::cerr << "reliefc: warning: unknown warning option '" << a << "'\n";
+      else if (off)
+        args.disabledWarnings.push_back(name);
     } else if (a.rfind("-ferror-limit=", 0) == 0) {
       args.errorLimit = unsigned(std::strtoul(a.c_str() + 14, nullptr, 10));
     } else if (a == "--emit-llvm") {
@@ -259,6 +271,7 @@ int main(int argc, char** argv) {
     flags.keepAst = args.emitAst;
     flags.jit = args.eval;
     flags.errorLimit = args.errorLimit;
+    flags.disabledWarnings = args.disabledWarnings;
     CompileResult result = relief::compiler::compileFile(file, args.options, flags);
     const auto& diags = *result.diagnostics;
     if (args.json) {
