@@ -31,11 +31,11 @@ struct Float3Soa {
 
 // The SoA buffers of one shader batch, reused across calls on one thread.
 struct Batch {
-  Float3Soa P, N, Ng, dPdu, dPdv, Pout, Nout;
-  std::vector<float> u, v, s, t, du, dv;
+  Float3Soa P, N, Ng, dPdu, dPdv, dNdu, dNdv, Pout, Nout;
+  std::vector<float> u, v, s, t, du, dv, dsdu, dsdv, dtdu, dtdv;
   void resize(size_t n) {
-    for (Float3Soa* a : {&P, &N, &Ng, &dPdu, &dPdv, &Pout, &Nout}) a->resize(n);
-    for (std::vector<float>* a : {&u, &v, &s, &t, &du, &dv}) a->resize(n);
+    for (Float3Soa* a : {&P, &N, &Ng, &dPdu, &dPdv, &dNdu, &dNdv, &Pout, &Nout}) a->resize(n);
+    for (std::vector<float>* a : {&u, &v, &s, &t, &du, &dv, &dsdu, &dsdv, &dtdu, &dtdv}) a->resize(n);
   }
 };
 
@@ -112,12 +112,15 @@ struct Scratch {
 // (u, v) parameterisation, and the parameter extents that set du/dv per level.
 struct TriangleFrame {
   glm::vec3 Ng, dPdu, dPdv;
+  glm::vec3 dNdu{0}, dNdv{0};  // derivative seeds of N (language.md 6.4): zero on flat faces
+  float dsdu = 1, dsdv = 0, dtdu = 0, dtdv = 1;  // seeds of s and t
   float uExtent, vExtent;
 };
 
 bool finite(glm::vec3 v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
 
-TriangleFrame makeFrame(const glm::vec3 p[3], const glm::vec3 n[3], const glm::vec2 uv[3]) {
+TriangleFrame makeFrame(const glm::vec3 p[3], const glm::vec3 n[3], const glm::vec2 uv[3],
+                        const glm::vec2 st[3], bool smoothNormals) {
   TriangleFrame f;
   glm::vec3 e1 = p[1] - p[0], e2 = p[2] - p[0];
   glm::vec3 ng = glm::cross(e1, e2);
@@ -136,6 +139,18 @@ TriangleFrame makeFrame(const glm::vec3 p[3], const glm::vec3 n[3], const glm::v
   if (std::fabs(det) > 1e-12f) {
     f.dPdu = (e1 * d2.y - e2 * d1.y) / det;
     f.dPdv = (e2 * d1.x - e1 * d2.x) / det;
+    // s, t and N vary linearly over the triangle: the same inverse of the (u, v) map gives their
+    // derivatives. Without it (degenerate uv) the defaults say st = uv and N is constant.
+    const glm::vec2 s1 = st[1] - st[0], s2 = st[2] - st[0];
+    f.dsdu = (s1.x * d2.y - s2.x * d1.y) / det, f.dsdv = (s2.x * d1.x - s1.x * d2.x) / det;
+    f.dtdu = (s1.y * d2.y - s2.y * d1.y) / det, f.dtdv = (s2.y * d1.x - s1.y * d2.x) / det;
+    if (smoothNormals) {
+      const glm::vec3 n1 = n[1] - n[0], n2 = n[2] - n[0];
+      f.dNdu = (n1 * d2.y - n2 * d1.y) / det;
+      f.dNdv = (n2 * d1.x - n1 * d2.x) / det;
+    }
+    if (!std::isfinite(f.dsdu + f.dsdv + f.dtdu + f.dtdv)) f.dsdu = 1, f.dsdv = 0, f.dtdu = 0, f.dtdv = 1;
+    if (!finite(f.dNdu) || !finite(f.dNdv)) f.dNdu = f.dNdv = glm::vec3(0);
   } else {
     glm::vec3 a = std::fabs(f.Ng.x) > 0.9f ? glm::vec3(0, 1, 0) : glm::vec3(1, 0, 0);
     f.dPdu = glm::normalize(glm::cross(a, f.Ng));
@@ -165,6 +180,10 @@ void displace(const Displacement& disp, const TriangleFrame& frame, Vertices& vs
     batch.Ng.set(i, frame.Ng);
     batch.dPdu.set(i, frame.dPdu);
     batch.dPdv.set(i, frame.dPdv);
+    batch.dNdu.set(i, frame.dNdu);
+    batch.dNdv.set(i, frame.dNdv);
+    batch.dsdu[i] = frame.dsdu, batch.dsdv[i] = frame.dsdv;
+    batch.dtdu[i] = frame.dtdu, batch.dtdv[i] = frame.dtdv;
     batch.u[i] = vs.uv[k].x, batch.v[i] = vs.uv[k].y;
     batch.s[i] = vs.st[k].x, batch.t[i] = vs.st[k].y;
     const float spacing = std::ldexp(1.0f, -int(vs.level[k]));
@@ -178,6 +197,9 @@ void displace(const Displacement& disp, const TriangleFrame& frame, Vertices& vs
   b.dPdu = batch.dPdu.view(), b.dPdv = batch.dPdv.view();
   b.u = batch.u.data(), b.v = batch.v.data(), b.s = batch.s.data(), b.t = batch.t.data();
   b.du = batch.du.data(), b.dv = batch.dv.data();
+  b.dsdu = batch.dsdu.data(), b.dsdv = batch.dsdv.data();
+  b.dtdu = batch.dtdu.data(), b.dtdv = batch.dtdv.data();
+  b.dNdu = batch.dNdu.view(), b.dNdv = batch.dNdv.view();
   b.spaces = &disp.spaces;
   b.services = nullptr;
   b.Pout = batch.Pout.view(), b.Nout = batch.Nout.view();
@@ -288,7 +310,7 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
   out.ids.clear();
   if (displaced) {
     const Displacement& disp = *displacement;
-    const TriangleFrame frame = makeFrame(p, n, uv);
+    const TriangleFrame frame = makeFrame(p, n, uv, st, mesh.N.size() == mesh.P.size());
     const int maxDepth = std::clamp(disp.maxDepth, 0, kMaxSubdivisionDepth);
     const float edgeLength2 = disp.edgeLength * disp.edgeLength;
     displace(disp, frame, vs, 0, scratch.batch, counters);

@@ -186,6 +186,31 @@ TEST(Subdivide, NonFiniteDisplacementFallsBackToUndisplaced) {
   EXPECT_GT(mm.numTriangles(), 1u);
 }
 
+// Moves every point to (dsdu, dtdv, dsdv) + dPdu + 10 * dNdu: the host's seeds become visible.
+void seedEntry(const RlfShadingBatch* b, const void*, RlfStatus*) {
+  for (uint32_t i = 0; i < b->count; ++i) {
+    b->Pout.x[i] = b->dsdu[i] + b->dPdu.x[i] + 10 * b->dNdu.x[i];
+    b->Pout.y[i] = b->dtdv[i] + b->dPdu.y[i] + 10 * b->dNdu.y[i];
+    b->Pout.z[i] = b->dsdv[i] + b->dPdu.z[i] + 10 * b->dNdu.z[i];
+    b->Nout.x[i] = b->N.x[i], b->Nout.y[i] = b->N.y[i], b->Nout.z[i] = b->N.z[i];
+  }
+}
+
+TEST(Subdivide, HostSuppliesDerivativeSeeds) {
+  Mesh quad = makeQuad();
+  for (glm::vec2& uv : quad.uv) uv *= 0.5f;  // u, v over [0, 0.5]: dP/du = (2, 0, 0)
+  quad.st = {{0, 0}, {2, 0}, {2, 4}, {0, 4}};  // in uv units: ds/du = 4, dt/dv = 8
+  quad.N = {{0, 0, 1}, {0.1f, 0, 1}, {0.1f, 0, 1}, {0, 0, 1}};  // N.x grows with u: 0.2 per unit u
+  const Displacement d = makeDisplacement(seedEntry, 0.0f, 0.0f, 10.0f, 4);
+  MicroMesh mm;
+  SubdivideCounters counters;
+  subdivideTriangle(quad, 0, &d, mm, counters);
+  ASSERT_EQ(mm.numTriangles(), 1u);
+  EXPECT_NEAR(mm.P[0].x, 4.0f + 2.0f + 10 * 0.2f, 1e-5f);
+  EXPECT_NEAR(mm.P[0].y, 8.0f, 1e-5f);
+  EXPECT_NEAR(mm.P[0].z, 0.0f, 1e-5f);
+}
+
 TEST(Subdivide, DeterministicAcrossCalls) {
   const Mesh quad = makeQuad();
   const Displacement d = makeDisplacement(testing::bumpyEntry, 0.2f, 3.0f, 0.04f, 10);
