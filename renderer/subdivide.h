@@ -26,8 +26,9 @@
 // crack; unlike the paper's bottom-up merge it never samples the interior of a kept triangle, which
 // is why it is limited to short edges.
 //
-// Known limit: a shader reading dPdu/dPdv, du/dv or Ng (which are per input triangle) may displace
-// a shared edge differently from its two sides; P, N, u, v, s, t are shared exactly.
+// Known limit: a shader reading dPdu/dPdv, dNdu/dNdv, the s/t seeds, du/dv or Ng (all per input
+// triangle) may displace a shared edge differently from its two sides; P, N, u, v, s, t are shared
+// exactly.
 #pragma once
 
 #include <cstdint>
