@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <mutex>
 #include <cmath>
 #include <cstdlib>
 #include <thread>
@@ -178,6 +179,9 @@ RenderStats render(const Scene& scene, Accelerator& accel, const RenderOptions& 
   // Threads pull chunks of the order so that each thread still walks a coherent stretch of it.
   constexpr size_t kChunk = 64;
   std::atomic<size_t> next{0};
+  std::atomic<size_t> donePixels{0};
+  std::mutex progressMutex;
+  int lastPercent = -1;  // guarded by progressMutex
   std::vector<RenderStats> perThread(static_cast<size_t>(numThreads));
   auto worker = [&](int id) {
     RenderStats& stats = perThread[size_t(id)];
@@ -199,6 +203,15 @@ RenderStats render(const Scene& scene, Accelerator& accel, const RenderOptions& 
           covered += hit ? 1 : 0;
         }
         film->setPixel(x, y, sum / float(spp), float(covered) / float(spp));
+      }
+      if (options.progress) {
+        const size_t done = donePixels.fetch_add(end - begin) + (end - begin);
+        const int percent = int(done * 100 / order.size());
+        std::lock_guard<std::mutex> lock(progressMutex);
+        if (percent > lastPercent) {
+          lastPercent = percent;
+          options.progress(percent);
+        }
       }
     }
   };

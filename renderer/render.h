@@ -5,6 +5,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <string_view>
 #include <vector>
 
@@ -32,6 +33,9 @@ struct RenderOptions {
   PixelOrder order = PixelOrder::Hilbert;
   int threads = 0;          // 0: all hardware threads
   int samplesPerPixel = 0;  // 0: the scene's PixelSamples
+  // Called with the percentage of pixels done whenever it grows; serialized by the render loop,
+  // so it may print. Has no influence on the image.
+  std::function<void(int percent)> progress;
 };
 
 struct RenderStats {

@@ -968,6 +968,8 @@ bool RibParser::doDisplacement(const Call& call) {
                                (why.empty() ? std::string() : ": " + why) +
                                " (search path: '" + path + "')");
   }
+  // Binding errors are located at the Displacement call, as shader loading errors are: that is
+  // the line a user looks for, even when the parameter list continues on later lines.
   auto instance = std::make_shared<runtime::ShaderInstance>(compiled);
   for (const Param& p : params) {
     runtime::ParamValue value;
@@ -977,21 +979,21 @@ bool RibParser::doDisplacement(const Call& call) {
     } else if (const runtime::ParamInfo* info = compiled->findParam(p.name)) {
       value.type = info->type;
     } else {
-      return fail(p.line, "shader '" + name + "' has no parameter '" + p.name + "'");
+      return fail(call.line, "shader '" + name + "' has no parameter '" + p.name + "'");
     }
     if (value.type == runtime::ParamType::String) {
       if (!p.value.isStringy())
-        return fail(p.line, "parameter '" + p.name + "' of shader '" + name +
+        return fail(call.line, "parameter '" + p.name + "' of shader '" + name +
                                 "' expects strings, got " + p.value.describe());
       value.strings = p.value.strings;
     } else {
       if (!p.value.isNumeric())
-        return fail(p.line, "parameter '" + p.name + "' of shader '" + name +
+        return fail(call.line, "parameter '" + p.name + "' of shader '" + name +
                                 "' expects numbers, got " + p.value.describe());
       value.numbers.assign(p.value.numbers.begin(), p.value.numbers.end());
     }
     std::string error;
-    if (!instance->bind(value, &error)) return fail(p.line, error);
+    if (!instance->bind(value, &error)) return fail(call.line, error);
   }
   attr_.displacement = std::move(instance);
   attr_.worldFromShader = attr_.ctm;

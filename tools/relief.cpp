@@ -1,6 +1,8 @@
 // relief: renders a RIB scene with displacement shaders compiled on the fly. The only place where
 // the compiler (ShaderLibrary, the ShaderProvider) meets the renderer (reader, accelerator, render
 // loop, film). Exit codes: 0 image written, 1 scene/shader/render error, 2 usage error.
+#include <unistd.h>
+
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -219,7 +221,10 @@ void reportShaderProblems(const relief::Accelerator& accel, std::ostream& out) {
 
 int run(const CommandLine& cl) {
   std::ostream* warnings = cl.quiet ? nullptr : &std::cerr;
-  relief::compiler::ShaderLibrary shaders(relief::compiler::CompileOptions{}, &std::cerr);
+  // The shader directories double as #include directories, so shaders can share headers.
+  relief::compiler::CompileOptions compileOptions;
+  compileOptions.includeDirs = cl.shaderDirs;
+  relief::compiler::ShaderLibrary shaders(compileOptions, &std::cerr);
 
   const auto loadStart = std::chrono::steady_clock::now();
   relief::RibReadOptions readOptions;
@@ -270,8 +275,16 @@ int run(const CommandLine& cl) {
   renderOptions.order = cl.order;
   renderOptions.threads = cl.threads;
   renderOptions.samplesPerPixel = cl.spp;
+  const bool showProgress = !cl.quiet && ::isatty(STDERR_FILENO);
+  if (showProgress) {
+    renderOptions.progress = [](int percent) {
+      std::fprintf(stderr, "\rrendering %3d%%", percent);
+      std::fflush(stderr);
+    };
+  }
   relief::Film film(scene.width, scene.height);
   const relief::RenderStats renderStats = relief::render(scene, *accel, renderOptions, &film);
+  if (showProgress) std::fprintf(stderr, "\r               \r");
 
   for (size_t i = 0; i < outputs.size(); ++i) {
     const std::string& path = outputs[i];

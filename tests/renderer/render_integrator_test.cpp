@@ -138,6 +138,22 @@ TEST(RenderIntegrator, ImageIsIdenticalAcrossOrdersThreadsAndRuns) {
   }
 }
 
+TEST(RenderIntegrator, ProgressRisesToOneHundred) {
+  const Scene scene =
+      load(wallScene("LightSource \"distantlight\" 1 \"from\" [0 0 -1] \"to\" [0 0 0]"));
+  test::BruteForceAccelerator accel(scene);
+  Film film(scene.width, scene.height);
+  RenderOptions options;
+  options.threads = 3;
+  std::vector<int> reports;
+  options.progress = [&](int percent) { reports.push_back(percent); };
+  render(scene, accel, options, &film);
+  ASSERT_FALSE(reports.empty());
+  EXPECT_EQ(reports.back(), 100);
+  for (size_t i = 1; i < reports.size(); ++i) EXPECT_GT(reports[i], reports[i - 1]);
+  EXPECT_TRUE(film.data() == renderScene(scene).data());
+}
+
 TEST(RenderIntegrator, SamplesJitterInsideThePixel) {
   // A vertical edge through the middle of pixel column 2: one centred sample sees all or nothing,
   // 16 jittered samples see about half.

@@ -268,6 +268,10 @@ TEST(RibReader, DisplacementErrorsAreLocatedAtTheCall) {
   EXPECT_EQ(r.error.line, 2);
   EXPECT_NE(r.error.message.find("'Km'"), std::string::npos) << r.error.message;
 
+  r = read(world("Displacement \"push\"\n  \"Km\" [0.1]\n  \"tint\" [\"red\"]"), &shaders);
+  ASSERT_FALSE(r.scene);
+  EXPECT_EQ(r.error.line, 2);  // the call, not the parameter's line
+
   r = read(world("Displacement \"push\" \"Kx\" [1]"), &shaders);
   ASSERT_FALSE(r.scene);
   EXPECT_EQ(r.error.message, "shader 'push' has no parameter 'Kx'");
@@ -572,7 +576,7 @@ TEST(RibReader, SurvivesMutatedInput) {
         case 1: text.insert(at, 1, alphabet[next() % alphabet.size()]); break;
         default: text[at] = alphabet[next() % alphabet.size()]; break;
       }
-      if (text.empty()) text = "x";
+      if (text.empty()) text.push_back('x');
     }
     ReadResult r = read(text, &shaders);
     if (r.scene) {
