@@ -40,6 +40,7 @@ void dump(std::ostream& out, const Expr& e, int indent) {
       break;
     case ExprKind::Index: out << "Index"; break;
     case ExprKind::Tuple: out << "Tuple"; break;
+    case ExprKind::InitList: out << "InitList"; break;
   }
   out << typeSuffix(e.type) << '\n';
   for (const ExprPtr& c : e.operands) dump(out, *c, indent + 1);

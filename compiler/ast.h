@@ -37,6 +37,7 @@ enum class ExprKind : uint8_t {
   Construct,      // constructType(operands) / cast; text = space literal (may be empty)
   Index,          // operands[0][operands[1]]
   Tuple,          // (a, b, c)
+  InitList,       // { a, b, ... }: array initializers only
 };
 
 struct Expr {

@@ -47,6 +47,7 @@ enum class BuiltinShape : uint8_t {
   Ptlined,     // float f(point a, point b, point q)
   Rotate,      // point f(point q, float angle, point a, point b)
   Random,      // context-typed, no arguments
+  Arraylength, // int f(T a[])
 };
 
 enum class BuiltinId : uint8_t {

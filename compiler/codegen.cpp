@@ -33,13 +33,17 @@ struct Dual {
   Value* dv = nullptr;
 };
 
-// A typed value: ints and strings use c[0].v only; floats c[0]; triples c[0..2].
+struct Slot;
+
+// A typed value: ints and strings use c[0].v only; floats c[0]; triples c[0..2]. Arrays are not
+// SSA values: `array` names the storage holding them (copied element-wise when stored).
 struct Val {
   Type type;
   Dual c[3];
+  const Slot* array = nullptr;
 };
 
-// Storage of a variable: one alloca per component and lane.
+// Storage of a variable: one alloca per component and lane ([N x T] allocas for arrays).
 struct Slot {
   Type type;
   llvm::AllocaInst* v[3] = {};
@@ -48,6 +52,7 @@ struct Slot {
 };
 
 int numComponents(Type t) { return t.isTriple() ? 3 : 1; }
+int elementComponents(Type t) { return numComponents(t.element()); }
 
 runtime::ParamType paramTypeOf(TypeKind k) {
   switch (k) {
@@ -93,13 +98,15 @@ class ShaderCodegen {
       info.name = p->name;
       info.type = paramTypeOf(p->type.kind);
       info.isOutput = p->isOutput;
+      const uint32_t count = p->type.arrayLength > 0 ? uint32_t(p->type.arrayLength) : 1;
+      info.arrayLength = p->type.arrayLength > 0 ? p->type.arrayLength : 0;
       if (p->type.kind == TypeKind::String) {
         offset = (offset + 7) & ~7u;
         info.offset = offset;
-        offset += 8;
+        offset += 8 * count;
       } else {
         info.offset = offset;
-        offset += 4 * uint32_t(numComponents(p->type));
+        offset += 4 * uint32_t(elementComponents(p->type)) * count;
       }
       paramOffsets_[p.get()] = info.offset;
       layout.params.push_back(std::move(info));
@@ -302,7 +309,7 @@ class ShaderCodegen {
     return r;
   }
   Val convert(const Val& a, Type to) {
-    if (a.type == to || to.isError()) return a;
+    if (a.type == to || to.isError() || a.type.isArray()) return a;
     if (to.kind == TypeKind::Int) {
       if (a.type.kind == TypeKind::Int) return a;
       return makeInt(floatToIntSafe(a.c[0].v));
@@ -325,18 +332,78 @@ class ShaderCodegen {
     s.type = d->type;
     llvm::Type* t = d->type.kind == TypeKind::Int ? i32_ : d->type.kind == TypeKind::String ? ptr_ : f32_;
     const bool hasLanes = t == f32_;
-    for (int k = 0; k < numComponents(d->type); ++k) {
+    if (d->type.isArray()) t = llvm::ArrayType::get(t, uint64_t(std::max(d->type.arrayLength, 1)));
+    llvm::Type* lane = d->type.isArray() ? t : f32_;
+    for (int k = 0; k < elementComponents(d->type); ++k) {
       s.v[k] = entryAlloca(t, d->name.c_str());
       if (hasLanes) {
-        s.du[k] = entryAlloca(f32_);
-        s.dv[k] = entryAlloca(f32_);
+        s.du[k] = entryAlloca(lane);
+        s.dv[k] = entryAlloca(lane);
       }
     }
     return slots_.emplace(d, s).first->second;
   }
+
+  // ---- Arrays: element access with run-time indices clamped into range (§6.3).
+  Value* elementPtr(llvm::AllocaInst* a, Value* index) {
+    return b_.CreateInBoundsGEP(a->getAllocatedType(), a, {llvm::ConstantInt::get(i64_, 0), b_.CreateSExt(index, i64_)});
+  }
+  Value* clampIndex(Value* index, int length) {
+    if (auto* k = llvm::dyn_cast<llvm::ConstantInt>(index))
+      return ci(int32_t(std::clamp<int64_t>(k->getSExtValue(), 0, length - 1)));
+    Value* low = b_.CreateICmpSLT(index, ci(0));
+    Value* high = b_.CreateICmpSGT(index, ci(length - 1));
+    if (indexClamped_) {
+      Value* out = b_.CreateZExt(b_.CreateOr(low, high), i32_);
+      b_.CreateStore(b_.CreateAdd(b_.CreateLoad(i32_, indexClamped_), out), indexClamped_);
+    }
+    return b_.CreateSelect(low, ci(0), b_.CreateSelect(high, ci(length - 1), index));
+  }
+  Val loadElement(const Slot& s, Value* index) {
+    Val r;
+    r.type = s.type.element();
+    llvm::Type* et = s.type.kind == TypeKind::Int ? i32_ : s.type.kind == TypeKind::String ? ptr_ : f32_;
+    for (int k = 0; k < elementComponents(s.type); ++k) {
+      r.c[k].v = b_.CreateLoad(et, elementPtr(s.v[k], index));
+      if (s.du[k]) {
+        r.c[k].du = b_.CreateLoad(f32_, elementPtr(s.du[k], index));
+        r.c[k].dv = b_.CreateLoad(f32_, elementPtr(s.dv[k], index));
+      }
+    }
+    return r;
+  }
+  void storeElement(const Slot& s, Value* index, const Val& a) {
+    for (int k = 0; k < elementComponents(s.type); ++k) {
+      b_.CreateStore(a.c[k].v, elementPtr(s.v[k], index));
+      if (s.du[k]) {
+        b_.CreateStore(a.c[k].du ? a.c[k].du : cf(0), elementPtr(s.du[k], index));
+        b_.CreateStore(a.c[k].dv ? a.c[k].dv : cf(0), elementPtr(s.dv[k], index));
+      }
+    }
+  }
+  // Zero-fills `s`, then stores the initializer list (sema bounded its length).
+  void initArray(const Slot& s, const Expr* list) {
+    const Val zero = zeroOf(s.type.element());
+    for (int i = 0; i < s.type.arrayLength; ++i) storeElement(s, ci(i), zero);
+    if (!list) return;
+    for (size_t i = 0; i < list->operands.size() && int(i) < s.type.arrayLength; ++i)
+      storeElement(s, ci(int32_t(i)), convert(gen(*list->operands[i]), s.type.element()));
+  }
+  // Initializes an array variable from its initializer: a list, another array, or nothing.
+  void initArrayFrom(const Slot& s, const Expr* init) {
+    if (init && init->kind != ExprKind::InitList) {
+      store(s, gen(*init));
+      return;
+    }
+    initArray(s, init);
+  }
   Val load(const Slot& s) {
     Val r;
     r.type = s.type;
+    if (s.type.isArray()) {
+      r.array = &s;
+      return r;
+    }
     for (int k = 0; k < numComponents(s.type); ++k) {
       r.c[k].v = b_.CreateLoad(s.v[k]->getAllocatedType(), s.v[k]);
       if (s.du[k]) {
@@ -347,6 +414,12 @@ class ShaderCodegen {
     return r;
   }
   void store(const Slot& s, const Val& a) {
+    if (s.type.isArray()) {
+      if (!a.array || a.array == &s) return;
+      for (int i = 0; i < s.type.arrayLength && i < a.array->type.arrayLength; ++i)
+        storeElement(s, ci(i), loadElement(*a.array, ci(i)));
+      return;
+    }
     for (int k = 0; k < numComponents(s.type); ++k) {
       b_.CreateStore(a.c[k].v, s.v[k]);
       if (s.du[k]) {
@@ -367,6 +440,34 @@ class ShaderCodegen {
   }
 
   // ---- Parameters.
+  // Array parameters: consecutive elements in the block.
+  void loadParamArray(const VarDecl& p, Value* block, const Slot& s) {
+    const uint32_t off = paramOffsets_.at(&p);
+    const uint32_t size = p.type.kind == TypeKind::String ? 8 : 4 * uint32_t(elementComponents(p.type));
+    for (int i = 0; i < p.type.arrayLength; ++i) {
+      Val e;
+      e.type = p.type.element();
+      const uint32_t at = off + size * uint32_t(i);
+      if (p.type.kind == TypeKind::String)
+        e.c[0].v = b_.CreateLoad(ptr_, bytePtr(block, at));
+      else if (p.type.kind == TypeKind::Int)
+        e.c[0].v = b_.CreateLoad(i32_, bytePtr(block, at));
+      else
+        for (int k = 0; k < elementComponents(p.type); ++k)
+          e.c[k] = {b_.CreateLoad(f32_, bytePtr(block, at + 4 * k)), nullptr, nullptr};
+      storeElement(s, ci(i), e);
+    }
+  }
+  void storeParamArray(const VarDecl& p, Value* block, const Slot& s) {
+    const uint32_t off = paramOffsets_.at(&p);
+    const uint32_t size = p.type.kind == TypeKind::String ? 8 : 4 * uint32_t(elementComponents(p.type));
+    for (int i = 0; i < p.type.arrayLength; ++i) {
+      const Val e = loadElement(s, ci(i));
+      for (int k = 0; k < elementComponents(p.type); ++k)
+        b_.CreateStore(e.c[k].v, bytePtr(block, off + size * uint32_t(i) + 4 * k));
+    }
+  }
+
   Val loadParam(const VarDecl& p, Value* block) {
     const uint32_t off = paramOffsets_.at(&p);
     Val r;
@@ -398,7 +499,14 @@ class ShaderCodegen {
     textureErrors_ = nullptr;
     services_ = nullptr;
     randomInputs_ = randomOrdinal_ = nullptr;
+    indexClamped_ = nullptr;
     for (const auto& p : shader_.params) {
+      if (p->type.isArray()) {
+        const Slot& s = slotFor(p.get());
+        initArrayFrom(s, p->init.get());
+        storeParamArray(*p, block, s);
+        continue;
+      }
       Val v = p->init ? convert(gen(*p->init), p->type) : zeroOf(p->type);
       store(slotFor(p.get()), v);
       storeParam(*p, block, v);
@@ -427,6 +535,8 @@ class ShaderCodegen {
     textureErrors_ = entryAlloca(i32_, "textureerrors");
     randomInputs_ = entryAlloca(llvm::ArrayType::get(f32_, 5), "randominputs");
     randomOrdinal_ = entryAlloca(i32_, "randomordinal");
+    indexClamped_ = entryAlloca(i32_, "indexclamped");
+    b_.CreateStore(ci(0), indexClamped_);
     b_.CreateStore(ci(0), nonFinite_);
     b_.CreateStore(ci(0), loopLimitHits_);
     b_.CreateStore(ci(0), textureErrors_);
@@ -527,7 +637,12 @@ class ShaderCodegen {
       Value* facing = dot3(geo, ng).v;
       orientation_ = b_.CreateSelect(b_.CreateFCmpOLT(facing, cf(0)), cf(-1), cf(1));
     }
-    for (const auto& prm : shader_.params) store(slotFor(prm.get()), loadParam(*prm, params));
+    for (const auto& prm : shader_.params) {
+      if (prm->type.isArray())
+        loadParamArray(*prm, params, slotFor(prm.get()));
+      else
+        store(slotFor(prm.get()), loadParam(*prm, params));
+    }
     b_.CreateStore(ci(0), loopCounter_);
     {
       Value* in[5] = {pIn[0], pIn[1], pIn[2], load(slotFor(global(GlobalId::u))).c[0].v,
@@ -590,6 +705,7 @@ class ShaderCodegen {
     bump(offsetof(RlfStatus, nonFinite), nonFinite_);
     bump(offsetof(RlfStatus, loopLimit), loopLimitHits_);
     bump(offsetof(RlfStatus, textureErrors), textureErrors_);
+    bump(offsetof(RlfStatus, indexClamped), indexClamped_);
     b_.CreateRetVoid();
   }
 
@@ -612,7 +728,10 @@ class ShaderCodegen {
         for (const auto& d : s.decls) {
           const Slot& slot = slotFor(d.get());
           // Locals are zero-initialized (§4) and re-initialized each time the declaration runs.
-          store(slot, d->init ? convert(gen(*d->init), d->type) : zeroOf(d->type));
+          if (d->type.isArray())
+            initArrayFrom(slot, d->init.get());
+          else
+            store(slot, d->init ? convert(gen(*d->init), d->type) : zeroOf(d->type));
         }
         break;
       case StmtKind::ExprStmt: gen(*s.expr); break;
@@ -766,8 +885,10 @@ class ShaderCodegen {
       case ExprKind::Index: {
         Val base = gen(*e.operands[0]);
         Val index = gen(*e.operands[1]);
+        if (base.array) return loadElement(*base.array, clampIndex(index.c[0].v, base.array->type.arrayLength));
         return makeFloat(component(base, index.c[0].v));
       }
+      case ExprKind::InitList: return zeroOf(Type(TypeKind::Float));  // handled by initArray
       case ExprKind::Tuple: {
         Val x = toFloatScalar(gen(*e.operands[0]));
         Val y = toFloatScalar(gen(*e.operands[1]));
@@ -795,10 +916,17 @@ class ShaderCodegen {
       store(slotFor(target.decl), convert(value, target.decl->type));
       return;
     }
-    // v[i] = x
     const Expr& baseExpr = *target.operands[0];
-    const Slot& slot = slotFor(baseExpr.decl);
-    Val base = load(slot);
+    if (baseExpr.type.isArray()) {
+      // a[i] = x
+      const Val arr = gen(baseExpr);
+      const Val idx = gen(*target.operands[1]);
+      storeElement(*arr.array, clampIndex(idx.c[0].v, arr.array->type.arrayLength),
+                   convert(value, baseExpr.type.element()));
+      return;
+    }
+    // v[i] = x, where v is a variable or an array element (a[i][j] = x)
+    Val base = gen(baseExpr);
     Val idx = gen(*target.operands[1]);
     const Dual x = toFloatScalar(value).c[0];
     Value* index = idx.c[0].v;
@@ -808,7 +936,7 @@ class ShaderCodegen {
                             : b_.CreateICmpSGE(index, ci(2));
       base.c[k] = dselect(hit, x, base.c[k]);
     }
-    store(slot, base);
+    assignTo(baseExpr, base);
   }
 
   Val arith(Tok op, const Val& a0, const Val& b0) {
@@ -1194,6 +1322,9 @@ class ShaderCodegen {
       if (p->isOutput) {
         const Slot target = slotFor(e.operands[i]->decl);
         slots_[p] = target;
+      } else if (p->type.isArray()) {
+        // Non-output parameters are read-only, so an array argument can be shared, not copied.
+        slots_[p] = *values[i].array;
       } else {
         store(slotFor(p), values[i]);
       }
@@ -1485,6 +1616,7 @@ class ShaderCodegen {
       }
       case BuiltinShape::Rotate: return rotatePoint(args[0], toFloatScalar(args[1]).c[0], args[2], args[3]);
       case BuiltinShape::Random: return randomOf(rt);
+      case BuiltinShape::Arraylength: return makeInt(ci(args[0].array ? args[0].array->type.arrayLength : 0));
       case BuiltinShape::Component:
         return makeFloat(args[0].c[id == BuiltinId::Xcomp ? 0 : id == BuiltinId::Ycomp ? 1 : 2]);
       case BuiltinShape::Deriv: {
@@ -1650,6 +1782,7 @@ class ShaderCodegen {
   llvm::AllocaInst* textureErrors_ = nullptr;  // entry function only
   llvm::AllocaInst* randomInputs_ = nullptr;   // input P, u, v of the invocation (entry only)
   llvm::AllocaInst* randomOrdinal_ = nullptr;
+  llvm::AllocaInst* indexClamped_ = nullptr;  // entry only
   Value* services_ = nullptr;                  // batch->services (entry function only)
   Value* spaces_ = nullptr;
   Value* orientation_ = nullptr;

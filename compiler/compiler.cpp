@@ -2,6 +2,7 @@
 // Each stage runs only if no error was recorded before it.
 #include "compiler/compiler.h"
 
+#include <algorithm>
 #include <cstring>
 #include <sstream>
 
@@ -58,13 +59,16 @@ void compileBuffer(CompileResult& result, SourceManager::FileId file, const Comp
     reinterpret_cast<void (*)(void*)>(defaults)(block.data());
     const auto* bytes = reinterpret_cast<const unsigned char*>(block.data());
     for (runtime::ParamInfo& p : layout.params) {
+      const int elements = std::max(p.arrayLength, 1);
       if (p.type == runtime::ParamType::String) {
-        const char* s = nullptr;
-        std::memcpy(&s, bytes + p.offset, sizeof s);
-        p.defaultStrings.push_back(s ? s : "");
+        for (int i = 0; i < elements; ++i) {
+          const char* s = nullptr;
+          std::memcpy(&s, bytes + p.offset + 8 * size_t(i), sizeof s);
+          p.defaultStrings.push_back(s ? s : "");
+        }
         continue;
       }
-      const int n = runtime::paramComponents(p.type);
+      const int n = runtime::paramComponents(p.type) * elements;
       for (int k = 0; k < n; ++k) {
         if (p.type == runtime::ParamType::Int) {
           int32_t v;

@@ -353,13 +353,46 @@ bool Parser::parseDeclarators(std::vector<std::unique_ptr<VarDecl>>& out, Type t
     decl->isUniform = isUniform;
     decl->storage = storage;
     if (tok().is(Tok::LBracket)) {
-      diags_.report(DiagId::ErrUnsupported, tok().loc).arg("array").range(tok().range());
-      return false;
+      // "[" [int-const] "]": the length must be an integer literal (after macro expansion).
+      const Token open = consume();
+      if (accept(Tok::RBracket)) {
+        decl->type.arrayLength = -1;
+      } else if (tok().is(Tok::IntLiteral) && peek().is(Tok::RBracket)) {
+        const Token n = consume();
+        consume();
+        if (n.intValue <= 0) {
+          diags_.report(DiagId::ErrArrayLength, n.loc).range(n.range());
+          return false;
+        }
+        decl->type.arrayLength = n.intValue;
+      } else {
+        diags_.report(DiagId::ErrArrayLength, tok().loc).range(tok().range());
+        (void)open;
+        return false;
+      }
     }
     if (accept(Tok::Assign)) {
       if (tok().is(Tok::LBrace)) {
-        diags_.report(DiagId::ErrUnsupported, tok().loc).arg("array initializer");
-        return false;
+        // init := "{" expr { "," expr } "}"
+        const Token open = consume();
+        auto list = std::make_unique<Expr>(ExprKind::InitList, open.range());
+        if (!tok().is(Tok::RBrace)) {
+          for (;;) {
+            ExprPtr element = parseAssignment();
+            if (!element) return false;
+            list->operands.push_back(std::move(element));
+            if (!accept(Tok::Comma)) break;
+          }
+        }
+        if (!expectClosing(Tok::RBrace, open)) return false;
+        list->range.end = prev().end();
+        decl->init = std::move(list);
+        out.push_back(std::move(decl));
+        if (tok().is(Tok::Comma) && peek().is(Tok::Identifier)) {
+          consume();
+          continue;
+        }
+        return true;
       }
       decl->init = parseAssignment();
       if (!decl->init) {

@@ -236,6 +236,8 @@ class Checker {
       p->storage = Storage::Parameter;
       if (p->type.kind == TypeKind::Matrix) {
         report(DiagId::ErrUnsupported, p->nameRange.begin).arg("'matrix' parameter").range(p->nameRange);
+      } else if (p->type.arrayLength < 0) {
+        report(DiagId::ErrUnsizedArray, p->nameRange.begin).range(p->nameRange);
       } else if (!p->init) {
         report(DiagId::ErrMissingDefault, p->nameRange.begin).arg(p->name).range(p->nameRange);
       } else {
@@ -307,6 +309,27 @@ class Checker {
   }
 
   void checkInit(VarDecl& d) {
+    if (d.type.arrayLength < 0 && d.storage != Storage::Parameter)
+      report(DiagId::ErrUnsizedArray, d.nameRange.begin).range(d.nameRange);
+    if (d.init->kind == ExprKind::InitList) {
+      Expr& list = *d.init;
+      if (!d.type.isArray()) {
+        report(DiagId::ErrInitListNotArray, list.range.begin).range(list.range);
+        list.type = kError;
+        return;
+      }
+      const Type element = d.type.element();
+      for (size_t i = 0; i < list.operands.size(); ++i) {
+        Expr& x = *list.operands[i];
+        const Type t = checkExpr(x, element);
+        list.isVarying |= x.isVarying;
+        if (d.type.arrayLength > 0 && int(i) == d.type.arrayLength)
+          report(DiagId::ErrTooManyInitializers, x.range.begin).arg(d.type.arrayLength).range(x.range);
+        checkConversion(x, t, element, DiagId::ErrIncompatibleInit);
+      }
+      list.type = d.type;
+      return;
+    }
     const Type t = checkExpr(*d.init, d.type);
     checkConversion(*d.init, t, d.type, DiagId::ErrIncompatibleInit);
   }
@@ -341,6 +364,8 @@ class Checker {
           d->storage = Storage::Local;
           if (d->type.kind == TypeKind::Matrix)
             report(DiagId::ErrUnsupported, d->nameRange.begin).arg("'matrix' variable").range(d->nameRange);
+          if (d->type.arrayLength < 0 && !d->init)
+            report(DiagId::ErrUnsizedArray, d->nameRange.begin).range(d->nameRange);
           if (d->init) {
             checkInit(*d);
             if (d->isUniform && d->init->isVarying && !d->init->type.isError())
@@ -559,6 +584,18 @@ class Checker {
         const Type it = checkExpr(index, kError);
         e.isVarying = base.isVarying || index.isVarying;
         if (bt.isError() || it.isError()) return set(e, kError);
+        if (bt.isArray()) {
+          if (it.kind != TypeKind::Int) {
+            report(DiagId::ErrIndexNotInt, index.range.begin).arg(typeName(it)).range(index.range);
+            return set(e, kError);
+          }
+          if (index.kind == ExprKind::IntLiteral && bt.arrayLength > 0 &&
+              (index.intValue < 0 || index.intValue >= bt.arrayLength)) {
+            report(DiagId::ErrIndexRange, index.range.begin).arg(index.intValue).arg(typeName(bt)).range(index.range);
+            return set(e, kError);
+          }
+          return set(e, bt.element());
+        }
         if (!bt.isTriple()) {
           report(DiagId::ErrNotIndexable, e.opLoc).arg(typeName(bt)).range(base.range);
           return set(e, kError);
@@ -576,6 +613,10 @@ class Checker {
         }
         return set(e, kFloat);
       }
+      case ExprKind::InitList:
+        // Only valid as an array initializer, where checkInit handles it.
+        report(DiagId::ErrInitListNotArray, e.range.begin).range(e.range);
+        return set(e, kError);
       case ExprKind::Tuple: {
         bool ok = true;
         for (ExprPtr& c : e.operands) {
@@ -642,7 +683,7 @@ class Checker {
   // Checks that `target` may be written; marks P/N writes for the host contract.
   bool checkAssignable(Expr& target, SourceLoc opLoc, SourceRange opRange) {
     Expr* base = &target;
-    if (target.kind == ExprKind::Index) base = target.operands[0].get();
+    while (base->kind == ExprKind::Index) base = base->operands[0].get();
     if (base->kind != ExprKind::Identifier) {
       report(DiagId::ErrNotAssignable, opLoc).range(opRange).range(target.range);
       return false;
@@ -1095,7 +1136,7 @@ class Checker {
       return true;
     };
     if (!allNumeric() && b.shape != BuiltinShape::Displace && b.shape != BuiltinShape::Transform &&
-        b.shape != BuiltinShape::Filterstep)
+        b.shape != BuiltinShape::Filterstep && b.shape != BuiltinShape::Arraylength)
       return kError;
     switch (b.shape) {
       case BuiltinShape::UnaryT: {
@@ -1226,6 +1267,7 @@ class Checker {
       case BuiltinShape::Luminance: return n == 1 && args[0]->type.kind == TypeKind::Color ? kFloat : kError;
       case BuiltinShape::Hypot: return (n == 2 || n == 3) && allFit(args, kFloat) ? kFloat : kError;
       case BuiltinShape::Texture: return kError;  // checkTexture
+      case BuiltinShape::Arraylength: return n == 1 && args[0]->type.isArray() ? kInt : kError;
     }
     return kError;
   }

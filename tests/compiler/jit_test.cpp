@@ -470,6 +470,49 @@ displacement b1()
   for (int k = 0; k < 3; ++k) EXPECT_EQ(b.Pout[k][0], b.Pout[k][1]);
 }
 
+TEST(JitTest, ArraysLocalsParametersAndFunctionArguments) {
+  CompileResult r = compileSource("arr.disp", R"(
+float total(float a[]) { float sum = 0; for (int i = 0; i < arraylength(a); i++) sum += a[i]; return sum; }
+void twice(output float a[4]) { for (int i = 0; i < 4; i++) a[i] *= 2; }
+displacement arr(float k[4] = {1, 2, 3}; point corners[2] = {point(1, 2, 3), 4}; int idx = 5)
+{
+    float local[4] = k;
+    local[3] = 10;
+    twice(local);
+    vector vs[3];
+    vs[1] = vector(1, 2, 3);
+    vs[1][2] = 7;
+    float clamped = k[idx];
+    P = point(total(local), vs[1][2] + vs[0][0], clamped) + vector(corners[1]);
+    N = normal(local[0], arraylength(k), u * 0);
+})");
+  ASSERT_TRUE(r.success()) << renderDiagnostics(r);
+  auto shader = r.find("arr");
+  const runtime::ParamInfo* k = shader->findParam("k");
+  ASSERT_TRUE(k);
+  EXPECT_EQ(k->arrayLength, 4);
+  EXPECT_EQ(k->defaultNumbers, (std::vector<float>{1, 2, 3, 0}));
+  EXPECT_EQ(shader->findParam("corners")->defaultNumbers, (std::vector<float>{1, 2, 3, 4, 4, 4}));
+  runtime::ShaderInstance instance(shader);
+  TestBatch b(1);
+  fillSphere(b, 0, 0.3, 0.3);
+  RlfStatus status{};
+  RlfShadingBatch view = b.all();
+  instance.evaluate(view, status);
+  EXPECT_FLOAT_EQ(b.Pout[0][0], 2 + 4 + 6 + 20 + 4);
+  EXPECT_FLOAT_EQ(b.Pout[1][0], 7 + 4);
+  EXPECT_FLOAT_EQ(b.Pout[2][0], 0 + 4);  // k[5] clamps to k[3]
+  EXPECT_FLOAT_EQ(b.Nout[0][0], 2);
+  EXPECT_FLOAT_EQ(b.Nout[1][0], 4);
+  EXPECT_EQ(status.indexClamped, 1u);
+
+  // Scene values bind whole arrays.
+  std::string error;
+  ASSERT_TRUE(instance.bind({"k", runtime::ParamType::Float, {5, 6, 7, 8}, {}}, &error)) << error;
+  instance.evaluate(view, status);
+  EXPECT_FLOAT_EQ(b.Nout[0][0], 10);
+}
+
 TEST(JitTest, EveryExampleShaderCompilesAndEvaluatesFinite) {
   int numFiles = 0;
   for (const auto& entry : std::filesystem::directory_iterator(RELIEF_SOURCE_DIR "/examples/shaders")) {
