@@ -3,12 +3,17 @@
 // needs no locking. Used by render.* and tools/relief.
 #pragma once
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
 #include <glm/glm.hpp>
 
 namespace relief {
+
+// Largest image we accept (16 bytes a pixel: 2 GiB of film). Checked where resolutions come in
+// (Format, --resolution) so a typo fails with a message rather than an allocation failure.
+inline constexpr uint64_t kMaxPixels = uint64_t(1) << 27;
 
 class Film {
  public:

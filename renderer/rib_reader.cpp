@@ -17,6 +17,7 @@
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/type_ptr.hpp>
 
+#include "renderer/film.h"
 #include "renderer/tessellate.h"
 
 namespace relief {
@@ -648,6 +649,9 @@ bool RibParser::executeCamera(const Call& call, bool* handled) {
     if (!positionalNumbers(call, 3, &v, &next)) return false;
     if (v[0] < 1 || v[1] < 1 || v[0] > 65536 || v[1] > 65536)
       return fail(call.line, "'Format' resolution must be between 1 and 65536");
+    if (uint64_t(v[0]) * uint64_t(v[1]) > kMaxPixels)
+      return fail(call.line, "'Format' asks for more than " + std::to_string(kMaxPixels) +
+                                 " pixels");
     scene_.width = int(v[0]);
     scene_.height = int(v[1]);
     pixelAspect_ = v[2] > 0 ? v[2] : 1.0f;

@@ -110,6 +110,9 @@ int parseCommandLine(int argc, char** argv, CommandLine* cl) {
       if (x == std::string::npos || !parsePositive(v.substr(0, x), 65536, &w) ||
           !parsePositive(v.substr(x + 1), 65536, &h))
         return usageError("invalid resolution '" + v + "' (expected WxH, e.g. 640x480)");
+      if (uint64_t(w) * uint64_t(h) > relief::kMaxPixels)
+        return usageError("resolution '" + v + "' has more than " +
+                          std::to_string(relief::kMaxPixels) + " pixels");
       cl->width = int(w);
       cl->height = int(h);
     } else if (a == "--spp") {

@@ -367,6 +367,9 @@ TEST(RibReader, WrongArgumentTypesAreErrors) {
   r = read(world("Surface \"matte\" \"Kd\""));
   ASSERT_FALSE(r.scene);
   EXPECT_NE(r.error.message.find("has no value"), std::string::npos);
+  r = read("Format 65536 65536 1\n" + world(""));
+  ASSERT_FALSE(r.scene);
+  EXPECT_NE(r.error.message.find("pixels"), std::string::npos);
   r = read(world("Color 1 2"));
   ASSERT_FALSE(r.scene);
   EXPECT_EQ(r.error.message, "'Color' expects 3 numbers, got 2");
