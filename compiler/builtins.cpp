@@ -86,6 +86,7 @@ const RuntimeSymbol kSymbols[] = {
     {"rlf_noise4", reinterpret_cast<void*>(&rlf_noise4)},
     {"rlf_cellnoise", reinterpret_cast<void*>(&rlf_cellnoise)},
     {"rlf_random", reinterpret_cast<void*>(&rlf_random)},
+    {"rlf_pnoise", reinterpret_cast<void*>(&rlf_pnoise)},
     {"rlf_texture", reinterpret_cast<void*>(&rlf_texture)},
 };
 }  // namespace

@@ -48,6 +48,7 @@ enum class BuiltinShape : uint8_t {
   Rotate,      // point f(point q, float angle, point a, point b)
   Random,      // context-typed, no arguments
   Arraylength, // int f(T a[])
+  PNoise,      // context-typed: (u, pu), (u, v, pu, pv), (p, pp), (p, t, pp, pt)
 };
 
 enum class BuiltinId : uint8_t {

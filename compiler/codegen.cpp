@@ -1238,6 +1238,35 @@ class ShaderCodegen {
     return r;
   }
 
+  Dual pnoiseCall(const std::vector<Dual>& in, const std::vector<Value*>& periods, float offset) {
+    llvm::FunctionCallee fnc =
+        module_.getOrInsertFunction("rlf_pnoise", llvm::FunctionType::get(f32_, {ptr_, ptr_, i32_, ptr_}, false));
+    if (auto* fn = llvm::dyn_cast<llvm::Function>(fnc.getCallee())) {
+      fn->setDoesNotThrow();
+      fn->setWillReturn();
+      fn->setMemoryEffects(llvm::MemoryEffects::argMemOnly(llvm::ModRefInfo::ModRef));
+    }
+    auto* arr = llvm::ArrayType::get(f32_, 4);
+    if (!gradient_) gradient_ = entryAlloca(arr, "grad");
+    llvm::AllocaInst* p = entryAlloca(arr, "pnoise.p");
+    llvm::AllocaInst* per = entryAlloca(arr, "pnoise.period");
+    for (size_t i = 0; i < in.size(); ++i) {
+      // Channel offsets are whole periods apart only by accident; shift the domain, not the lattice.
+      Value* x = offset != 0 ? b_.CreateFAdd(in[i].v, cf(offset * float(i + 1))) : in[i].v;
+      b_.CreateStore(x, b_.CreateConstInBoundsGEP2_32(arr, p, 0, unsigned(i)));
+      b_.CreateStore(periods[i], b_.CreateConstInBoundsGEP2_32(arr, per, 0, unsigned(i)));
+    }
+    Dual r;
+    r.v = b_.CreateCall(fnc, {p, per, ci(int32_t(in.size())), gradient_});
+    for (size_t i = 0; i < in.size(); ++i) {
+      if (!in[i].du && !in[i].dv) continue;
+      Value* g = b_.CreateLoad(f32_, b_.CreateConstInBoundsGEP2_32(gradient_->getAllocatedType(), gradient_, 0, unsigned(i)));
+      r.du = lAdd(r.du, lMul(in[i].du, g));
+      r.dv = lAdd(r.dv, lMul(in[i].dv, g));
+    }
+    return r;
+  }
+
   Val noiseOf(const std::vector<Val>& args, Type result, bool isSigned) {
     std::vector<Dual> in;
     for (const Val& a : args) {
@@ -1616,6 +1645,30 @@ class ShaderCodegen {
       }
       case BuiltinShape::Rotate: return rotatePoint(args[0], toFloatScalar(args[1]).c[0], args[2], args[3]);
       case BuiltinShape::Random: return randomOf(rt);
+      case BuiltinShape::PNoise: {
+        // Split the arguments into the point (first half) and its periods (second half).
+        const size_t half = args.size() / 2;
+        std::vector<Dual> in;
+        std::vector<Value*> periods;
+        for (size_t i = 0; i < args.size(); ++i) {
+          const Val a = args[i].type.isTriple() ? args[i] : toFloatScalar(args[i]);
+          for (int k = 0; k < numComponents(a.type); ++k) {
+            if (i < half)
+              in.push_back(a.c[k]);
+            else
+              periods.push_back(a.c[k].v);
+          }
+        }
+        Val r;
+        r.type = rt;
+        static constexpr float kChannelOffsets[3] = {0.0f, 37.719f, -61.137f};
+        for (int k = 0; k < numComponents(rt); ++k) {
+          Dual n = pnoiseCall(in, periods, kChannelOffsets[k]);
+          if (id == BuiltinId::Psnoise) n = dsub(dmul(n, dconst(2)), dconst(1));
+          r.c[k] = n;
+        }
+        return r;
+      }
       case BuiltinShape::Arraylength: return makeInt(ci(args[0].array ? args[0].array->type.arrayLength : 0));
       case BuiltinShape::Component:
         return makeFloat(args[0].c[id == BuiltinId::Xcomp ? 0 : id == BuiltinId::Ycomp ? 1 : 2]);

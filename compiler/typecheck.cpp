@@ -82,7 +82,7 @@ bool hasContextCall(const Expr& e) {
     case ExprKind::Call: {
       const BuiltinInfo* b = findBuiltin(e.text);
       return b && (b->shape == BuiltinShape::Noise || b->shape == BuiltinShape::Texture ||
-                   b->shape == BuiltinShape::Random);
+                   b->shape == BuiltinShape::Random || b->shape == BuiltinShape::PNoise);
     }
     case ExprKind::Unary: return e.op == Tok::Minus && hasContextCall(*e.operands[0]);
     case ExprKind::Conditional:
@@ -1268,6 +1268,17 @@ class Checker {
       case BuiltinShape::Hypot: return (n == 2 || n == 3) && allFit(args, kFloat) ? kFloat : kError;
       case BuiltinShape::Texture: return kError;  // checkTexture
       case BuiltinShape::Arraylength: return n == 1 && args[0]->type.isArray() ? kInt : kError;
+      case BuiltinShape::PNoise: {
+        auto scalar = [&](size_t i) { return args[i]->type.isScalar(); };
+        auto spatial = [&](size_t i) { return args[i]->type.isSpatial(); };
+        const bool ok = (n == 2 && scalar(0) && scalar(1)) ||
+                        (n == 4 && scalar(0) && scalar(1) && scalar(2) && scalar(3)) ||
+                        (n == 2 && spatial(0) && spatial(1)) ||
+                        (n == 4 && spatial(0) && scalar(1) && spatial(2) && scalar(3));
+        if (!ok) return kError;
+        if (contextFloat_) return kFloat;
+        return expected.isTriple() || expected.kind == TypeKind::Float ? expected.element() : kFloat;
+      }
     }
     return kError;
   }

@@ -70,7 +70,7 @@ template <int D>
 constexpr float kScale = D == 1 ? 2.0f : D == 2 ? 1.41421356f : 1.0f;
 
 template <int D>
-float noise(const float* p, float* grad) {
+float noise(const float* p, float* grad, const int32_t* period = nullptr) {
   for (int i = 0; i < D; ++i) {
     if (!std::isfinite(p[i])) {
       for (int k = 0; k < D; ++k) grad[k] = 0;
@@ -93,6 +93,7 @@ float noise(const float* p, float* grad) {
     for (int i = 0; i < D; ++i) {
       const int c = (corner >> i) & 1;
       cell[i] = int32_t(uint32_t(base[i]) + uint32_t(c));
+      if (period) cell[i] = int32_t(((int64_t(cell[i]) % period[i]) + period[i]) % period[i]);
       d[i] = f[i] - float(c);
       w[i] = c ? s[i] : 1 - s[i];
       dw[i] = c ? ds[i] : -ds[i];
@@ -140,6 +141,21 @@ float rlf_noise3(float x, float y, float z, float* grad3) {
 float rlf_noise4(float x, float y, float z, float w, float* grad4) {
   const float p[4] = {x, y, z, w};
   return noise<4>(p, grad4);
+}
+
+float rlf_pnoise(const float* p, const float* periods, int dims, float* grad) {
+  int32_t period[4];
+  for (int i = 0; i < dims && i < 4; ++i) {
+    // Periods are rounded to integers >= 1 (language.md §6.5).
+    const float r = std::isfinite(periods[i]) ? std::round(periods[i]) : 1.0f;
+    period[i] = r < 1 ? 1 : r > 1e9f ? 1000000000 : int32_t(r);
+  }
+  switch (dims) {
+    case 1: return noise<1>(p, grad, period);
+    case 2: return noise<2>(p, grad, period);
+    case 3: return noise<3>(p, grad, period);
+    default: return noise<4>(p, grad, period);
+  }
 }
 
 float rlf_random(const float* inputs5, int ordinal, int channel) {

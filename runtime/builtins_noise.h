@@ -14,6 +14,8 @@ float rlf_noise4(float x, float y, float z, float w, float* grad4);
 // Constant per integer cell of the `dims` (1..4) coordinates in p, uncorrelated across cells and
 // channels, in [0, 1).
 float rlf_cellnoise(const float* p, int dims, int channel);
+// Periodic noise: like rlf_noiseN with the lattice wrapped every round(periods[i]) (>= 1) cells.
+float rlf_pnoise(const float* p, const float* periods, int dims, float* grad);
 // random(): a hash in [0, 1) of an invocation's inputs (P.xyz, u, v), the call's ordinal and channel.
 float rlf_random(const float* inputs5, int ordinal, int channel);
 

@@ -513,6 +513,32 @@ displacement arr(float k[4] = {1, 2, 3}; point corners[2] = {point(1, 2, 3), 4};
   EXPECT_FLOAT_EQ(b.Nout[0][0], 10);
 }
 
+TEST(JitTest, PeriodicNoiseRepeatsWithItsPeriod) {
+  auto shader = compileOne(R"(
+displacement pn()
+{
+    float a = pnoise(u * 8, 4);
+    float b = pnoise(u * 8 + 4, 4);
+    vector c = psnoise(P * 3, point(2, 2, 2));
+    vector d = psnoise((P + vector(2/3.0, 0, -2/3.0)) * 3, point(2, 2, 2));
+    P = point(a, b, length(c - d));
+    N = normal(Du(a), Du(b), length(c));
+})");
+  ASSERT_TRUE(shader);
+  runtime::ShaderInstance instance(shader);
+  TestBatch b(16);
+  for (size_t i = 0; i < 16; ++i) fillSphere(b, i, 0.06 * double(i) + 0.01, 0.37);
+  RlfStatus status{};
+  RlfShadingBatch view = b.all();
+  instance.evaluate(view, status);
+  for (size_t i = 0; i < 16; ++i) {
+    EXPECT_NEAR(b.Pout[0][i], b.Pout[1][i], 1e-5);
+    EXPECT_NEAR(b.Pout[2][i], 0, 1e-4);
+    EXPECT_NEAR(b.Nout[0][i], b.Nout[1][i], 1e-3);
+    EXPECT_GT(b.Nout[2][i], 0);  // not trivially zero
+  }
+}
+
 TEST(JitTest, EveryExampleShaderCompilesAndEvaluatesFinite) {
   int numFiles = 0;
   for (const auto& entry : std::filesystem::directory_iterator(RELIEF_SOURCE_DIR "/examples/shaders")) {
