@@ -49,6 +49,7 @@ enum class BuiltinShape : uint8_t {
   Random,      // context-typed, no arguments
   Arraylength, // int f(T a[])
   PNoise,      // context-typed: (u, pu), (u, v, pu, pv), (p, pp), (p, t, pp, pt)
+  Spline,      // T f([string basis,] float x, T k0, ..., kn) or f([basis,] x, T k[])
 };
 
 enum class BuiltinId : uint8_t {

@@ -1460,6 +1460,62 @@ class ShaderCodegen {
     return r;
   }
 
+  // spline (§6.6): every basis reads 4 knots from step·segment with a 4×4 basis matrix in
+  // row-vector form, value = [t³ t² t 1]·M·[k0 k1 k2 k3].
+  Val genSpline(const Expr& e, const std::vector<Val>& args) {
+    size_t first = 0;
+    std::string basis = "catmull-rom";
+    if (args[0].type.kind == TypeKind::String) {
+      basis = e.operands[0]->text;
+      first = 1;
+    }
+    const Type kt = e.type;
+    // Knots in an array slot (the argument's own, or a temporary for listed knots).
+    const Slot* knots = nullptr;
+    if (args.size() == first + 2 && args[first + 1].array) {
+      knots = args[first + 1].array;
+    } else {
+      temps_.push_back(std::make_unique<VarDecl>());
+      temps_.back()->name = "spline.knots";
+      temps_.back()->type = Type(kt.kind, int(args.size() - first - 1));
+      knots = &slotFor(temps_.back().get());
+      for (size_t i = first + 1; i < args.size(); ++i) storeElement(*knots, ci(int32_t(i - first - 1)), convert(args[i], kt));
+    }
+    const int n = knots->type.arrayLength;
+    static constexpr float kCatmull[16] = {-0.5f, 1.5f, -1.5f, 0.5f, 1, -2.5f, 2, -0.5f, -0.5f, 0, 0.5f, 0, 0, 1, 0, 0};
+    static constexpr float kBspline[16] = {-1 / 6.f, 0.5f, -0.5f, 1 / 6.f, 0.5f, -1, 0.5f, 0, -0.5f, 0, 0.5f, 0, 1 / 6.f, 4 / 6.f, 1 / 6.f, 0};
+    static constexpr float kBezier[16] = {-1, 3, -3, 1, 3, -6, 3, 0, -3, 3, 0, 0, 1, 0, 0, 0};
+    static constexpr float kHermite[16] = {2, 1, -2, 1, -3, -2, 3, -1, 0, 1, 0, 0, 1, 0, 0, 0};
+    static constexpr float kLinear[16] = {0, 0, 0, 0, 0, 0, 0, 0, 0, -1, 1, 0, 0, 1, 0, 0};
+    static constexpr float kConstant[16] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0, 0};
+    const float* m = basis == "bspline"  ? kBspline
+                     : basis == "bezier" ? kBezier
+                     : basis == "hermite" ? kHermite
+                     : basis == "linear"  ? kLinear
+                     : basis == "constant" ? kConstant
+                                           : kCatmull;
+    const int step = basis == "bezier" ? 3 : basis == "hermite" ? 2 : 1;
+    const int spans = (n - 4) / step + 1;
+    const Dual x = dclamp01(toFloatScalar(args[first]).c[0]);
+    const Dual xs = dmul(x, dconst(float(spans)));
+    Value* segF = intrinsic(llvm::Intrinsic::floor, {xs.v});
+    segF = b_.CreateSelect(b_.CreateFCmpOGT(segF, cf(float(spans - 1))), cf(float(spans - 1)), segF);
+    const Dual t = dsub(xs, {segF, nullptr, nullptr});
+    Value* base = b_.CreateMul(b_.CreateFPToSI(segF, i32_), ci(step));
+    const Dual t2 = dmul(t, t);
+    const Dual powers[4] = {dmul(t2, t), t2, t, dconst(1)};
+    // Weight of knot j: Σ_i t^(3-i) · M[i][j].
+    Val r = zeroOf(kt);
+    for (int j = 0; j < 4; ++j) {
+      Dual w = dconst(0);
+      for (int i = 0; i < 4; ++i)
+        if (m[i * 4 + j] != 0) w = dadd(w, dmul(powers[i], dconst(m[i * 4 + j])));
+      const Val k = convert(loadElement(*knots, b_.CreateAdd(base, ci(j))), kt);
+      for (int c = 0; c < numComponents(kt); ++c) r.c[c] = dadd(r.c[c], dmul(w, k.c[c]));
+    }
+    return r;
+  }
+
   // Distance from q to the segment ab.
   Dual pointLineDistance(const Val& a, const Val& b, const Val& q) {
     const Val ab = map2(Type(TypeKind::Vector), b, a, [&](Dual x, Dual y) { return dsub(x, y); });
@@ -1669,6 +1725,7 @@ class ShaderCodegen {
         }
         return r;
       }
+      case BuiltinShape::Spline: return genSpline(e, args);
       case BuiltinShape::Arraylength: return makeInt(ci(args[0].array ? args[0].array->type.arrayLength : 0));
       case BuiltinShape::Component:
         return makeFloat(args[0].c[id == BuiltinId::Xcomp ? 0 : id == BuiltinId::Ycomp ? 1 : 2]);

@@ -1011,6 +1011,7 @@ class Checker {
     }
     if (!ok) return set(e, kError);
     if (b->shape == BuiltinShape::Texture) return checkTexture(e, expected);
+    if (b->shape == BuiltinShape::Spline) return checkSpline(e);
     const Type r = callResult(*b, args, expected);
     if (r.isError()) {
       report(DiagId::ErrNoMatchingCall, e.range.begin).arg(e.text).arg(typeList(args)).range(e.opRange);
@@ -1046,6 +1047,58 @@ class Checker {
       }
     }
     return set(e, r);
+  }
+
+  // spline([basis,] x, knots...) (§6.6): T binds to the knots; a literal basis checks the count.
+  Type checkSpline(Expr& e) {
+    std::vector<ExprPtr>& args = e.operands;
+    size_t first = 0;
+    std::string basis = "catmull-rom";
+    auto noMatch = [&] {
+      report(DiagId::ErrNoMatchingCall, e.range.begin).arg(e.text).arg(typeList(args)).range(e.opRange);
+      return set(e, kError);
+    };
+    if (!args.empty() && args[0]->type.kind == TypeKind::String) {
+      if (args[0]->kind != ExprKind::StringLiteral) {
+        report(DiagId::ErrUnsupported, args[0]->range.begin).arg("a non-literal spline basis").range(args[0]->range);
+        return set(e, kError);
+      }
+      basis = args[0]->text;
+      first = 1;
+    }
+    static const std::set<std::string> kBases = {"catmull-rom", "bspline", "linear", "constant", "bezier", "hermite"};
+    if (!kBases.count(basis)) {
+      report(DiagId::ErrSplineBasis, args[0]->range.begin).arg(basis).range(args[0]->range);
+      return set(e, kError);
+    }
+    if (args.size() < first + 2 || !args[first]->type.isScalar()) return noMatch();
+    Type knotType;
+    int count = 0;
+    if (args.size() == first + 2 && args[first + 1]->type.isArray()) {
+      knotType = args[first + 1]->type.element();
+      count = args[first + 1]->type.arrayLength;
+      if (!(knotType.isScalar() || knotType.isTriple())) return noMatch();
+      if (knotType.kind == TypeKind::Int) knotType = kFloat;
+    } else {
+      knotType = kFloat;
+      for (size_t i = first + 1; i < args.size(); ++i)
+        if (args[i]->type.isTriple()) {
+          knotType = args[i]->type;
+          break;
+        }
+      for (size_t i = first + 1; i < args.size(); ++i)
+        if (args[i]->type.isArray() || conversion(args[i]->type, knotType) == Conversion::None) return noMatch();
+      count = int(args.size() - first - 1);
+    }
+    const bool ok = basis == "bezier" ? count >= 4 && (count - 1) % 3 == 0
+                    : basis == "hermite" ? count >= 4 && count % 2 == 0
+                                         : count >= 4;
+    if (!ok) {
+      report(DiagId::ErrSplineKnots, e.range.begin).arg(basis).arg(count).range(e.opRange);
+      return set(e, kError);
+    }
+    e.isVarying = true;
+    return set(e, knotType);
   }
 
   // texture(string file[, float s, float t][, "option", value ...]) (§6.7), context-typed.
@@ -1266,7 +1319,8 @@ class Checker {
         return kVector;
       case BuiltinShape::Luminance: return n == 1 && args[0]->type.kind == TypeKind::Color ? kFloat : kError;
       case BuiltinShape::Hypot: return (n == 2 || n == 3) && allFit(args, kFloat) ? kFloat : kError;
-      case BuiltinShape::Texture: return kError;  // checkTexture
+      case BuiltinShape::Texture:  // checkTexture
+      case BuiltinShape::Spline: return kError;  // checkSpline
       case BuiltinShape::Arraylength: return n == 1 && args[0]->type.isArray() ? kInt : kError;
       case BuiltinShape::PNoise: {
         auto scalar = [&](size_t i) { return args[i]->type.isScalar(); };

@@ -539,6 +539,36 @@ displacement pn()
   }
 }
 
+TEST(JitTest, SplinesInterpolateKnotsWithDerivatives) {
+  auto shader = compileOne(R"(
+displacement sp()
+{
+    float k[5] = {0, 0, 1, 2, 2};
+    float a = spline(u, 0, 0, 1, 2, 2);
+    float b = spline("linear", u, 9, 0, 10, 20, 9);
+    float c = spline(u, k);
+    color d = spline("bezier", u, color(0), color(1), color(2), color(3));
+    P = point(a, b, c);
+    N = normal(d) + normal(Du(a), 0, 0);
+})");
+  ASSERT_TRUE(shader);
+  runtime::ShaderInstance instance(shader);
+  TestBatch b(2);
+  fillSphere(b, 0, 0.25, 0.5);
+  fillSphere(b, 1, 0.5, 0.5);
+  RlfStatus status{};
+  RlfShadingBatch view = b.all();
+  instance.evaluate(view, status);
+  // Catmull-Rom over (0, 0, 1, 2) at t = 0.5, and its derivative 1.125 per t (2 spans per u).
+  EXPECT_FLOAT_EQ(b.Pout[0][0], 0.4375f);
+  EXPECT_FLOAT_EQ(b.Pout[2][0], 0.4375f);
+  EXPECT_FLOAT_EQ(b.Pout[1][0], 5);
+  EXPECT_FLOAT_EQ(b.Nout[1][0], 0.75f);
+  EXPECT_FLOAT_EQ(b.Nout[0][0], 0.75f + 2.25f);
+  EXPECT_FLOAT_EQ(b.Pout[0][1], 1);
+  EXPECT_FLOAT_EQ(b.Pout[1][1], 10);
+}
+
 TEST(JitTest, EveryExampleShaderCompilesAndEvaluatesFinite) {
   int numFiles = 0;
   for (const auto& entry : std::filesystem::directory_iterator(RELIEF_SOURCE_DIR "/examples/shaders")) {
