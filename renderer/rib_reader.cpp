@@ -9,6 +9,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <ostream>
 #include <set>
@@ -541,6 +542,7 @@ class RibParser {
   bool doDisplacement(const Call& call);
   bool doLight(const Call& call);
   bool doSphere(const Call& call);
+  bool doQuadric(const Call& call);
   bool doPolygons(const Call& call, std::vector<int> nverts, std::vector<int> verts, size_t first);
   bool doPatch(const Call& call);
   bool doReadArchive(const Call& call);
@@ -1008,6 +1010,10 @@ bool RibParser::doDisplacement(const Call& call) {
 bool RibParser::executeGeometry(const Call& call, bool* handled) {
   *handled = true;
   const std::string& n = call.name;
+  if (n == "Cylinder" || n == "Cone" || n == "Disk" || n == "Torus") {
+    if (!requireWorld(call)) return false;
+    return doQuadric(call);
+  }
   if (n == "Sphere") {
     if (!requireWorld(call)) return false;
     return doSphere(call);
@@ -1065,6 +1071,104 @@ bool RibParser::doSphere(const Call& call) {
   const int nv =
       std::clamp(int(std::ceil(arcV / target)), std::max(2, int(float(minV) * vFraction)), 512);
   Mesh mesh = tessellateSphere(radius, zmin, zmax, thetamax, nu, nv, attr_.ctm);
+  return addMesh(std::move(mesh), call.line);
+}
+
+// Cylinder, Cone, Disk and Torus by their RI-spec parametric definitions: a grid in (u, v) with
+// u = theta / thetamax, N = dPdu x dPdv (outward for positive sweeps, as the sphere's), seam
+// vertices duplicated so each vertex has one (u, v). Curved directions get the sphere's angular
+// resolution; straight ones are cut to the subdivision target length.
+bool RibParser::doQuadric(const Call& call) {
+  const std::string& n = call.name;
+  const size_t count = n == "Torus" ? 5 : n == "Cylinder" ? 4 : 3;
+  std::vector<float> v;
+  size_t next = 0;
+  if (!positionalNumbers(call, count, &v, &next)) return false;
+  std::vector<Param> params;
+  if (!parseParams(call, next, &params)) return false;
+  warnUnusedParams(call, params, {});
+  const float thetamax = glm::radians(std::clamp(v[count - 1], -360.0f, 360.0f));
+  if (thetamax == 0.0f) {
+    warn(call.line, "degenerate '" + n + "' skipped");
+    return true;
+  }
+  std::function<glm::vec3(float, float)> position;
+  bool curvedV = false;
+  float lengthV = 0.0f;  // object-space length of a v line, for straight v directions
+  float radiusU = 0.0f;  // largest object-space radius swept by u
+  if (n == "Cylinder") {
+    const float r = v[0], z0 = v[1], z1 = v[2];
+    position = [=](float u, float t) {
+      return glm::vec3(r * std::cos(u * thetamax), r * std::sin(u * thetamax), z0 + t * (z1 - z0));
+    };
+    lengthV = std::fabs(z1 - z0);
+    radiusU = std::fabs(r);
+  } else if (n == "Cone" || n == "Disk") {
+    const bool cone = n == "Cone";
+    const float h = v[0], r = v[1];
+    position = [=](float u, float t) {
+      const float rr = r * (1.0f - t);
+      return glm::vec3(rr * std::cos(u * thetamax), rr * std::sin(u * thetamax), cone ? t * h : h);
+    };
+    lengthV = cone ? std::sqrt(h * h + r * r) : std::fabs(r);
+    radiusU = std::fabs(r);
+  } else {
+    const float major = v[0], minor = v[1];
+    const float phi0 = glm::radians(v[2]), phi1 = glm::radians(v[3]);
+    position = [=](float u, float t) {
+      const float phi = phi0 + t * (phi1 - phi0);
+      const float rr = major + minor * std::cos(phi);
+      return glm::vec3(rr * std::cos(u * thetamax), rr * std::sin(u * thetamax),
+                       minor * std::sin(phi));
+    };
+    curvedV = true;
+    lengthV = std::fabs(minor * (phi1 - phi0));
+    radiusU = std::fabs(major) + std::fabs(minor);
+    if (phi0 == phi1) {
+      warn(call.line, "degenerate 'Torus' skipped");
+      return true;
+    }
+  }
+  if (radiusU == 0.0f || (n != "Disk" && lengthV == 0.0f)) {
+    warn(call.line, "degenerate '" + n + "' skipped");
+    return true;
+  }
+  const float scale = maxScale(attr_.ctm);
+  const bool displaced = attr_.displacement != nullptr;
+  const float target = (displaced ? 16.0f : 4.0f) * attr_.edgeLength;
+  const float sweep = std::fabs(thetamax) / (2.0f * float(M_PI));
+  const int nu = std::clamp(int(std::ceil(std::fabs(thetamax) * radiusU * scale / target)),
+                            std::max(4, int(256.0f * sweep)), 1024);
+  const int minV = curvedV ? std::max(2, int(256.0f * std::fabs(glm::radians(v[3] - v[2])) /
+                                             (2.0f * float(M_PI))))
+                           : 1;
+  const int nv = std::clamp(int(std::ceil(lengthV * scale / target)), minV, 512);
+
+  // Normals from central differences of the exact surface, nudged off the rim/apex where
+  // dPdu vanishes (cone tip, disk centre).
+  auto normalAt = [&](float u, float t) {
+    const float e = 1e-3f;
+    const float tc = std::clamp(t, e, 1.0f - e);
+    const glm::vec3 dPdu = position(u + e, tc) - position(u - e, tc);
+    const glm::vec3 dPdv = position(u, tc + e) - position(u, tc - e);
+    return glm::cross(dPdu, dPdv);
+  };
+  const glm::mat3 normalFromObject = glm::transpose(glm::inverse(glm::mat3(attr_.ctm)));
+  Mesh mesh;
+  for (int j = 0; j <= nv; ++j)
+    for (int i = 0; i <= nu; ++i) {
+      const float u = float(i) / float(nu), t = float(j) / float(nv);
+      mesh.P.push_back(glm::vec3(attr_.ctm * glm::vec4(position(u, t), 1.0f)));
+      glm::vec3 normal = normalFromObject * normalAt(u, t);
+      const float len = glm::length(normal);
+      mesh.N.push_back(len > 0.0f ? normal / len : glm::vec3(0, 0, 1));
+      mesh.uv.emplace_back(u, t);
+    }
+  for (int j = 0; j < nv; ++j)
+    for (int i = 0; i < nu; ++i) {
+      const uint32_t a = uint32_t(j * (nu + 1) + i), b = a + 1, c = a + uint32_t(nu + 1), d = c + 1;
+      mesh.indices.insert(mesh.indices.end(), {a, b, d, a, d, c});
+    }
   return addMesh(std::move(mesh), call.line);
 }
 

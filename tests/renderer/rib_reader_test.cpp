@@ -414,12 +414,12 @@ TEST(RibReader, MismatchedBlocksAreErrors) {
 
 TEST(RibReader, UnknownRequestsWarnOnceAndAreSkipped) {
   ReadResult r = read("ShadingRate 1\nShadingRate 2\nversion 3.04\n" +
-                      world("Cone 1 1 360\nPolygon \"P\" [0 0 0  1 0 0  0 1 0]"));
+                      world("Paraboloid 1 0 1 360\nPolygon \"P\" [0 0 0  1 0 0  0 1 0]"));
   ASSERT_TRUE(r.scene) << r.error.format();
   EXPECT_EQ(r.scene->meshes.size(), 1u);
   EXPECT_EQ(r.warnings,
             "/scenes/test.rib:1: warning: unsupported request 'ShadingRate' ignored\n"
-            "/scenes/test.rib:5: warning: unsupported request 'Cone' ignored\n");
+            "/scenes/test.rib:5: warning: unsupported request 'Paraboloid' ignored\n");
 }
 
 TEST(RibReader, DisplayNamesTheOutputs) {
@@ -465,6 +465,41 @@ TEST(RibReader, BilinearPatch) {
   for (size_t i = 0; i < warped.P.size(); ++i)  // the bilinear surface z = u v
     EXPECT_NEAR(warped.P[i].z, warped.uv[i].x * warped.uv[i].y, 1e-5f);
   EXPECT_NE(r.warnings.find("'Patch \"bicubic\"' is not supported"), std::string::npos);
+}
+
+TEST(RibReader, QuadricsFollowTheirParametricDefinitions) {
+  ReadResult r = read(world("Cylinder 2 -1 3 360\nCone 2 1 180\nDisk 0.5 3 360\n"
+                            "Torus 3 1 0 360 360\nCylinder 0 0 1 360"));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  ASSERT_EQ(r.scene->meshes.size(), 4u);  // the zero-radius cylinder is skipped
+  EXPECT_NE(r.warnings.find("degenerate 'Cylinder' skipped"), std::string::npos);
+  const Mesh& cylinder = r.scene->meshes[0];
+  for (size_t i = 0; i < cylinder.P.size(); ++i) {
+    const glm::vec3 p = cylinder.P[i];
+    EXPECT_NEAR(std::hypot(p.x, p.y), 2.0f, 1e-4f);
+    EXPECT_NEAR(p.z, -1.0f + 4.0f * cylinder.uv[i].y, 1e-4f);
+    EXPECT_GT(glm::dot(cylinder.N[i], glm::vec3(p.x, p.y, 0)), 0.0f);  // outward
+  }
+  const Mesh& cone = r.scene->meshes[1];
+  for (size_t i = 0; i < cone.P.size(); ++i) {
+    const glm::vec3 p = cone.P[i];
+    EXPECT_NEAR(std::hypot(p.x, p.y), 1.0f - p.z / 2.0f, 1e-4f);
+    EXPECT_GE(p.y, -1e-4f);  // a half cone: theta in [0, 180]
+  }
+  const Mesh& disk = r.scene->meshes[2];
+  for (size_t i = 0; i < disk.P.size(); ++i) {
+    EXPECT_NEAR(disk.P[i].z, 0.5f, 1e-6f);
+    EXPECT_LE(std::hypot(disk.P[i].x, disk.P[i].y), 3.0f + 1e-4f);
+    EXPECT_NEAR(std::fabs(disk.N[i].z), 1.0f, 1e-4f);
+  }
+  const Mesh& torus = r.scene->meshes[3];
+  for (size_t i = 0; i < torus.P.size(); ++i) {
+    const glm::vec3 p = torus.P[i];
+    const float ring = std::hypot(p.x, p.y) - 3.0f;
+    EXPECT_NEAR(ring * ring + p.z * p.z, 1.0f, 1e-3f);
+    const glm::vec3 centre = glm::vec3(p.x, p.y, 0) * (3.0f / std::hypot(p.x, p.y));
+    EXPECT_GT(glm::dot(torus.N[i], p - centre), 0.0f);  // away from the tube's core
+  }
 }
 
 TEST(RibReader, NamedCoordinateSystems) {
