@@ -6,6 +6,7 @@
 #include <unordered_map>
 
 #include "runtime/builtins_noise.h"
+#include "runtime/builtins_print.h"
 #include "runtime/builtins_texture.h"
 
 namespace relief::compiler {
@@ -88,6 +89,7 @@ const RuntimeSymbol kSymbols[] = {
     {"rlf_random", reinterpret_cast<void*>(&rlf_random)},
     {"rlf_pnoise", reinterpret_cast<void*>(&rlf_pnoise)},
     {"rlf_texture", reinterpret_cast<void*>(&rlf_texture)},
+    {"rlf_printf", reinterpret_cast<void*>(&rlf_printf)},
 };
 }  // namespace
 

@@ -50,6 +50,7 @@ enum class BuiltinShape : uint8_t {
   Arraylength, // int f(T a[])
   PNoise,      // context-typed: (u, pu), (u, v, pu, pv), (p, pp), (p, t, pp, pt)
   Spline,      // T f([string basis,] float x, T k0, ..., kn) or f([basis,] x, T k[])
+  Printf,      // void f(string format, ...)
 };
 
 enum class BuiltinId : uint8_t {

@@ -1726,6 +1726,41 @@ class ShaderCodegen {
         return r;
       }
       case BuiltinShape::Spline: return genSpline(e, args);
+      case BuiltinShape::Printf: {
+        // Arguments travel in three typed arrays plus a kind per argument (builtins_print.h).
+        std::vector<Value*> floats, ints, strings, kinds;
+        for (size_t i = 1; i < args.size(); ++i) {
+          const Val& a = args[i];
+          if (a.type.kind == TypeKind::Int) {
+            ints.push_back(a.c[0].v);
+            kinds.push_back(ci(0));
+          } else if (a.type.kind == TypeKind::String) {
+            strings.push_back(a.c[0].v);
+            kinds.push_back(ci(3));
+          } else {
+            for (int k = 0; k < numComponents(a.type); ++k) floats.push_back(a.c[k].v);
+            kinds.push_back(ci(a.type.isTriple() ? 2 : 1));
+          }
+        }
+        auto array = [&](llvm::Type* t, const std::vector<Value*>& values, const char* name) -> Value* {
+          llvm::AllocaInst* a = entryAlloca(llvm::ArrayType::get(t, std::max<size_t>(values.size(), 1)), name);
+          for (size_t i = 0; i < values.size(); ++i)
+            b_.CreateStore(values[i], b_.CreateConstInBoundsGEP2_32(a->getAllocatedType(), a, 0, unsigned(i)));
+          return a;
+        };
+        Value* kindArr = array(i32_, kinds, "printf.kinds");
+        Value* floatArr = array(f32_, floats, "printf.floats");
+        Value* intArr = array(i32_, ints, "printf.ints");
+        Value* strArr = array(ptr_, strings, "printf.strings");
+        llvm::FunctionCallee fnc = module_.getOrInsertFunction(
+            "rlf_printf", llvm::FunctionType::get(llvm::Type::getVoidTy(ctx_), {ptr_, ptr_, ptr_, i32_, ptr_, ptr_, ptr_}, false));
+        if (auto* fn = llvm::dyn_cast<llvm::Function>(fnc.getCallee())) fn->setDoesNotThrow();
+        Value* services = services_ ? services_ : llvm::ConstantPointerNull::get(ptr_);
+        b_.CreateCall(fnc, {services, args[0].c[0].v, kindArr, ci(int32_t(kinds.size())), floatArr, intArr, strArr});
+        Val r;
+        r.type = Type(TypeKind::Void);
+        return r;
+      }
       case BuiltinShape::Arraylength: return makeInt(ci(args[0].array ? args[0].array->type.arrayLength : 0));
       case BuiltinShape::Component:
         return makeFloat(args[0].c[id == BuiltinId::Xcomp ? 0 : id == BuiltinId::Ycomp ? 1 : 2]);

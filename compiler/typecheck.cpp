@@ -273,6 +273,7 @@ class Checker {
           case BuiltinShape::Area:
           case BuiltinShape::Texture:
           case BuiltinShape::Random:
+          case BuiltinShape::Printf:
           case BuiltinShape::DerivRatio:
           case BuiltinShape::Setcomp:
           case BuiltinShape::SetXyz:
@@ -1189,7 +1190,8 @@ class Checker {
       return true;
     };
     if (!allNumeric() && b.shape != BuiltinShape::Displace && b.shape != BuiltinShape::Transform &&
-        b.shape != BuiltinShape::Filterstep && b.shape != BuiltinShape::Arraylength)
+        b.shape != BuiltinShape::Filterstep && b.shape != BuiltinShape::Arraylength &&
+        b.shape != BuiltinShape::Printf)
       return kError;
     switch (b.shape) {
       case BuiltinShape::UnaryT: {
@@ -1321,6 +1323,12 @@ class Checker {
       case BuiltinShape::Hypot: return (n == 2 || n == 3) && allFit(args, kFloat) ? kFloat : kError;
       case BuiltinShape::Texture:  // checkTexture
       case BuiltinShape::Spline: return kError;  // checkSpline
+      case BuiltinShape::Printf: {
+        if (n < 1 || args[0]->type.kind != TypeKind::String) return kError;
+        for (const ExprPtr& a : args)
+          if (a->type.isArray() || a->type.kind == TypeKind::Matrix) return kError;
+        return kVoid;
+      }
       case BuiltinShape::Arraylength: return n == 1 && args[0]->type.isArray() ? kInt : kError;
       case BuiltinShape::PNoise: {
         auto scalar = [&](size_t i) { return args[i]->type.isScalar(); };

@@ -172,6 +172,10 @@ int evaluate(const Args& args, const CompileResult& result) {
   batch.dtdu = &zero;
   batch.dtdv = &one;
   batch.spaces = &spaces;
+  // printf() output goes to stdout.
+  RlfHostServices services{};
+  services.print = [](void*, const char* text) { std::fputs(text, stdout); };
+  batch.services = &services;
   RlfStatus status{};
   instance.evaluate(batch, status);
   std::printf("P = (%.9g, %.9g, %.9g)\nN = (%.9g, %.9g, %.9g)\n", Pout[0], Pout[1], Pout[2], Nout[0], Nout[1],

@@ -569,6 +569,33 @@ displacement sp()
   EXPECT_FLOAT_EQ(b.Pout[1][1], 10);
 }
 
+TEST(JitTest, PrintfFormatsThroughHostServices) {
+  auto shader = compileOne(R"(
+displacement pf(string name = "bumps"; int n = 3)
+{
+    printf("%s: n=%d u=%.2f P=%g [%5.1f%%]\n", name, n, u, P, 12.345);
+    P += 0.01 * N;
+})");
+  ASSERT_TRUE(shader);
+  runtime::ShaderInstance instance(shader);
+  TestBatch b(2);
+  fillSphere(b, 0, 0.5, 0.0);
+  fillSphere(b, 1, 0.25, 0.0);
+  std::string printed;
+  RlfHostServices services{};
+  services.context = &printed;
+  services.print = [](void* context, const char* text) { *static_cast<std::string*>(context) += text; };
+  RlfShadingBatch view = b.all();
+  view.services = &services;
+  RlfStatus status{};
+  instance.evaluate(view, status);
+  EXPECT_EQ(printed, "bumps: n=3 u=0.50 P=0 0 1 [ 12.3%]\nbumps: n=3 u=0.25 P=0 0 1 [ 12.3%]\n");
+  // Without services the message is dropped and results are unaffected.
+  view.services = nullptr;
+  instance.evaluate(view, status);
+  EXPECT_FLOAT_EQ(b.Pout[2][0], 1.01f);
+}
+
 TEST(JitTest, EveryExampleShaderCompilesAndEvaluatesFinite) {
   int numFiles = 0;
   for (const auto& entry : std::filesystem::directory_iterator(RELIEF_SOURCE_DIR "/examples/shaders")) {

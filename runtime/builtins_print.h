@@ -1,0 +1,23 @@
+// printf() for JIT-compiled shaders (language.md §6.8): formats on the host side and hands the text
+// to RlfHostServices::print (dropped without one). extern "C", noexcept; registered by
+// compiler/builtins.cpp.
+#pragma once
+
+#include <stdint.h>
+
+#include "runtime/abi.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+// Kinds of the arguments after the format, one per argument.
+enum { kRlfPrintInt = 0, kRlfPrintFloat = 1, kRlfPrintTriple = 2, kRlfPrintString = 3 };
+
+// `floats` holds the float and triple components in order, `ints` the ints, `strings` the strings.
+void rlf_printf(const RlfHostServices* services, const char* format, const int32_t* kinds, int32_t count,
+                const float* floats, const int32_t* ints, const char* const* strings);
+
+#ifdef __cplusplus
+}
+#endif
