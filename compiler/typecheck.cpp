@@ -115,8 +115,41 @@ bool isKnownSpace(const std::string& s) {
          s == "camera";
 }
 
+class Checker;
+
+// -Wuninitialized (§8): a local without initializer read on some path before any assignment.
+// Definite-assignment analysis over the checked AST; loop bodies may not run, `return`/`break`/
+// `continue` end a path, and an `output` argument counts as an assignment. Arrays are exempt.
+class UninitializedAnalysis {
+ public:
+  explicit UninitializedAnalysis(Checker& checker) : checker_(checker) {}
+  void stmt(const Stmt& s);
+
+ private:
+  struct State {
+    std::set<const VarDecl*> assigned;
+    bool dead = false;  // the path ended: it constrains nothing at a join
+  };
+  static State join(const State& a, const State& b) {
+    if (a.dead) return b;
+    if (b.dead) return a;
+    State r;
+    for (const VarDecl* d : a.assigned)
+      if (b.assigned.count(d)) r.assigned.insert(d);
+    return r;
+  }
+  void expr(const Expr& e);
+  void assignTarget(const Expr& target);
+
+  Checker& checker_;
+  State state_;
+  std::set<const VarDecl*> tracked_;  // locals declared without initializer
+  std::set<const VarDecl*> warned_;
+};
+
 class Checker {
  public:
+  friend class UninitializedAnalysis;
   Checker(TranslationUnit& unit, DiagnosticsEngine& diags) : unit_(unit), diags_(diags) {}
 
   void run() {
@@ -250,7 +283,10 @@ class Checker {
       declare(*p);
     }
     loopDepth_ = 0;
-    if (shader.body) checkBlockContents(*shader.body);
+    if (shader.body) {
+      checkBlockContents(*shader.body);
+      if (!diags_.hasErrors()) UninitializedAnalysis(*this).stmt(*shader.body);
+    }
     popScope();
     shader_ = nullptr;
   }
@@ -868,6 +904,7 @@ class Checker {
     }
     if (f.body) {
       checkBlockContents(*f.body);
+      if (!diags_.hasErrors()) UninitializedAnalysis(*this).stmt(*f.body);
       if (f.returnType.kind != TypeKind::Void && canFallThrough(*f.body))
         report(DiagId::ErrMissingReturn, SourceLoc{f.body->range.end.offset - 1}).arg(f.name);
     }
@@ -1363,6 +1400,122 @@ class Checker {
 };
 
 }  // namespace
+
+void UninitializedAnalysis::assignTarget(const Expr& target) {
+  if (target.kind == ExprKind::Identifier && target.decl) state_.assigned.insert(target.decl);
+}
+
+void UninitializedAnalysis::expr(const Expr& e) {
+  switch (e.kind) {
+    case ExprKind::Identifier:
+      if (e.decl && tracked_.count(e.decl) && !state_.assigned.count(e.decl) && !state_.dead &&
+          warned_.insert(e.decl).second)
+        checker_.report(DiagId::WarnUninitialized, e.range.begin).arg(e.decl->name).range(e.opRange);
+      return;
+    case ExprKind::Assign: {
+      const Expr& target = *e.operands[0];
+      // The target's index expressions (and, for compound assignment, the target) are reads.
+      if (target.kind == ExprKind::Index) {
+        expr(target);
+      } else if (e.op != Tok::Assign) {
+        expr(target);
+      }
+      expr(*e.operands[1]);
+      if (target.kind == ExprKind::Identifier) assignTarget(target);
+      return;
+    }
+    case ExprKind::Binary:
+      if (e.op == Tok::AmpAmp || e.op == Tok::PipePipe) {
+        expr(*e.operands[0]);
+        const State saved = state_;
+        expr(*e.operands[1]);
+        state_ = saved;  // the right operand may not run
+        return;
+      }
+      break;
+    case ExprKind::Conditional: {
+      expr(*e.operands[0]);
+      const State saved = state_;
+      expr(*e.operands[1]);
+      const State a = state_;
+      state_ = saved;
+      expr(*e.operands[2]);
+      state_ = join(a, state_);
+      return;
+    }
+    case ExprKind::Call:
+      for (size_t i = 0; i < e.operands.size(); ++i) {
+        const bool isOutput = e.function && i < e.function->params.size() && e.function->params[i]->isOutput;
+        const bool isSetter = e.builtin && i == 0 &&
+                              (e.builtin->shape == BuiltinShape::Setcomp || e.builtin->shape == BuiltinShape::SetXyz);
+        if (isOutput && e.operands[i]->kind == ExprKind::Identifier) continue;  // written, not read
+        if (!isSetter) expr(*e.operands[i]);
+      }
+      for (size_t i = 0; e.function && i < e.operands.size() && i < e.function->params.size(); ++i)
+        if (e.function->params[i]->isOutput) assignTarget(*e.operands[i]);
+      return;
+    default: break;
+  }
+  for (const ExprPtr& c : e.operands) expr(*c);
+}
+
+void UninitializedAnalysis::stmt(const Stmt& s) {
+  switch (s.kind) {
+    case StmtKind::Block:
+      for (const StmtPtr& c : s.stmts) stmt(*c);
+      return;
+    case StmtKind::Decl:
+      for (const auto& d : s.decls) {
+        if (d->init) {
+          expr(*d->init);
+          state_.assigned.insert(d.get());
+        } else if (!d->type.isArray()) {
+          tracked_.insert(d.get());
+          state_.assigned.erase(d.get());
+        }
+      }
+      return;
+    case StmtKind::ExprStmt: expr(*s.expr); return;
+    case StmtKind::If: {
+      expr(*s.cond);
+      const State saved = state_;
+      stmt(*s.then);
+      const State a = state_;
+      state_ = saved;
+      if (s.otherwise) stmt(*s.otherwise);
+      state_ = join(a, state_);
+      return;
+    }
+    case StmtKind::While:
+    case StmtKind::For: {
+      if (s.init) stmt(*s.init);
+      if (s.cond) expr(*s.cond);
+      const State saved = state_;
+      stmt(*s.body);
+      if (s.step) expr(*s.step);
+      state_ = saved;  // the body may not run
+      return;
+    }
+    case StmtKind::DoWhile: {
+      const State saved = state_;
+      stmt(*s.body);  // runs at least once...
+      const bool dead = state_.dead;
+      expr(*s.cond);
+      // ...unless it left early through break/continue: stay conservative then.
+      if (dead) state_ = saved;
+      return;
+    }
+    case StmtKind::Return:
+      if (s.expr) expr(*s.expr);
+      state_.dead = true;
+      return;
+    case StmtKind::Break:
+    case StmtKind::Continue: state_.dead = true; return;
+    case StmtKind::Empty:
+    case StmtKind::FunctionDef:  // analyzed when the function itself is checked
+    case StmtKind::Extern: return;
+  }
+}
 
 bool typeCheck(TranslationUnit& unit, DiagnosticsEngine& diags) {
   const unsigned before = diags.numErrors();
