@@ -141,7 +141,7 @@ glm::vec3 Integrator::radiance(const Ray& ray, RenderStats* stats, bool* hitSome
                                  : defaultMaterial;
   glm::vec3 N = hit->Ng;
   if (glm::dot(N, ray.direction) > 0.0f) N = -N;  // two-sided: face the viewer
-  glm::vec3 light(material.Ka * scene_.ambient);
+  glm::vec3 light(material.Ka * scene_.ambientColor);
   for (const DistantLight& l : scene_.distantLights) {
     const float cosine = glm::dot(N, l.directionToLight);
     if (!(cosine > 0.0f)) continue;

@@ -943,9 +943,8 @@ bool RibParser::doLight(const Call& call) {
     scene_.distantLights.push_back(light);
     warnUnusedParams(call, params, {"intensity", "lightcolor", "from", "to"});
   } else if (name == "ambientlight") {
-    scene_.ambient += intensity * (color.r + color.g + color.b) / 3.0f;
-    if (color.r != color.g || color.g != color.b)
-      warnOnce(call.line, "ambientcolor", "ambient light colour is reduced to its grey level");
+    scene_.ambientColor += intensity * color;
+    scene_.ambient = (scene_.ambientColor.r + scene_.ambientColor.g + scene_.ambientColor.b) / 3.0f;
     warnUnusedParams(call, params, {"intensity", "lightcolor"});
   } else {
     warnOnce(call.line, "light/" + name, "light source '" + name + "' is not supported; ignored");

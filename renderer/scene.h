@@ -65,7 +65,8 @@ struct Scene {
   int pixelSamples = 1;
   Camera camera;
   std::vector<DistantLight> distantLights;
-  float ambient = 0.0f;
+  float ambient = 0.0f;                // grey level of ambientColor
+  glm::vec3 ambientColor{0.0f};        // sum of ambient lights, colour times intensity
   std::vector<Material> materials;
   std::vector<Displacement> displacements;
   std::vector<Mesh> meshes;

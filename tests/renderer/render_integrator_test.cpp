@@ -76,6 +76,12 @@ TEST(RenderIntegrator, AmbientAndMaterialColour) {
   EXPECT_EQ(film.pixel(20, 20), glm::vec3(0.25f, 0.125f, 0.0625f));
 }
 
+TEST(RenderIntegrator, ColouredAmbientLight) {
+  const Scene scene =
+      load(wallScene("LightSource \"ambientlight\" 1 \"intensity\" [0.5] \"lightcolor\" [1 0.5 0]"));
+  EXPECT_EQ(renderScene(scene).pixel(3, 3), glm::vec3(0.5f, 0.25f, 0.0f));
+}
+
 TEST(RenderIntegrator, VertexColoursAreInterpolated) {
   const Scene scene = load(
       "Format 40 40 1\nProjection \"orthographic\"\nScreenWindow 0 1 0 1\nTranslate 0 0 5\n"

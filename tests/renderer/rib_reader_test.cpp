@@ -192,6 +192,11 @@ TEST(RibReader, DistantLightDefaultsAndFromTo) {
   // light travels along -y and the surface sees it towards +y.
   expectNear(r.scene->distantLights[2].directionToLight, glm::vec3(0, 1, 0));
   EXPECT_FLOAT_EQ(r.scene->ambient, 0.25f);
+  expectNear(r.scene->ambientColor, glm::vec3(0.25f));
+  r = read(world("LightSource \"ambientlight\" 1 \"lightcolor\" [1 0 0]\n"
+                 "LightSource \"ambientlight\" 2 \"intensity\" [0.5] \"lightcolor\" [0 1 0]"));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  expectNear(r.scene->ambientColor, glm::vec3(1, 0.5f, 0));
 }
 
 TEST(RibReader, DisplacementBindsTypedAndUntypedParameters) {
