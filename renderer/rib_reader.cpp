@@ -712,6 +712,12 @@ bool RibParser::executeCamera(const Call& call, bool* handled) {
       scene_.displays.clear();
       scene_.displayModes.clear();
     }
+    if (name.empty()) return fail(call.line, "'Display' needs a file name");
+    // There is no window to show a framebuffer in; a name without a format gets PNG.
+    if (!std::filesystem::path(name).has_extension()) {
+      warn(call.line, "display '" + name + "' has no image extension; writing '" + name + ".png'");
+      name += ".png";
+    }
     scene_.displays.push_back(name);
     scene_.displayModes.push_back(mode);
   } else if (n == "Option") {

@@ -438,6 +438,10 @@ TEST(RibReader, DisplayNamesTheOutputs) {
            world(""));
   ASSERT_TRUE(r.scene) << r.error.format();
   EXPECT_EQ(r.scene->displays, std::vector<std::string>{"c.tif"});
+  r = read("Display \"sphere\" \"framebuffer\" \"rgb\"\n" + world(""));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  EXPECT_EQ(r.scene->displays, std::vector<std::string>{"sphere.png"});
+  EXPECT_NE(r.warnings.find("writing 'sphere.png'"), std::string::npos);
 }
 
 TEST(RibReader, DeclareTypesLaterParameters) {
