@@ -7,6 +7,7 @@
 
 #include "runtime/builtins_noise.h"
 #include "runtime/builtins_print.h"
+#include "runtime/builtins_space.h"
 #include "runtime/builtins_texture.h"
 
 namespace relief::compiler {
@@ -90,6 +91,7 @@ const RuntimeSymbol kSymbols[] = {
     {"rlf_pnoise", reinterpret_cast<void*>(&rlf_pnoise)},
     {"rlf_texture", reinterpret_cast<void*>(&rlf_texture)},
     {"rlf_printf", reinterpret_cast<void*>(&rlf_printf)},
+    {"rlf_space_matrices", reinterpret_cast<void*>(&rlf_space_matrices)},
 };
 }  // namespace
 

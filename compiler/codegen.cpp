@@ -19,6 +19,7 @@
 #include <llvm/IR/Verifier.h>
 
 #include "runtime/abi.h"
+#include "runtime/builtins_space.h"
 #include "runtime/builtins_texture.h"
 
 namespace relief::compiler {
@@ -499,7 +500,7 @@ class ShaderCodegen {
     textureErrors_ = nullptr;
     services_ = nullptr;
     randomInputs_ = randomOrdinal_ = nullptr;
-    indexClamped_ = nullptr;
+    indexClamped_ = unknownSpace_ = nullptr;
     for (const auto& p : shader_.params) {
       if (p->type.isArray()) {
         const Slot& s = slotFor(p.get());
@@ -537,6 +538,8 @@ class ShaderCodegen {
     randomOrdinal_ = entryAlloca(i32_, "randomordinal");
     indexClamped_ = entryAlloca(i32_, "indexclamped");
     b_.CreateStore(ci(0), indexClamped_);
+    unknownSpace_ = entryAlloca(i32_, "unknownspace");
+    b_.CreateStore(ci(0), unknownSpace_);
     b_.CreateStore(ci(0), nonFinite_);
     b_.CreateStore(ci(0), loopLimitHits_);
     b_.CreateStore(ci(0), textureErrors_);
@@ -706,6 +709,7 @@ class ShaderCodegen {
     bump(offsetof(RlfStatus, loopLimit), loopLimitHits_);
     bump(offsetof(RlfStatus, textureErrors), textureErrors_);
     bump(offsetof(RlfStatus, indexClamped), indexClamped_);
+    bump(offsetof(RlfStatus, unknownSpace), unknownSpace_);
     b_.CreateRetVoid();
   }
 
@@ -1053,11 +1057,12 @@ class ShaderCodegen {
   }
 
   // ---- Coordinate spaces: row vectors, p' = p * M (abi.h). M is read from batch->spaces.
-  Value* matrixElement(size_t matrixOffset, int index) {
-    return b_.CreateLoad(f32_, bytePtr(spaces_, matrixOffset + 4 * size_t(index)));
+  Value* matrixElement(Value* matrix, int index) { return b_.CreateLoad(f32_, bytePtr(matrix, 4 * size_t(index))); }
+  Val transformBy(const Val& a, size_t matrixOffset, size_t inverseOffset, int kind) {
+    return transformBy(a, bytePtr(spaces_, matrixOffset), bytePtr(spaces_, inverseOffset), kind);
   }
   // kind: 0 point (w = 1), 1 vector (w = 0), 2 normal (uses the inverse, transposed).
-  Val transformBy(const Val& a, size_t matrixOffset, size_t inverseOffset, int kind) {
+  Val transformBy(const Val& a, Value* matrixOffset, Value* inverseOffset, int kind) {
     Val r;
     r.type = a.type;
     for (int j = 0; j < 3; ++j) {
@@ -1071,6 +1076,37 @@ class ShaderCodegen {
     }
     return r;
   }
+  // A space named by a run-time string: both matrices from rlf_space_matrices (§2.3).
+  std::pair<Value*, Value*> dynamicSpace(Value* name) {
+    auto* m16 = llvm::ArrayType::get(f32_, 16);
+    llvm::AllocaInst* toCurrentM = entryAlloca(m16, "space.to");
+    llvm::AllocaInst* fromCurrentM = entryAlloca(m16, "space.from");
+    llvm::FunctionCallee fnc = module_.getOrInsertFunction(
+        "rlf_space_matrices", llvm::FunctionType::get(i32_, {ptr_, ptr_, ptr_, ptr_}, false));
+    if (auto* fn = llvm::dyn_cast<llvm::Function>(fnc.getCallee())) fn->setDoesNotThrow();
+    Value* spaces = spaces_ ? spaces_ : llvm::ConstantPointerNull::get(ptr_);
+    Value* ok = b_.CreateCall(fnc, {spaces, name, toCurrentM, fromCurrentM});
+    if (unknownSpace_) {
+      Value* bad = b_.CreateZExt(b_.CreateICmpEQ(ok, ci(0)), i32_);
+      b_.CreateStore(b_.CreateAdd(b_.CreateLoad(i32_, unknownSpace_), bad), unknownSpace_);
+    }
+    return {toCurrentM, fromCurrentM};
+  }
+  static int transformKind(const Val& a) {
+    return a.type.kind == TypeKind::Point ? 0 : a.type.kind == TypeKind::Normal ? 2 : 1;
+  }
+  // From the space named by `spaceExpr` (a literal or a run-time string `name`) to current.
+  Val toCurrentNamed(const Val& a, const Expr& spaceExpr, Value* name) {
+    if (spaceExpr.kind == ExprKind::StringLiteral) return toCurrent(a, spaceExpr.text);
+    const auto [to, from] = dynamicSpace(name);
+    return transformBy(a, to, from, transformKind(a));
+  }
+  Val fromCurrentNamed(const Val& a, const Expr& spaceExpr, Value* name) {
+    if (spaceExpr.kind == ExprKind::StringLiteral) return fromCurrent(a, spaceExpr.text);
+    const auto [to, from] = dynamicSpace(name);
+    return transformBy(a, from, to, transformKind(a));
+  }
+
   // From `space` to current.
   Val toCurrent(const Val& a, const std::string& space) {
     const int kind = a.type.kind == TypeKind::Point ? 0 : a.type.kind == TypeKind::Normal ? 2 : 1;
@@ -1108,7 +1144,7 @@ class ShaderCodegen {
     } else {
       r = makeTriple(t, toFloatScalar(args[0]).c[0], toFloatScalar(args[1]).c[0], toFloatScalar(args[2]).c[0]);
     }
-    if (!e.text.empty() && t.kind != TypeKind::Color) r = toCurrent(r, e.text);
+    if (first == 1 && t.kind != TypeKind::Color) r = toCurrentNamed(r, *e.operands[0], gen(*e.operands[0]).c[0].v);
     return r;
   }
 
@@ -1785,8 +1821,8 @@ class ShaderCodegen {
         Val p = args[n - 1];
         if (id == BuiltinId::Vtransform) p.type = Type(TypeKind::Vector);
         if (id == BuiltinId::Ntransform) p.type = Type(TypeKind::Normal);
-        if (n == 3) p = toCurrent(p, e.operands[0]->text);
-        return fromCurrent(p, e.operands[n - 2]->text);
+        if (n == 3) p = toCurrentNamed(p, *e.operands[0], args[0].c[0].v);
+        return fromCurrentNamed(p, *e.operands[n - 2], args[n - 2].c[0].v);
       }
       case BuiltinShape::Filterwidth: {
         const Val du = load(slotFor(globals_[size_t(GlobalId::du)]));
@@ -1866,7 +1902,7 @@ class ShaderCodegen {
             // Amplitude in `space` units: scale by the length of the unit normal seen there.
             Val nn = n;
             nn.type = Type(TypeKind::Normal);
-            const Val ns = fromCurrent(nn, e.operands[0]->text);
+            const Val ns = fromCurrentNamed(nn, *e.operands[0], args[0].c[0].v);
             Dual len = dsqrtSafe(dot3(ns, ns));
             // Guard the degenerate (singular) transform: a zero length would divide by 0.
             amp = ddiv(amp, len);
@@ -1928,6 +1964,7 @@ class ShaderCodegen {
   llvm::AllocaInst* randomInputs_ = nullptr;   // input P, u, v of the invocation (entry only)
   llvm::AllocaInst* randomOrdinal_ = nullptr;
   llvm::AllocaInst* indexClamped_ = nullptr;  // entry only
+  llvm::AllocaInst* unknownSpace_ = nullptr;  // entry only
   Value* services_ = nullptr;                  // batch->services (entry function only)
   Value* spaces_ = nullptr;
   Value* orientation_ = nullptr;

@@ -301,6 +301,12 @@ class Checker {
       case ExprKind::Assign:
       case ExprKind::PreIncDec:
       case ExprKind::PostIncDec: return &e;
+      case ExprKind::Construct:
+        // Components given in a named space depend on the batch's transforms.
+        if (!e.operands.empty() && e.operands[0]->type.kind == TypeKind::String &&
+            e.constructType != TypeKind::Color)
+          return &e;
+        break;
       case ExprKind::Call:
         if (!e.builtin) return &e;
         switch (e.builtin->shape) {
@@ -309,6 +315,7 @@ class Checker {
           case BuiltinShape::Area:
           case BuiltinShape::Texture:
           case BuiltinShape::Random:
+          case BuiltinShape::Transform:  // reads the batch's spaces
           case BuiltinShape::Printf:
           case BuiltinShape::DerivRatio:
           case BuiltinShape::Setcomp:
@@ -811,11 +818,9 @@ class Checker {
     size_t first = 0;
     if (!args.empty() && args[0]->type.kind == TypeKind::String) {
       const Expr& space = *args[0];
-      if (space.kind != ExprKind::StringLiteral) {
-        report(DiagId::ErrUnsupported, space.range.begin).arg("a non-literal space name").range(space.range);
-        return set(e, kError);
-      }
-      const bool known = target.kind == TypeKind::Color ? space.text == "rgb" : isKnownSpace(space.text);
+      // A non-literal name is looked up at run time (identity and a warning if unknown, §2.3).
+      const bool known = space.kind != ExprKind::StringLiteral ||
+                         (target.kind == TypeKind::Color ? space.text == "rgb" : isKnownSpace(space.text));
       if (!known) {
         report(DiagId::ErrUnknownSpace, space.range.begin).arg(space.text).range(space.range);
         return set(e, kError);
@@ -1075,11 +1080,7 @@ class Checker {
                                                                                    : 0;
     for (size_t i = 0; i < numSpaces; ++i) {
       const Expr& space = *args[i];
-      if (space.kind != ExprKind::StringLiteral) {
-        report(DiagId::ErrUnsupported, space.range.begin).arg("a non-literal space name").range(space.range);
-        return set(e, kError);
-      }
-      if (!isKnownSpace(space.text)) {
+      if (space.kind == ExprKind::StringLiteral && !isKnownSpace(space.text)) {
         report(DiagId::ErrUnknownSpace, space.range.begin).arg(space.text).range(space.range);
         return set(e, kError);
       }

@@ -706,6 +706,37 @@ displacement tex(string a = ""; string b = ""; string missing = "/no/such/textur
   EXPECT_EQ(status.textureErrors, 4u);  // two failing lookups per point
 }
 
+TEST(JitTest, SpaceNamesMayBeRunTimeStrings) {
+  auto shader = compileOne(R"(
+displacement d(string space = "object")
+{
+    point o = transform(space, P);
+    P = o + vector(space, 1, 0, 0);
+})");
+  ASSERT_TRUE(shader);
+  runtime::ShaderInstance instance(shader);
+  TestBatch b(1);
+  fillSphere(b, 0, 0.0, 0.0);  // P = (0, 0, 1)
+  float* cfo = b.spaces.currentFromObject;
+  float* ofc = b.spaces.objectFromCurrent;
+  for (int i = 0; i < 16; ++i) cfo[i] = ofc[i] = 0;
+  cfo[0] = cfo[5] = cfo[10] = 2, cfo[15] = 1, cfo[12] = 10;
+  ofc[0] = ofc[5] = ofc[10] = 0.5f, ofc[15] = 1, ofc[12] = -5;
+  RlfStatus status{};
+  RlfShadingBatch view = b.all();
+  instance.evaluate(view, status);
+  EXPECT_FLOAT_EQ(b.Pout[0][0], -5 + 2);  // object-space P plus the object x axis in current space
+  EXPECT_FLOAT_EQ(b.Pout[2][0], 0.5f);
+  EXPECT_EQ(status.unknownSpace, 0u);
+
+  std::string error;
+  ASSERT_TRUE(instance.bind({"space", runtime::ParamType::String, {}, {"nowhere"}}, &error)) << error;
+  instance.evaluate(view, status);
+  EXPECT_FLOAT_EQ(b.Pout[0][0], 1);  // identity
+  EXPECT_FLOAT_EQ(b.Pout[2][0], 1);
+  EXPECT_EQ(status.unknownSpace, 2u);  // two lookups of an unknown name
+}
+
 TEST(ShaderLibraryTest, FindsCompilesAndCaches) {
   std::ostringstream diagnostics;
   ShaderLibrary library({}, &diagnostics);
