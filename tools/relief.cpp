@@ -227,6 +227,7 @@ int run(const CommandLine& cl) {
   // The shader directories double as #include directories, so shaders can share headers.
   relief::compiler::CompileOptions compileOptions;
   compileOptions.includeDirs = cl.shaderDirs;
+  compileOptions.noWarnings = cl.quiet;  // errors are still printed
   relief::compiler::ShaderLibrary shaders(compileOptions, &std::cerr);
 
   const auto loadStart = std::chrono::steady_clock::now();
