@@ -1040,6 +1040,23 @@ class Checker {
     }
     const BuiltinInfo* b = findBuiltin(e.text);
     e.builtin = b;
+    if (b && b->shape == BuiltinShape::Texture && !e.operands.empty() && e.operands[0]->kind == ExprKind::Index &&
+        !e.operands[0]->operands.empty()) {
+      // RSL channel selection: texture(file[i], ...) means texture(file, ..., "firstchannel", i).
+      Expr& index = *e.operands[0];
+      ++suppress_;
+      const Type baseType = checkExpr(*index.operands[0], kError);
+      --suppress_;
+      if (baseType.kind == TypeKind::String && !baseType.isArray()) {
+        ExprPtr base = std::move(index.operands[0]);
+        ExprPtr channel = std::move(index.operands[1]);
+        auto name = std::make_unique<Expr>(ExprKind::StringLiteral, channel->range);
+        name->text = "firstchannel";
+        e.operands[0] = std::move(base);
+        e.operands.push_back(std::move(name));
+        e.operands.push_back(std::move(channel));
+      }
+    }
     std::vector<ExprPtr>& args = e.operands;
     bool ok = true;
     for (ExprPtr& a : args) {

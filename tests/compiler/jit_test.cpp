@@ -681,8 +681,9 @@ displacement tex(string a = ""; string b = ""; string missing = "/no/such/textur
     color c = texture(b, "wrap", "clamp");
     color m = texture(missing, 0.5, 0.5, "missingcolor", color(7, 8, 9));
     float f = texture(missing, "fill", 0.25);
+    float g = texture(b[2], s, t, "wrap", "clamp");  // RSL channel selection
     P = point(h, f, m[2]);
-    N = normal(c);
+    N = normal(c) + normal(0, 0, 100 * g);
 })");
   ASSERT_TRUE(r.success()) << renderDiagnostics(r);
   runtime::ShaderInstance instance(r.shaders.front());
@@ -701,7 +702,7 @@ displacement tex(string a = ""; string b = ""; string missing = "/no/such/textur
     EXPECT_FLOAT_EQ(b.Pout[2][i], 9);      // missingcolor
     EXPECT_NEAR(b.Nout[0][i], 0.1f, 1e-4);
     EXPECT_NEAR(b.Nout[1][i], 0.2f, 1e-4);
-    EXPECT_NEAR(b.Nout[2][i], 0.3f, 1e-4);
+    EXPECT_NEAR(b.Nout[2][i], 0.3f + 100 * 0.3f, 1e-2);
   }
   EXPECT_EQ(status.textureErrors, 4u);  // two failing lookups per point
 }
