@@ -184,7 +184,7 @@ RenderStats render(const Scene& scene, Accelerator& accel, const RenderOptions& 
   int lastPercent = -1;  // guarded by progressMutex
   std::vector<RenderStats> perThread(static_cast<size_t>(numThreads));
   auto worker = [&](int id) {
-    RenderStats& stats = perThread[size_t(id)];
+    RenderStats stats;  // local: neighbouring entries of perThread would share cache lines
     while (true) {
       const size_t begin = next.fetch_add(kChunk);
       if (begin >= order.size()) break;
@@ -214,6 +214,7 @@ RenderStats render(const Scene& scene, Accelerator& accel, const RenderOptions& 
         }
       }
     }
+    perThread[size_t(id)] = stats;
   };
   if (numThreads == 1) {
     worker(0);
