@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <exception>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
 #include <optional>
 #include <string>
@@ -41,6 +42,7 @@ constexpr const char* kUsage =
     "  --cache-triangles N       geometry cache budget in displaced triangles, or 'unlimited'\n"
     "  --no-displacement         render the undisplaced surfaces\n"
     "  --stats                   print cache statistics and timings\n"
+    "  --stats-json FILE         write the same statistics as JSON (for benchmark scripts)\n"
     "  --quiet                   no warnings or progress, only errors and the image path\n"
     "  --help                    show this help\n"
     "  --version                 show the version\n"
@@ -60,6 +62,7 @@ struct CommandLine {
   uint64_t cacheTriangles = UINT64_MAX;
   bool displace = true;
   bool stats = false;
+  std::string statsJson;
   bool quiet = false;
 };
 
@@ -137,6 +140,9 @@ int parseCommandLine(int argc, char** argv, CommandLine* cl) {
       }
     } else if (a == "--no-displacement") {
       cl->displace = false;
+    } else if (a == "--stats-json") {
+      if (!value(&v)) return usageError("'--stats-json' needs a file name");
+      cl->statsJson = v;
     } else if (a == "--stats") {
       cl->stats = true;
     } else if (a == "--quiet" || a == "-q") {
@@ -222,6 +228,55 @@ void reportShaderProblems(const relief::Accelerator& accel, std::ostream& out) {
   report(s.textureErrors, "texture lookups failed");
 }
 
+std::string jsonString(const std::string& text) {
+  std::string out = "\"";
+  for (char c : text) {
+    if (c == '"' || c == '\\') {
+      out += '\\';
+      out += c;
+    } else if (static_cast<unsigned char>(c) < 0x20) {
+      char escaped[8];
+      std::snprintf(escaped, sizeof escaped, "\\u%04x", c);
+      out += escaped;
+    } else {
+      out += c;
+    }
+  }
+  return out + "\"";
+}
+
+bool writeStatsJson(const std::string& path, const CommandLine& cl, const relief::Scene& scene,
+                    const relief::AccelStats& a, const relief::RenderStats& r, double loadSeconds,
+                    double buildSeconds, uint64_t inputTriangles) {
+  std::ofstream out(path);
+  if (!out) return false;
+  auto u = [](uint64_t v) { return std::to_string(v); };
+  out << "{\n"
+      << "  \"scene\": " << jsonString(cl.scene) << ",\n"
+      << "  \"width\": " << scene.width << ", \"height\": " << scene.height << ",\n"
+      << "  \"samplesPerPixel\": " << r.samplesPerPixel << ", \"threads\": " << r.threads << ",\n"
+      << "  \"order\": \"" << relief::pixelOrderName(cl.order) << "\",\n"
+      << "  \"cacheBudgetTriangles\": "
+      << (cl.cacheTriangles == UINT64_MAX ? std::string("null") : u(cl.cacheTriangles)) << ",\n"
+      << "  \"displacement\": " << (cl.displace ? "true" : "false") << ",\n"
+      << "  \"inputTriangles\": " << u(inputTriangles) << ",\n"
+      << "  \"loadSeconds\": " << loadSeconds << ", \"buildSeconds\": " << buildSeconds
+      << ", \"renderSeconds\": " << r.seconds << ",\n"
+      << "  \"cameraRays\": " << u(r.cameraRays) << ", \"cameraHits\": " << u(r.cameraHits)
+      << ", \"shadowRays\": " << u(r.shadowRays) << ",\n"
+      << "  \"accesses\": " << u(a.accesses) << ", \"hits\": " << u(a.hits)
+      << ", \"compulsoryMisses\": " << u(a.compulsoryMisses)
+      << ", \"capacityMisses\": " << u(a.capacityMisses) << ",\n"
+      << "  \"displacedTrianglesCreated\": " << u(a.displacedTrianglesCreated)
+      << ", \"uniqueDisplacedTriangles\": " << u(a.uniqueDisplacedTriangles) << ",\n"
+      << "  \"peakResidentTriangles\": " << u(a.peakResidentTriangles)
+      << ", \"residentTriangles\": " << u(a.residentTriangles) << ",\n"
+      << "  \"shaderPoints\": " << u(a.shaderPoints) << ", \"subdivideSeconds\": "
+      << a.subdivideSeconds << ", \"displaceSeconds\": " << a.displaceSeconds << "\n"
+      << "}\n";
+  return bool(out);
+}
+
 int run(const CommandLine& cl) {
   std::ostream* warnings = cl.quiet ? nullptr : &std::cerr;
   // The shader directories double as #include directories, so shaders can share headers.
@@ -303,6 +358,12 @@ int run(const CommandLine& cl) {
     }
   }
   if (warnings) reportShaderProblems(*accel, *warnings);
+  if (!cl.statsJson.empty() &&
+      !writeStatsJson(cl.statsJson, cl, scene, accel->stats(), renderStats, loadSeconds,
+                      buildSeconds, inputTriangles)) {
+    std::cerr << "relief: error: cannot write statistics to '" << cl.statsJson << "'\n";
+    return 1;
+  }
   if (cl.stats) printStats(accel->stats(), renderStats, loadSeconds, buildSeconds, inputTriangles);
   for (const std::string& path : outputs) std::cout << path << "\n";
   return 0;
