@@ -1015,7 +1015,8 @@ bool RibParser::doDisplacement(const Call& call) {
 bool RibParser::executeGeometry(const Call& call, bool* handled) {
   *handled = true;
   const std::string& n = call.name;
-  if (n == "Cylinder" || n == "Cone" || n == "Disk" || n == "Torus") {
+  if (n == "Cylinder" || n == "Cone" || n == "Disk" || n == "Torus" || n == "Paraboloid" ||
+      n == "Hyperboloid") {
     if (!requireWorld(call)) return false;
     return doQuadric(call);
   }
@@ -1035,6 +1036,17 @@ bool RibParser::executeGeometry(const Call& call, bool* handled) {
   if (n == "Polygon") {
     if (!requireWorld(call)) return false;
     return doPolygons(call, {}, {}, 0);
+  }
+  if (n == "GeneralPolygon") {
+    if (!requireWorld(call)) return false;
+    if (call.args.empty() || !call.args[0].isNumeric())
+      return fail(call.line, "'GeneralPolygon' expects [nloops] then parameters");
+    if (call.args[0].numbers.size() != 1) {
+      warnOnce(call.line, "generalpolygon-holes",
+               "'GeneralPolygon' with holes is not supported; skipped");
+      return true;
+    }
+    return doPolygons(call, {}, {}, 1);
   }
   if (n == "Patch") {
     if (!requireWorld(call)) return false;
@@ -1085,7 +1097,9 @@ bool RibParser::doSphere(const Call& call) {
 // resolution; straight ones are cut to the subdivision target length.
 bool RibParser::doQuadric(const Call& call) {
   const std::string& n = call.name;
-  const size_t count = n == "Torus" ? 5 : n == "Cylinder" ? 4 : 3;
+  const size_t count = n == "Hyperboloid" ? 7 : n == "Torus" ? 5
+                       : n == "Cylinder" || n == "Paraboloid" ? 4
+                                                              : 3;
   std::vector<float> v;
   size_t next = 0;
   if (!positionalNumbers(call, count, &v, &next)) return false;
@@ -1117,6 +1131,29 @@ bool RibParser::doQuadric(const Call& call) {
     };
     lengthV = cone ? std::sqrt(h * h + r * r) : std::fabs(r);
     radiusU = std::fabs(r);
+  } else if (n == "Paraboloid") {
+    const float rmax = v[0], z0 = v[1], z1 = v[2];
+    if (!(z1 > 0.0f) || z0 < 0.0f || z0 == z1) {
+      warn(call.line, "degenerate 'Paraboloid' skipped");
+      return true;
+    }
+    position = [=](float u, float t) {
+      const float z = z0 + t * (z1 - z0);
+      const float r = rmax * std::sqrt(z / z1);
+      return glm::vec3(r * std::cos(u * thetamax), r * std::sin(u * thetamax), z);
+    };
+    curvedV = true;
+    lengthV = std::hypot(std::fabs(rmax), std::fabs(z1 - z0));
+    radiusU = std::fabs(rmax);
+  } else if (n == "Hyperboloid") {
+    const glm::vec3 p1(v[0], v[1], v[2]), p2(v[3], v[4], v[5]);
+    position = [=](float u, float t) {
+      const glm::vec3 p = p1 + t * (p2 - p1);
+      const float c = std::cos(u * thetamax), s = std::sin(u * thetamax);
+      return glm::vec3(p.x * c - p.y * s, p.x * s + p.y * c, p.z);
+    };
+    lengthV = glm::length(p2 - p1);
+    radiusU = std::max(std::hypot(p1.x, p1.y), std::hypot(p2.x, p2.y));
   } else {
     const float major = v[0], minor = v[1];
     const float phi0 = glm::radians(v[2]), phi1 = glm::radians(v[3]);
@@ -1189,7 +1226,7 @@ bool RibParser::doPolygons(const Call& call, std::vector<int> nverts, std::vecto
     return fail(pParam->line, "'" + call.name + "': \"P\" needs a multiple of 3 numbers, got " +
                                   std::to_string(P.size()));
   const size_t numPoints = P.size() / 3;
-  if (call.name == "Polygon") {
+  if (call.name == "Polygon" || call.name == "GeneralPolygon") {
     nverts = {int(numPoints)};
     for (size_t i = 0; i < numPoints; ++i) verts.push_back(int(i));
   }

@@ -419,12 +419,12 @@ TEST(RibReader, MismatchedBlocksAreErrors) {
 
 TEST(RibReader, UnknownRequestsWarnOnceAndAreSkipped) {
   ReadResult r = read("ShadingRate 1\nShadingRate 2\nversion 3.04\n" +
-                      world("Paraboloid 1 0 1 360\nPolygon \"P\" [0 0 0  1 0 0  0 1 0]"));
+                      world("Blobby 0 [] [] []\nPolygon \"P\" [0 0 0  1 0 0  0 1 0]"));
   ASSERT_TRUE(r.scene) << r.error.format();
   EXPECT_EQ(r.scene->meshes.size(), 1u);
   EXPECT_EQ(r.warnings,
             "/scenes/test.rib:1: warning: unsupported request 'ShadingRate' ignored\n"
-            "/scenes/test.rib:5: warning: unsupported request 'Paraboloid' ignored\n");
+            "/scenes/test.rib:5: warning: unsupported request 'Blobby' ignored\n");
 }
 
 TEST(RibReader, DisplayNamesTheOutputs) {
@@ -509,6 +509,24 @@ TEST(RibReader, QuadricsFollowTheirParametricDefinitions) {
     const glm::vec3 centre = glm::vec3(p.x, p.y, 0) * (3.0f / std::hypot(p.x, p.y));
     EXPECT_GT(glm::dot(torus.N[i], p - centre), 0.0f);  // away from the tube's core
   }
+}
+
+TEST(RibReader, ParaboloidHyperboloidAndGeneralPolygon) {
+  ReadResult r = read(world("Paraboloid 2 0 4 360\nHyperboloid 1 0 0  0 1 1  360\n"
+                            "GeneralPolygon [4] \"P\" [0 0 0  1 0 0  1 1 0  0 1 0]\n"
+                            "GeneralPolygon [4 3] \"P\" [0 0 0  1 0 0  1 1 0  0 1 0  0 0 0  1 0 0  1 1 0]"));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  ASSERT_EQ(r.scene->meshes.size(), 3u);
+  for (const glm::vec3& p : r.scene->meshes[0].P)  // r = rmax sqrt(z / zmax)
+    EXPECT_NEAR(std::hypot(p.x, p.y), 2.0f * std::sqrt(p.z / 4.0f), 1e-4f);
+  const Mesh& hyper = r.scene->meshes[1];
+  for (size_t i = 0; i < hyper.P.size(); ++i) {  // the line (1,0,0)-(0,1,1) swept about z
+    const float t = hyper.uv[i].y;
+    EXPECT_NEAR(std::hypot(hyper.P[i].x, hyper.P[i].y), std::hypot(1.0f - t, t), 1e-4f);
+    EXPECT_NEAR(hyper.P[i].z, t, 1e-5f);
+  }
+  EXPECT_EQ(r.scene->meshes[2].numTriangles(), 2u);
+  EXPECT_NE(r.warnings.find("with holes is not supported"), std::string::npos);
 }
 
 TEST(RibReader, NamedCoordinateSystems) {
