@@ -2,6 +2,9 @@
 #include "compiler/source_manager.h"
 
 #include <algorithm>
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 
@@ -20,9 +23,14 @@ SourceManager::FileId SourceManager::addBuffer(std::string name, std::string tex
 }
 
 bool SourceManager::addFile(const std::string& path, FileId* id, std::string* error, SourceLoc includedFrom) {
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) {
+    *error = "cannot open '" + path + "': it is a directory";
+    return false;
+  }
   std::ifstream in(path, std::ios::binary);
   if (!in) {
-    *error = "cannot open '" + path + "'";
+    *error = "cannot open '" + path + "': " + std::strerror(errno);
     return false;
   }
   std::ostringstream ss;

@@ -153,6 +153,8 @@ class Checker {
   Checker(TranslationUnit& unit, DiagnosticsEngine& diags) : unit_(unit), diags_(diags) {}
 
   void run() {
+    // After syntax errors, parts of bodies are missing: "unused" would be a guess, not a finding.
+    skipUnusedWarnings_ = diags_.hasErrors();
     makeGlobals();
     functionScopes_.clear();
     functionScopes_.emplace_back();
@@ -229,7 +231,7 @@ class Checker {
   void popScope() {
     // -Wunused-variable / -Wunused-parameter, in declaration order for stable output.
     for (VarDecl* d : scopeDecls_.back()) {
-      if (d->reads != 0) continue;
+      if (d->reads != 0 || skipUnusedWarnings_) continue;
       if (d->invalid || (d->init && d->init->type.isError())) continue;  // already diagnosed
       if (d->storage == Storage::Local)
         report(DiagId::WarnUnusedVariable, d->nameRange.begin).arg(d->name).range(d->nameRange);
@@ -1415,6 +1417,7 @@ class Checker {
   int loopDepth_ = 0;
   int suppress_ = 0;
   int contextFloat_ = 0;
+  bool skipUnusedWarnings_ = false;
 };
 
 }  // namespace
