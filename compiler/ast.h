@@ -147,6 +147,8 @@ struct FunctionDecl {
   // Filled in by the type checker: what a call may write (propagates the §5 host contract).
   bool writesP = false;
   bool writesN = false;
+  // Expression nodes a call expands to once inlined (its body plus its callees', transitively).
+  uint64_t inlineCost = 0;
 };
 
 struct TranslationUnit {

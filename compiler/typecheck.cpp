@@ -265,6 +265,8 @@ class Checker {
 
   void checkShader(ShaderDecl& shader) {
     shader_ = &shader;
+    inlineCost_ = 0;
+    inlineReported_ = false;
     undeclaredReported_.clear();
     pushScope();
     for (auto& p : shader.params) {
@@ -553,6 +555,7 @@ class Checker {
 
   Type checkExpr(Expr& e, Type expected) {
     e.isVarying = false;
+    if (!suppress_) ++inlineCost_;
     switch (e.kind) {
       case ExprKind::IntLiteral: return set(e, kInt);
       case ExprKind::FloatLiteral: return set(e, kFloat);
@@ -898,6 +901,8 @@ class Checker {
     function_ = &f;
     loopDepth_ = 0;
     functionStack_.push_back(&f);
+    const uint64_t savedCost = inlineCost_;
+    inlineCost_ = 0;
 
     pushScope();
     for (auto& p : f.params) {
@@ -918,6 +923,8 @@ class Checker {
     popScope();
 
     functionStack_.pop_back();
+    f.inlineCost = inlineCost_;
+    inlineCost_ = savedCost;
     function_ = savedFunction;
     loopDepth_ = savedLoopDepth;
     undeclaredReported_ = std::move(savedUndeclared);
@@ -1021,6 +1028,13 @@ class Checker {
       }
     }
     markWrites(f->writesP, f->writesN);
+    // User functions are inlined at every call: bound the code a call chain may expand to.
+    inlineCost_ = std::min<uint64_t>(inlineCost_ + std::min<uint64_t>(f->inlineCost, 1ull << 40), 1ull << 40);
+    if (inlineCost_ > kMaxInlineCost && !inlineReported_) {
+      inlineReported_ = true;
+      report(DiagId::ErrInlineTooLarge, e.range.begin).arg(e.text).arg(static_cast<long long>(kMaxInlineCost)).range(e.opRange);
+      return set(e, kError);
+    }
     e.function = f;
     e.isVarying = true;
     return set(e, f->returnType);
@@ -1418,6 +1432,11 @@ class Checker {
   int suppress_ = 0;
   int contextFloat_ = 0;
   bool skipUnusedWarnings_ = false;
+  uint64_t inlineCost_ = 0;  // expression nodes of the shader or function being checked, inlined
+  bool inlineReported_ = false;
+  // Inlining budget per shader or function: far above real shaders, far below what exhausts
+  // memory or compile time (each call of a function copies its body).
+  static constexpr uint64_t kMaxInlineCost = 200000;
 };
 
 }  // namespace
