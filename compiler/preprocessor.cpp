@@ -469,8 +469,14 @@ void Preprocessor::expand(std::vector<Token> input, std::vector<Token>& out, con
     return;
   }
   size_t pos = 0;
-  while (pos < input.size()) {
+  while (pos < input.size() && !fatal_) {
     const Token t = input[pos++];
+    if (out.size() > kMaxExpandedTokens) {
+      // Exponential macro definitions (#define A B B, #define B C C, ...) would exhaust memory.
+      diags_.report(DiagId::ErrMacroNestingTooDeep, t.loc).arg(t.text);
+      fatal_ = true;
+      return;
+    }
     const std::string name = t.is(Tok::Identifier) ? tokenText(t) : std::string();
     auto it = name.empty() || disabled.count(name) ? macros_.end() : macros_.find(name);
     if (it == macros_.end()) {

@@ -25,6 +25,8 @@ struct PreprocessorOptions {
 
 // Nesting limit of #include (language.md §1.1).
 inline constexpr int kMaxIncludeDepth = 64;
+// Tokens one file may expand to: far above real shaders, far below exhausting memory.
+inline constexpr size_t kMaxExpandedTokens = size_t(1) << 22;
 
 class Preprocessor {
  public:
