@@ -216,9 +216,11 @@ Token Lexer::next() {
     }
     if (isDigit(c) || (c == '.' && cur_ + 1 < end_ && isDigit(cur_[1]))) return lexNumber(start);
     if (c == '"') return lexString(start);
-    if (c == '#' && atLineStart_) {
+    if (c == '#') {
+      // A directive at the start of a line, else `#`/`##` in a macro body; the preprocessor
+      // reports any other use.
       ++cur_;
-      return make(Tok::Hash, start);  // the preprocessor takes it from here
+      return make(Tok::Hash, start);
     }
     auto two = [&](char second) { return cur_ + 1 < end_ && cur_[1] == second; };
     Tok kind = Tok::Eof;

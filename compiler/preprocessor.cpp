@@ -145,16 +145,22 @@ std::vector<Token> Preprocessor::run(SourceManager::FileId file) {
       stack_.pop_back();
       continue;
     }
-    if (t.is(Tok::Hash)) {
+    if (t.is(Tok::Hash) && t.atLineStart) {
       directive(t);
       continue;
     }
     if (!active()) continue;
-    if (t.is(Tok::Identifier) && macros_.count(tokenText(t))) {
+    const size_t before = out.size();
+    if (t.is(Tok::Identifier) && macros_.count(tokenText(t)))
       expand({t}, out, {}, true);
-      continue;
+    else
+      out.push_back(t);
+    // `#` outside directives and macro operators is an error at that character (§1).
+    for (size_t i = before; i < out.size(); ++i) {
+      if (!out[i].is(Tok::Hash)) continue;
+      diags_.report(DiagId::ErrBadCharacter, out[i].loc).arg("#");
+      out[i].kind = Tok::Unknown;
     }
-    out.push_back(t);
   }
   Token eof;
   eof.kind = Tok::Eof;
@@ -314,6 +320,42 @@ void Preprocessor::include(const Token& name, const std::vector<Token>& line) {
   s.file = id;
   s.dir = std::filesystem::path(found).parent_path().string();
   stack_.push_back(std::move(s));
+}
+
+// `##`: two adjacent '#' tokens.
+bool Preprocessor::isPaste(const std::vector<Token>& body, size_t i) {
+  return i + 1 < body.size() && body[i].is(Tok::Hash) && body[i + 1].is(Tok::Hash) &&
+         body[i + 1].loc == body[i].end();
+}
+
+Token Preprocessor::synthesize(const std::string& text, const Token& at) {
+  const auto id = sm_.addBuffer("<scratch>", text);
+  std::vector<Token> toks = Lexer(sm_, id, diags_).lexAll();
+  Token r = toks.size() == 2 ? toks[0] : Token{};
+  if (toks.size() != 2) {
+    diags_.report(DiagId::ErrBadPaste, at.loc).arg(text).range(at.range());
+    r.kind = Tok::Unknown;
+    r.text = sm_.text(id);
+  }
+  r.loc = at.loc;
+  r.length = at.length;
+  return r;
+}
+
+// Joins the tokens around each `##` into one token (§1.1 SHOULD).
+std::vector<Token> Preprocessor::paste(std::vector<Token> toks, const Token& at) {
+  std::vector<Token> out;
+  for (size_t i = 0; i < toks.size(); ++i) {
+    if (isPaste(toks, i) && !out.empty() && i + 2 < toks.size()) {
+      const Token left = out.back();
+      out.pop_back();
+      out.push_back(synthesize(std::string(left.text) + std::string(toks[i + 2].text), at));
+      i += 2;
+      continue;
+    }
+    out.push_back(toks[i]);
+  }
+  return out;
 }
 
 std::string Preprocessor::spelling(const std::vector<Token>& tokens) {
@@ -486,7 +528,7 @@ void Preprocessor::expand(std::vector<Token> input, std::vector<Token>& out, con
     const Macro m = it->second;  // a copy: expansion never redefines, but keep it simple and safe
     std::vector<Token> replacement;
     if (!m.functionLike) {
-      replacement = m.body;
+      replacement = paste(m.body, t);
     } else {
       bool invoked = pos < input.size() && input[pos].is(Tok::LParen);
       if (!invoked && pos >= input.size() && fromSource) {
@@ -513,11 +555,35 @@ void Preprocessor::expand(std::vector<Token> input, std::vector<Token>& out, con
             .range(t.range());
         continue;
       }
-      for (const Token& b : m.body) {
+      auto paramIndex = [&](const Token& b) {
         size_t k = 0;
         while (k < m.params.size() && !(b.is(Tok::Identifier) && b.text == m.params[k])) ++k;
+        return k;
+      };
+      for (size_t bi = 0; bi < m.body.size(); ++bi) {
+        const Token& b = m.body[bi];
+        // `# param`: the argument's spelling as a string literal.
+        if (b.is(Tok::Hash) && !isPaste(m.body, bi) && !(bi >= 1 && isPaste(m.body, bi - 1)) &&
+            bi + 1 < m.body.size() &&
+            paramIndex(m.body[bi + 1]) < m.params.size()) {
+          std::string text = "\"";
+          for (char c : spelling(args[paramIndex(m.body[bi + 1])])) {
+            if (c == '"' || c == '\\') text += '\\';
+            text += c;
+          }
+          replacement.push_back(synthesize(text + "\"", t));
+          ++bi;
+          continue;
+        }
+        const size_t k = paramIndex(b);
         if (k == m.params.size()) {
           replacement.push_back(b);
+          continue;
+        }
+        // Operands of ## use the argument unexpanded.
+        const bool pasted = (bi >= 2 && isPaste(m.body, bi - 2)) || isPaste(m.body, bi + 1);
+        if (pasted) {
+          replacement.insert(replacement.end(), args[k].begin(), args[k].end());
           continue;
         }
         std::vector<Token> arg;
@@ -525,6 +591,7 @@ void Preprocessor::expand(std::vector<Token> input, std::vector<Token>& out, con
         replacement.insert(replacement.end(), arg.begin(), arg.end());
       }
     }
+    replacement = paste(std::move(replacement), t);
     // A replacement ending in a function-like macro name takes its arguments from what follows
     // (`#define G F` then `G(1, 2)`): move that parenthesized group behind it before rescanning.
     if (!replacement.empty() && replacement.back().is(Tok::Identifier)) {

@@ -75,6 +75,8 @@ class Preprocessor {
   bool collectArguments(std::vector<Token>& input, size_t& pos, bool fromSource,
                         std::vector<std::vector<Token>>& args, const Token& name);
   Token synthesize(const std::string& text, const Token& at);
+  std::vector<Token> paste(std::vector<Token> toks, const Token& at);
+  static bool isPaste(const std::vector<Token>& body, size_t i);
   static std::string spelling(const std::vector<Token>& tokens);
 
   SourceManager& sm_;

@@ -87,6 +87,16 @@ TEST(PreprocessorTest, IncludesSearchPathsAndPragmaOnce) {
   EXPECT_EQ(missing->text, "");  // compilation stops at a missing include
 }
 
+TEST(PreprocessorTest, StringizeAndPaste) {
+  auto r = preprocess("#define STR(x) #x\n#define CAT(a, b) a ## b\n#define V v ## 2\nSTR(a + \"q\") CAT(my, var) CAT(1, 5) V\n");
+  EXPECT_EQ(r->errors, "");
+  EXPECT_EQ(r->text, "\"a + \\\"q\\\"\" myvar 15 v2");
+  auto bad = preprocess("#define CAT(a, b) a ## b\nCAT(+, /)\nx # y\n");
+  EXPECT_EQ(bad->errors,
+            "2:1: pasting gives '+/', which is not a valid token\n"
+            "3:3: invalid character '#' in source\n");
+}
+
 TEST(PreprocessorTest, CommandLineDefines) {
   PreprocessorOptions options;
   options.defines = {{"LEVEL", "3"}, {"FLAG", ""}};
