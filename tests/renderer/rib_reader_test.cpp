@@ -619,7 +619,7 @@ TEST(RibReader, SurvivesMutatedInput) {
       "AttributeBegin\nColor [0.9 0.55 0.35]\nSurface \"matte\" \"Kd\" [0.8]\n"
       "Attribute \"displacementbound\" \"float sphere\" [0.06]\n"
       "Displacement \"push\" \"float Km\" [0.05] \"tint\" [1 1 0]\n"
-      "Sphere 1 -1 1 360\nAttributeEnd\n"
+      "Sphere 1 -1 1 360\nAttributeEnd\nCone 1 0.5 90\n"
       "Patch \"bilinear\" \"P\" [0 0 0  1 0 0  0 1 0  1 1 1]\n"
       "PointsPolygons [4] [0 1 2 3] \"P\" [-5 -1 -5  -5 -1 5  5 -1 5  5 -1 -5] \"st\" [0 0 1 0 1 1 0 1]\n"
       "WorldEnd\n";
