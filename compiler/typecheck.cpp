@@ -1100,6 +1100,9 @@ class Checker {
       case BuiltinShape::Filterwidth:
       case BuiltinShape::Filterstep: e.isVarying = true; break;
       case BuiltinShape::Displace: markWrites(true, true); break;
+      case BuiltinShape::Printf:
+        if (args[0]->kind == ExprKind::StringLiteral) checkFormat(*args[0], args);
+        break;
       case BuiltinShape::Random: e.isVarying = true; break;
       case BuiltinShape::Setcomp:
       case BuiltinShape::SetXyz:
@@ -1119,6 +1122,52 @@ class Checker {
       }
     }
     return set(e, r);
+  }
+
+  // -Wformat: a literal printf format against its arguments (§6.8).
+  void checkFormat(const Expr& format, const std::vector<ExprPtr>& args) {
+    const std::string& f = format.text;
+    size_t arg = 1, conversions = 0;
+    for (size_t i = 0; i < f.size(); ++i) {
+      if (f[i] != '%') continue;
+      if (i + 1 < f.size() && f[i + 1] == '%') {
+        ++i;
+        continue;
+      }
+      size_t j = i + 1;
+      while (j < f.size() && std::string("-+ #0123456789.").find(f[j]) != std::string::npos) ++j;
+      if (j >= f.size()) break;
+      const char conv = f[j];
+      i = j;
+      ++conversions;
+      if (arg >= args.size()) continue;
+      const Expr& a = *args[arg++];
+      const char* want = nullptr;
+      bool ok = true;
+      if (conv == 's') {
+        want = "a string";
+        ok = a.type.kind == TypeKind::String;
+      } else if (conv == 'd' || conv == 'i') {
+        want = "an int";
+        ok = a.type.kind == TypeKind::Int;
+      } else if (conv == 'f' || conv == 'g' || conv == 'e') {
+        want = "a number";
+        ok = a.type.isNumeric();
+      } else {
+        continue;
+      }
+      if (!ok)
+        report(DiagId::WarnFormatType, a.range.begin)
+            .arg(std::string(1, conv))
+            .arg(want)
+            .arg(typeName(a.type))
+            .range(a.range);
+    }
+    if (conversions != args.size() - 1)
+      report(DiagId::WarnFormatCount, format.range.begin)
+          .arg(static_cast<long long>(conversions))
+          .arg(static_cast<long long>(args.size() - 1))
+          .range(format.range);
   }
 
   // spline([basis,] x, knots...) (§6.6): T binds to the knots; a literal basis checks the count.
