@@ -59,6 +59,14 @@ class Accelerator {
   virtual AccelStats stats() const = 0;
 };
 
+// Geometry-cache misses (voxel fills) caused by the calling thread so far. Accelerators increment
+// it on every miss; the integrator reads it around a pixel for the "cachemiss" AOV. Per thread, so
+// it needs no synchronisation and cannot disturb the image.
+inline uint64_t& threadCacheMisses() {
+  thread_local uint64_t misses = 0;
+  return misses;
+}
+
 // Builds the contributor grid over `scene` (which must outlive the accelerator).
 std::unique_ptr<Accelerator> makeGridAccelerator(const Scene& scene, const AccelOptions& options);
 

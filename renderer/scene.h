@@ -29,9 +29,45 @@ struct DistantLight {
   glm::vec3 color{1, 1, 1};             // colour times intensity
 };
 
+// Every light source of the scene, in world space, with RenderMan's standard light shaders'
+// parameters already resolved (colour is lightcolor * intensity). Scene::distantLights and
+// ambientColor are the older view of the distant and ambient entries, kept until every reader of
+// them moves to `lights`.
+enum class LightType : uint8_t { Ambient, Distant, Point, Spot, Area };
+enum class AreaShape : uint8_t { Rectangle, Disk };
+
+struct Light {
+  LightType type = LightType::Distant;
+  glm::vec3 color{1, 1, 1};      // lightcolor * intensity
+  glm::vec3 position{0};         // point, spot: the light's position ("from")
+  glm::vec3 direction{0, 0, 1};  // distant, spot: unit direction the light travels ("to" - "from")
+  // spot: RenderMan's spotlight shader parameters (radians; beamdistribution is the cosine power)
+  float coneAngle = 0.5236f, coneDeltaAngle = 0.0873f, beamDistribution = 2.0f;
+  // area: an emitting rectangle (corner + edgeU + edgeV) or disk (position, normal `direction`,
+  // radius), sampled with `samples` shadow rays (stratified, seeded per pixel: deterministic)
+  AreaShape shape = AreaShape::Rectangle;
+  glm::vec3 corner{0}, edgeU{1, 0, 0}, edgeV{0, 1, 0};
+  float radius = 1.0f;
+  int samples = 16;
+  std::string handle;      // for Illuminate; empty if the RIB gave none
+  std::string sourceFile;  // where the LightSource call was
+  int sourceLine = 0;
+};
+
+// RenderMan's standard surface shaders; anything else is matte (with a warning by the reader).
+enum class SurfaceType : uint8_t { Matte, Plastic, Metal, Mirror, Glass, Constant };
+
 struct Material {
-  glm::vec3 color{1, 1, 1};  // Cs
+  SurfaceType type = SurfaceType::Matte;
+  glm::vec3 color{1, 1, 1};    // Cs
+  glm::vec3 opacity{1, 1, 1};  // Os
   float Ka = 0.1f, Kd = 0.9f;  // matte defaults are RenderMan's 1 and 1; see the reader
+  float Ks = 0.5f, roughness = 0.1f;   // plastic, metal
+  glm::vec3 specularColor{1, 1, 1};    // plastic
+  float Kr = 1.0f, Kt = 1.0f, eta = 1.5f;  // mirror/shinymetal (Kr), glass (Kr Kt eta)
+  glm::vec3 transmitColor{1, 1, 1};  // glass: colour filter of transmitted light
+  bool twoSided = true;             // Sides 2 (default) or 1
+  bool reverseOrientation = false;  // Orientation "inside"/"rh" relative to the default
 };
 
 // Everything needed to displace one mesh: the bound shader instance and the subdivision settings.
@@ -56,6 +92,9 @@ struct Mesh {
   std::vector<glm::vec3> Cs;  // per-vertex colour (RIB "Cs"); empty: the material's colour
   std::vector<uint32_t> indices;  // 3 per triangle
   uint32_t materialIndex = 0;
+  // Indices into Scene::lights of the lights that illuminate this mesh (Illuminate state at the
+  // time the geometry was declared); ambient lights are listed too.
+  std::vector<uint32_t> lights;
   uint32_t displacementIndex = UINT32_MAX;  // into Scene::displacements; UINT32_MAX: none
   uint32_t numTriangles() const { return uint32_t(indices.size() / 3); }
 };
@@ -64,14 +103,21 @@ struct Scene {
   int width = 640, height = 480;
   int pixelSamples = 1;
   Camera camera;
-  std::vector<DistantLight> distantLights;
+  std::vector<Light> lights;
+  std::vector<DistantLight> distantLights;  // older view of `lights` (see Light)
   float ambient = 0.0f;                // grey level of ambientColor
   glm::vec3 ambientColor{0.0f};        // sum of ambient lights, colour times intensity
   std::vector<Material> materials;
   std::vector<Displacement> displacements;
   std::vector<Mesh> meshes;
   std::vector<std::string> displays;  // output file names, first is the main image
-  std::vector<std::string> displayModes;  // parallel to displays: "rgb" or "rgba"
+  // parallel to displays: "rgb", "rgba", or an AOV: "z" (depth), "N" (world normal), "cachemiss"
+  // (per-pixel count of geometry-cache misses: where geometry was rebuilt)
+  std::vector<std::string> displayModes;
+  // Option "relief": render settings a scene may carry; command-line flags override them.
+  uint64_t cacheBudgetTriangles = 0;  // 0: not set
+  std::string order;                  // "": not set
+  int maxDepth = 0;                   // reflection/refraction depth; 0: not set
 };
 
 }  // namespace relief

@@ -10,6 +10,9 @@ RELIEF_PACKAGES=(
   libglm-dev                       # vector math
   googletest libgtest-dev          # unit tests
   libbenchmark-dev                 # bench/
+  libtinyobjloader-dev             # Geometry "objmesh": OBJ files read by a real OBJ parser
+  libembree-dev                    # the `--accel embree` baseline of bench/paper (optional at build)
+  ccache                           # lets several build trees of one checkout share objects
 )
 
 relief_install_deps() {
