@@ -60,6 +60,7 @@ struct Expr {
   const BuiltinInfo* builtin = nullptr;
   const FunctionDecl* function = nullptr;  // a resolved user function call
   bool isVarying = true;
+  bool matrixRow = false;  // the inner `m[i]` of `m[i][j]` (only valid as that)
 
   Expr(ExprKind k, SourceRange r) : kind(k), range(r), opLoc(r.begin) {}
 };

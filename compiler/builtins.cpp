@@ -91,6 +91,9 @@ const RuntimeSymbol kSymbols[] = {
     {"rlf_pnoise", reinterpret_cast<void*>(&rlf_pnoise)},
     {"rlf_texture", reinterpret_cast<void*>(&rlf_texture)},
     {"rlf_printf", reinterpret_cast<void*>(&rlf_printf)},
+    {"rlf_format", reinterpret_cast<void*>(&rlf_format)},
+    {"rlf_concat", reinterpret_cast<void*>(&rlf_concat)},
+    {"rlf_strings_reset", reinterpret_cast<void*>(&rlf_strings_reset)},
     {"rlf_space_matrices", reinterpret_cast<void*>(&rlf_space_matrices)},
 };
 }  // namespace

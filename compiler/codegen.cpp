@@ -36,23 +36,24 @@ struct Dual {
 
 struct Slot;
 
-// A typed value: ints and strings use c[0].v only; floats c[0]; triples c[0..2]. Arrays are not
-// SSA values: `array` names the storage holding them (copied element-wise when stored).
+// A typed value: ints and strings use c[0].v only; floats c[0]; triples c[0..2]; matrices
+// c[0..15] (row-major, no derivative lanes). Arrays are not SSA values: `array` names the storage
+// holding them (copied element-wise when stored).
 struct Val {
   Type type;
-  Dual c[3];
+  Dual c[16];
   const Slot* array = nullptr;
 };
 
 // Storage of a variable: one alloca per component and lane ([N x T] allocas for arrays).
 struct Slot {
   Type type;
-  llvm::AllocaInst* v[3] = {};
-  llvm::AllocaInst* du[3] = {};
-  llvm::AllocaInst* dv[3] = {};
+  llvm::AllocaInst* v[16] = {};
+  llvm::AllocaInst* du[16] = {};
+  llvm::AllocaInst* dv[16] = {};
 };
 
-int numComponents(Type t) { return t.isTriple() ? 3 : 1; }
+int numComponents(Type t) { return t.isTriple() ? 3 : t.kind == TypeKind::Matrix && !t.isArray() ? 16 : 1; }
 int elementComponents(Type t) { return numComponents(t.element()); }
 
 runtime::ParamType paramTypeOf(TypeKind k) {
@@ -232,6 +233,11 @@ class ShaderCodegen {
   Val splat(Type t, Dual d) {
     Val r;
     r.type = t;
+    if (t.kind == TypeKind::Matrix) {
+      // A scalar becomes a matrix's diagonal (§2.1).
+      for (int k = 0; k < 16; ++k) r.c[k] = k % 5 == 0 ? Dual{d.v, nullptr, nullptr} : dconst(0);
+      return r;
+    }
     for (int k = 0; k < 3; ++k) r.c[k] = d;
     return r;
   }
@@ -316,7 +322,7 @@ class ShaderCodegen {
       return makeInt(floatToIntSafe(a.c[0].v));
     }
     if (to.kind == TypeKind::Float) return toFloatScalar(a);
-    if (to.isTriple()) {
+    if (to.isTriple() || to.kind == TypeKind::Matrix) {
       if (a.type.isScalar()) return splat(to, toFloatScalar(a).c[0]);
       Val r = a;
       r.type = to;
@@ -332,7 +338,8 @@ class ShaderCodegen {
     Slot s;
     s.type = d->type;
     llvm::Type* t = d->type.kind == TypeKind::Int ? i32_ : d->type.kind == TypeKind::String ? ptr_ : f32_;
-    const bool hasLanes = t == f32_;
+    // Matrices carry no derivatives (§6.4 differentiates floats and triples).
+    const bool hasLanes = t == f32_ && d->type.kind != TypeKind::Matrix;
     if (d->type.isArray()) t = llvm::ArrayType::get(t, uint64_t(std::max(d->type.arrayLength, 1)));
     llvm::Type* lane = d->type.isArray() ? t : f32_;
     for (int k = 0; k < elementComponents(d->type); ++k) {
@@ -659,6 +666,14 @@ class ShaderCodegen {
     abortBlock_ = abortPoint;
     if (shader_.body) genStmt(*shader_.body);
     if (!terminated()) b_.CreateBr(exitPoint);
+    if (usesStrings_) {
+      // Strings built by format()/concat() live for one shading point.
+      llvm::IRBuilderBase::InsertPointGuard guard(b_);
+      b_.SetInsertPoint(body, body->getFirstInsertionPt());
+      llvm::FunctionCallee fnc = module_.getOrInsertFunction("rlf_strings_reset", llvm::FunctionType::get(llvm::Type::getVoidTy(ctx_), false));
+      if (auto* fn = llvm::dyn_cast<llvm::Function>(fnc.getCallee())) fn->setDoesNotThrow();
+      b_.CreateCall(fnc);
+    }
 
     // Host contract (§5): P assigned but N never → N = normalize(calculatenormal(P)).
     b_.SetInsertPoint(exitPoint);
@@ -887,6 +902,11 @@ class ShaderCodegen {
       case ExprKind::Call: return genCall(e);
       case ExprKind::Construct: return genConstruct(e);
       case ExprKind::Index: {
+        if (e.operands[0]->matrixRow) {
+          const Expr& row = *e.operands[0];
+          const Val m = gen(*row.operands[0]);
+          return makeFloat(matrixElementAt(m, gen(*row.operands[1]).c[0].v, gen(*e.operands[1]).c[0].v));
+        }
         Val base = gen(*e.operands[0]);
         Val index = gen(*e.operands[1]);
         if (base.array) return loadElement(*base.array, clampIndex(index.c[0].v, base.array->type.arrayLength));
@@ -894,6 +914,12 @@ class ShaderCodegen {
       }
       case ExprKind::InitList: return zeroOf(Type(TypeKind::Float));  // handled by initArray
       case ExprKind::Tuple: {
+        if (e.type.kind == TypeKind::Matrix) {
+          Val m;
+          m.type = e.type;
+          for (int k = 0; k < 16; ++k) m.c[k] = {toFloatScalar(gen(*e.operands[size_t(k)])).c[0].v, nullptr, nullptr};
+          return m;
+        }
         Val x = toFloatScalar(gen(*e.operands[0]));
         Val y = toFloatScalar(gen(*e.operands[1]));
         Val z = toFloatScalar(gen(*e.operands[2]));
@@ -929,6 +955,15 @@ class ShaderCodegen {
                    convert(value, baseExpr.type.element()));
       return;
     }
+    if (baseExpr.matrixRow) {
+      // m[i][j] = x
+      const Expr& mExpr = *baseExpr.operands[0];
+      Val m = gen(mExpr);
+      setMatrixElement(m, gen(*baseExpr.operands[1]).c[0].v, gen(*target.operands[1]).c[0].v,
+                       toFloatScalar(value).c[0]);
+      assignTo(mExpr, m);
+      return;
+    }
     // v[i] = x, where v is a variable or an array element (a[i][j] = x)
     Val base = gen(baseExpr);
     Val idx = gen(*target.operands[1]);
@@ -944,6 +979,7 @@ class ShaderCodegen {
   }
 
   Val arith(Tok op, const Val& a0, const Val& b0) {
+    if (a0.type.kind == TypeKind::Matrix || b0.type.kind == TypeKind::Matrix) return matrixArith(op, a0, b0);
     const Type rt = resultType(op, a0.type, b0.type);
     if (rt.kind == TypeKind::Int) {
       Value* a = a0.c[0].v;
@@ -1042,7 +1078,9 @@ class ShaderCodegen {
         } else if (a.type.kind == TypeKind::Int && b.type.kind == TypeKind::Int) {
           eq = b_.CreateICmpEQ(a.c[0].v, b.c[0].v);
         } else {
-          const Type t = a.type.isTriple() ? a.type : b.type.isTriple() ? b.type : Type(TypeKind::Float);
+          const Type t = a.type.isTriple() || a.type.kind == TypeKind::Matrix   ? a.type
+                         : b.type.isTriple() || b.type.kind == TypeKind::Matrix ? b.type
+                                                                                : Type(TypeKind::Float);
           const Val x = convert(a, t);
           const Val y = convert(b, t);
           for (int k = 0; k < numComponents(t); ++k) {
@@ -1130,8 +1168,182 @@ class ShaderCodegen {
     return a;
   }
 
+  // ---- Matrices (§2.2, §4.1, §6.3): 16 scalars, row-major, row vectors.
+  Val makeMatrix() {
+    Val m;
+    m.type = Type(TypeKind::Matrix);
+    for (int k = 0; k < 16; ++k) m.c[k] = dconst(0);
+    return m;
+  }
+  Val identity() { return splat(Type(TypeKind::Matrix), dconst(1)); }
+  Val loadMatrix(Value* ptr) {
+    Val m = makeMatrix();
+    for (int k = 0; k < 16; ++k) m.c[k] = {matrixElement(ptr, k), nullptr, nullptr};
+    return m;
+  }
+  Val matmul(const Val& a, const Val& b) {
+    Val r = makeMatrix();
+    for (int i = 0; i < 4; ++i)
+      for (int j = 0; j < 4; ++j) {
+        Dual acc = dmul(a.c[i * 4], b.c[j]);
+        for (int k = 1; k < 4; ++k) acc = dadd(acc, dmul(a.c[i * 4 + k], b.c[k * 4 + j]));
+        r.c[i * 4 + j] = acc;
+      }
+    return r;
+  }
+  Val transposed(const Val& a) {
+    Val r = makeMatrix();
+    for (int i = 0; i < 4; ++i)
+      for (int j = 0; j < 4; ++j) r.c[i * 4 + j] = a.c[j * 4 + i];
+    return r;
+  }
+  // Cofactor expansion through the 2x2 minors of the top and bottom row pairs.
+  struct Minors {
+    Dual s[6], c[6], det;
+  };
+  Minors minors(const Val& m) {
+    auto a = [&](int i, int j) { return m.c[i * 4 + j]; };
+    auto d2 = [&](Dual p, Dual q, Dual r, Dual t) { return dsub(dmul(p, q), dmul(r, t)); };
+    Minors r;
+    r.s[0] = d2(a(0, 0), a(1, 1), a(1, 0), a(0, 1));
+    r.s[1] = d2(a(0, 0), a(1, 2), a(1, 0), a(0, 2));
+    r.s[2] = d2(a(0, 0), a(1, 3), a(1, 0), a(0, 3));
+    r.s[3] = d2(a(0, 1), a(1, 2), a(1, 1), a(0, 2));
+    r.s[4] = d2(a(0, 1), a(1, 3), a(1, 1), a(0, 3));
+    r.s[5] = d2(a(0, 2), a(1, 3), a(1, 2), a(0, 3));
+    r.c[5] = d2(a(2, 2), a(3, 3), a(3, 2), a(2, 3));
+    r.c[4] = d2(a(2, 1), a(3, 3), a(3, 1), a(2, 3));
+    r.c[3] = d2(a(2, 1), a(3, 2), a(3, 1), a(2, 2));
+    r.c[2] = d2(a(2, 0), a(3, 3), a(3, 0), a(2, 3));
+    r.c[1] = d2(a(2, 0), a(3, 2), a(3, 0), a(2, 2));
+    r.c[0] = d2(a(2, 0), a(3, 1), a(3, 0), a(2, 1));
+    r.det = dadd(dadd(dsub(dmul(r.s[0], r.c[5]), dmul(r.s[1], r.c[4])), dadd(dmul(r.s[2], r.c[3]), dmul(r.s[3], r.c[2]))),
+                 dsub(dmul(r.s[5], r.c[0]), dmul(r.s[4], r.c[1])));
+    return r;
+  }
+  Dual determinant(const Val& m) { return minors(m).det; }
+  // Singular matrices (determinant 0) invert to zero: ddiv's ÷0 is 0.
+  Val inverse(const Val& m) {
+    const Minors n = minors(m);
+    auto a = [&](int i, int j) { return m.c[i * 4 + j]; };
+    auto t3 = [&](Dual x0, Dual y0, Dual x1, Dual y1, Dual x2, Dual y2) {
+      return dadd(dsub(dmul(x0, y0), dmul(x1, y1)), dmul(x2, y2));
+    };
+    const Dual* s = n.s;
+    const Dual* c = n.c;
+    Dual r[16] = {
+        t3(a(1, 1), c[5], a(1, 2), c[4], a(1, 3), c[3]),  dneg(t3(a(0, 1), c[5], a(0, 2), c[4], a(0, 3), c[3])),
+        t3(a(3, 1), s[5], a(3, 2), s[4], a(3, 3), s[3]),  dneg(t3(a(2, 1), s[5], a(2, 2), s[4], a(2, 3), s[3])),
+        dneg(t3(a(1, 0), c[5], a(1, 2), c[2], a(1, 3), c[1])), t3(a(0, 0), c[5], a(0, 2), c[2], a(0, 3), c[1]),
+        dneg(t3(a(3, 0), s[5], a(3, 2), s[2], a(3, 3), s[1])), t3(a(2, 0), s[5], a(2, 2), s[2], a(2, 3), s[1]),
+        t3(a(1, 0), c[4], a(1, 1), c[2], a(1, 3), c[0]),  dneg(t3(a(0, 0), c[4], a(0, 1), c[2], a(0, 3), c[0])),
+        t3(a(3, 0), s[4], a(3, 1), s[2], a(3, 3), s[0]),  dneg(t3(a(2, 0), s[4], a(2, 1), s[2], a(2, 3), s[0])),
+        dneg(t3(a(1, 0), c[3], a(1, 1), c[1], a(1, 2), c[0])), t3(a(0, 0), c[3], a(0, 1), c[1], a(0, 2), c[0]),
+        dneg(t3(a(3, 0), s[3], a(3, 1), s[1], a(3, 2), s[0])), t3(a(2, 0), s[3], a(2, 1), s[1], a(2, 2), s[0]),
+    };
+    Val out = makeMatrix();
+    for (int k = 0; k < 16; ++k) out.c[k] = ddiv(r[k], n.det);
+    return out;
+  }
+  Val matrixArith(Tok op, const Val& a, const Val& b) {
+    const bool am = a.type.kind == TypeKind::Matrix, bm = b.type.kind == TypeKind::Matrix;
+    if (am && bm) return op == Tok::Star ? matmul(a, b) : matmul(a, inverse(b));
+    // With a scalar: element-wise (m*f, f*m, m/f).
+    const Val& m = am ? a : b;
+    const Dual f = toFloatScalar(am ? b : a).c[0];
+    Val r = makeMatrix();
+    for (int k = 0; k < 16; ++k) r.c[k] = op == Tok::Slash ? ddiv(m.c[k], f) : dmul(m.c[k], f);
+    return r;
+  }
+  // Run-time (row, column), each clamped into 0..3 (one count when either was out of range).
+  Value* matrixIndex(Value* row, Value* col) {
+    auto clamp3 = [&](Value* i) {
+      return b_.CreateSelect(b_.CreateICmpSLT(i, ci(0)), ci(0), b_.CreateSelect(b_.CreateICmpSGT(i, ci(3)), ci(3), i));
+    };
+    if (llvm::isa<llvm::ConstantInt>(row) && llvm::isa<llvm::ConstantInt>(col))
+      return ci(int32_t(std::clamp<int64_t>(llvm::cast<llvm::ConstantInt>(row)->getSExtValue(), 0, 3) * 4 +
+                        std::clamp<int64_t>(llvm::cast<llvm::ConstantInt>(col)->getSExtValue(), 0, 3)));
+    if (indexClamped_) {
+      Value* out = b_.CreateOr(b_.CreateICmpUGT(row, ci(3)), b_.CreateICmpUGT(col, ci(3)));
+      b_.CreateStore(b_.CreateAdd(b_.CreateLoad(i32_, indexClamped_), b_.CreateZExt(out, i32_)), indexClamped_);
+    }
+    return b_.CreateAdd(b_.CreateMul(clamp3(row), ci(4)), clamp3(col));
+  }
+  Dual matrixElementAt(const Val& m, Value* row, Value* col) {
+    Value* k = matrixIndex(row, col);
+    if (auto* kc = llvm::dyn_cast<llvm::ConstantInt>(k)) return m.c[kc->getSExtValue()];
+    Value* r = m.c[0].v;
+    for (int i = 1; i < 16; ++i) r = b_.CreateSelect(b_.CreateICmpEQ(k, ci(i)), m.c[i].v, r);
+    return {r, nullptr, nullptr};
+  }
+  void setMatrixElement(Val& m, Value* row, Value* col, Dual x) {
+    Value* k = matrixIndex(row, col);
+    for (int i = 0; i < 16; ++i) m.c[i] = {b_.CreateSelect(b_.CreateICmpEQ(k, ci(i)), x.v, m.c[i].v), nullptr, nullptr};
+  }
+  // p * m by the type of p: point (w = 1, divided by w'), vector (w = 0), normal (inverse transpose).
+  Val transformByMatrix(const Val& p, const Val& m0, int kind) {
+    const Val m = kind == 2 ? transposed(inverse(m0)) : m0;
+    Val r;
+    r.type = p.type;
+    for (int j = 0; j < 3; ++j) {
+      Dual acc = dmul(p.c[0], m.c[j]);
+      for (int i = 1; i < 3; ++i) acc = dadd(acc, dmul(p.c[i], m.c[i * 4 + j]));
+      if (kind == 0) acc = dadd(acc, m.c[12 + j]);
+      r.c[j] = acc;
+    }
+    if (kind == 0) {
+      // Projective matrices: divide by w' unless it is 1 (or 0, which would only produce Inf).
+      Dual w = dadd(dadd(dmul(p.c[0], m.c[3]), dmul(p.c[1], m.c[7])), dadd(dmul(p.c[2], m.c[11]), m.c[15]));
+      Value* plain = b_.CreateOr(b_.CreateFCmpOEQ(w.v, cf(1)), b_.CreateFCmpOEQ(w.v, cf(0)));
+      for (int j = 0; j < 3; ++j) r.c[j] = dselect(plain, r.c[j], ddiv(r.c[j], w));
+    }
+    return r;
+  }
+  // The matrices from the named space to current and back.
+  std::pair<Val, Val> spaceMatrices(const Expr& spaceExpr, Value* name) {
+    if (spaceExpr.kind != ExprKind::StringLiteral) {
+      const auto [to, from] = dynamicSpace(name);
+      return {loadMatrix(to), loadMatrix(from)};
+    }
+    const std::string& space = spaceExpr.text;
+    if (space == "object")
+      return {loadMatrix(bytePtr(spaces_, offsetof(RlfSpaces, currentFromObject))),
+              loadMatrix(bytePtr(spaces_, offsetof(RlfSpaces, objectFromCurrent)))};
+    if (space == "shader")
+      return {loadMatrix(bytePtr(spaces_, offsetof(RlfSpaces, currentFromShader))),
+              loadMatrix(bytePtr(spaces_, offsetof(RlfSpaces, shaderFromCurrent)))};
+    if (space == "camera")
+      return {loadMatrix(bytePtr(spaces_, offsetof(RlfSpaces, currentFromCamera))),
+              loadMatrix(bytePtr(spaces_, offsetof(RlfSpaces, cameraFromCurrent)))};
+    return {identity(), identity()};
+  }
+  Val genMatrixConstruct(const Expr& e) {
+    size_t first = 0;
+    while (first < e.operands.size() && first < 2 && e.operands[first]->type.kind == TypeKind::String) ++first;
+    if (first == 2) {
+      // matrix("from", "to") = from→current · current→to.
+      const Val fromM = spaceMatrices(*e.operands[0], gen(*e.operands[0]).c[0].v).first;
+      const Val toM = spaceMatrices(*e.operands[1], gen(*e.operands[1]).c[0].v).second;
+      return matmul(fromM, toM);
+    }
+    Val m;
+    const size_t n = e.operands.size() - first;
+    if (n == 1) {
+      const Val a = gen(*e.operands[first]);
+      m = a.type.kind == TypeKind::Matrix ? a : splat(Type(TypeKind::Matrix), toFloatScalar(a).c[0]);
+      for (int k = 0; k < 16; ++k) m.c[k].du = m.c[k].dv = nullptr;
+    } else {
+      m = makeMatrix();
+      for (int k = 0; k < 16; ++k) m.c[k] = {toFloatScalar(gen(*e.operands[first + size_t(k)])).c[0].v, nullptr, nullptr};
+    }
+    // Given in a space (as OSL): first m, then space→current.
+    if (first == 1) m = matmul(m, spaceMatrices(*e.operands[0], gen(*e.operands[0]).c[0].v).first);
+    return m;
+  }
+
   Val genConstruct(const Expr& e) {
     const Type t(e.constructType);
+    if (t.kind == TypeKind::Matrix) return genMatrixConstruct(e);
     size_t first = 0;
     if (!e.operands.empty() && e.operands[0]->type.kind == TypeKind::String) first = 1;
     std::vector<Val> args;
@@ -1184,6 +1396,20 @@ class ShaderCodegen {
       case BuiltinId::Exp: {
         Value* r = intrinsic(llvm::Intrinsic::exp, {x.v});
         return chain(r, r, x);
+      }
+      case BuiltinId::Sinh:
+      case BuiltinId::Cosh: {
+        Value* ep = intrinsic(llvm::Intrinsic::exp, {x.v});
+        Value* en = intrinsic(llvm::Intrinsic::exp, {b_.CreateFNeg(x.v)});
+        Value* sh = b_.CreateFMul(b_.CreateFSub(ep, en), cf(0.5f));
+        Value* ch = b_.CreateFMul(b_.CreateFAdd(ep, en), cf(0.5f));
+        return id == BuiltinId::Sinh ? chain(sh, ch, x) : chain(ch, sh, x);
+      }
+      case BuiltinId::Tanh: {
+        // 1 - 2/(e^2x + 1) saturates to ±1 instead of Inf/Inf.
+        Value* e2 = intrinsic(llvm::Intrinsic::exp, {b_.CreateFMul(x.v, cf(2))});
+        Value* th = b_.CreateFSub(cf(1), b_.CreateFDiv(cf(2), b_.CreateFAdd(e2, cf(1))));
+        return chain(th, b_.CreateFSub(cf(1), b_.CreateFMul(th, th)), x);
       }
       case BuiltinId::Exp2: {
         Value* r = intrinsic(llvm::Intrinsic::exp2, {x.v});
@@ -1323,7 +1549,7 @@ class ShaderCodegen {
     return r;
   }
 
-  Val fbm(const std::vector<Val>& args, bool turbulence) {
+  Val fbm(const std::vector<Val>& args, bool turbulence, bool vectorValued) {
     // Σ_{i<octaves} gain^i * snoise(p * lacunarity^i), as an IR loop over the octave count.
     Val p = args[0];
     Value* octaves = args[1].type.kind == TypeKind::Int ? args[1].c[0].v : floatToIntSafe(args[1].c[0].v);
@@ -1331,12 +1557,13 @@ class ShaderCodegen {
     Value* gain = args.size() > 3 ? toFloatScalar(args[3]).c[0].v : cf(0.5f);
     temps_.push_back(std::make_unique<VarDecl>());
     temps_.back()->name = "fbm";
-    temps_.back()->type = Type(TypeKind::Float);
+    const Type rt(vectorValued ? TypeKind::Vector : TypeKind::Float);
+    temps_.back()->type = rt;
     const Slot& sum = slotFor(temps_.back().get());
     llvm::AllocaInst* amp = entryAlloca(f32_, "amp");
     llvm::AllocaInst* freq = entryAlloca(f32_, "freq");
     llvm::AllocaInst* i = entryAlloca(i32_, "octave");
-    store(sum, makeFloat(dconst(0)));
+    store(sum, splat(rt, dconst(0)));
     b_.CreateStore(cf(1), amp);
     b_.CreateStore(cf(1), freq);
     b_.CreateStore(ci(0), i);
@@ -1352,9 +1579,9 @@ class ShaderCodegen {
     Value* a = b_.CreateLoad(f32_, amp);
     Value* f = b_.CreateLoad(f32_, freq);
     Val q = map(p.type, p, [&](Dual d) { return dmul(d, {f, nullptr, nullptr}); });
-    Dual n = noiseOf({q}, Type(TypeKind::Float), true).c[0];
-    if (turbulence) n = dabs(n);
-    store(sum, makeFloat(dadd(load(sum).c[0], dmul(n, {a, nullptr, nullptr}))));
+    Val n = noiseOf({q}, rt, true);
+    if (turbulence) n = map(rt, n, [&](Dual x) { return dabs(x); });
+    store(sum, map2(rt, load(sum), n, [&](Dual acc, Dual x) { return dadd(acc, dmul(x, {a, nullptr, nullptr})); }));
     b_.CreateStore(b_.CreateFMul(a, gain), amp);
     b_.CreateStore(b_.CreateFMul(f, lac), freq);
     b_.CreateStore(b_.CreateAdd(iv, ci(1)), i);
@@ -1701,11 +1928,20 @@ class ShaderCodegen {
         Val d = map2(Type(TypeKind::Vector), args[0], args[1], [&](Dual x, Dual y) { return dsub(x, y); });
         return makeFloat(dsqrtSafe(dot3(d, d)));
       }
-      case BuiltinShape::Comp: return makeFloat(component(args[0], args[1].c[0].v));
+      case BuiltinShape::Comp:
+        if (args[0].type.kind == TypeKind::Matrix) return makeFloat(matrixElementAt(args[0], args[1].c[0].v, args[2].c[0].v));
+        return makeFloat(component(args[0], args[1].c[0].v));
       case BuiltinShape::Setcomp:
       case BuiltinShape::SetXyz: {
         const Expr& target = *e.operands[0];
         Val base = args[0];
+        if (base.type.kind == TypeKind::Matrix) {
+          setMatrixElement(base, args[1].c[0].v, args[2].c[0].v, toFloatScalar(args[3]).c[0]);
+          assignTo(target, base);
+          Val r;
+          r.type = Type(TypeKind::Void);
+          return r;
+        }
         Value* index = e.builtin->shape == BuiltinShape::Setcomp ? args[1].c[0].v
                        : id == BuiltinId::Setxcomp              ? ci(0)
                        : id == BuiltinId::Setycomp              ? ci(1)
@@ -1762,6 +1998,22 @@ class ShaderCodegen {
         return r;
       }
       case BuiltinShape::Spline: return genSpline(e, args);
+      case BuiltinShape::StringFn:
+        if (id == BuiltinId::Concat) {
+          std::vector<Value*> parts;
+          for (const Val& a : args) parts.push_back(a.c[0].v);
+          llvm::AllocaInst* arr = entryAlloca(llvm::ArrayType::get(ptr_, parts.size()), "concat.parts");
+          for (size_t i = 0; i < parts.size(); ++i)
+            b_.CreateStore(parts[i], b_.CreateConstInBoundsGEP2_32(arr->getAllocatedType(), arr, 0, unsigned(i)));
+          llvm::FunctionCallee fnc = module_.getOrInsertFunction("rlf_concat", llvm::FunctionType::get(ptr_, {ptr_, i32_}, false));
+          if (auto* fn = llvm::dyn_cast<llvm::Function>(fnc.getCallee())) fn->setDoesNotThrow();
+          usesStrings_ = true;
+          Val r;
+          r.type = Type(TypeKind::String);
+          r.c[0].v = b_.CreateCall(fnc, {arr, ci(int32_t(parts.size()))});
+          return r;
+        }
+        [[fallthrough]];
       case BuiltinShape::Printf: {
         // Arguments travel in three typed arrays plus a kind per argument (builtins_print.h).
         std::vector<Value*> floats, ints, strings, kinds;
@@ -1775,7 +2027,7 @@ class ShaderCodegen {
             kinds.push_back(ci(3));
           } else {
             for (int k = 0; k < numComponents(a.type); ++k) floats.push_back(a.c[k].v);
-            kinds.push_back(ci(a.type.isTriple() ? 2 : 1));
+            kinds.push_back(ci(a.type.isTriple() ? 2 : a.type.kind == TypeKind::Matrix ? 4 : 1));
           }
         }
         auto array = [&](llvm::Type* t, const std::vector<Value*>& values, const char* name) -> Value* {
@@ -1788,6 +2040,16 @@ class ShaderCodegen {
         Value* floatArr = array(f32_, floats, "printf.floats");
         Value* intArr = array(i32_, ints, "printf.ints");
         Value* strArr = array(ptr_, strings, "printf.strings");
+        if (e.builtin->shape == BuiltinShape::StringFn) {
+          llvm::FunctionCallee fnc = module_.getOrInsertFunction(
+              "rlf_format", llvm::FunctionType::get(ptr_, {ptr_, ptr_, i32_, ptr_, ptr_, ptr_}, false));
+          if (auto* fn = llvm::dyn_cast<llvm::Function>(fnc.getCallee())) fn->setDoesNotThrow();
+          usesStrings_ = true;
+          Val r;
+          r.type = Type(TypeKind::String);
+          r.c[0].v = b_.CreateCall(fnc, {args[0].c[0].v, kindArr, ci(int32_t(kinds.size())), floatArr, intArr, strArr});
+          return r;
+        }
         llvm::FunctionCallee fnc = module_.getOrInsertFunction(
             "rlf_printf", llvm::FunctionType::get(llvm::Type::getVoidTy(ctx_), {ptr_, ptr_, ptr_, i32_, ptr_, ptr_, ptr_}, false));
         if (auto* fn = llvm::dyn_cast<llvm::Function>(fnc.getCallee())) fn->setDoesNotThrow();
@@ -1821,6 +2083,7 @@ class ShaderCodegen {
         Val p = args[n - 1];
         if (id == BuiltinId::Vtransform) p.type = Type(TypeKind::Vector);
         if (id == BuiltinId::Ntransform) p.type = Type(TypeKind::Normal);
+        if (args[0].type.kind == TypeKind::Matrix) return transformByMatrix(p, args[0], transformKind(p));
         if (n == 3) p = toCurrentNamed(p, *e.operands[0], args[0].c[0].v);
         return fromCurrentNamed(p, *e.operands[n - 2], args[n - 2].c[0].v);
       }
@@ -1891,7 +2154,10 @@ class ShaderCodegen {
         }
         return makeFloat(dsqrtSafe(sum));
       }
-      case BuiltinShape::FBm: return fbm(args, id == BuiltinId::Turbulence);
+      case BuiltinShape::FBm: return fbm(args, id == BuiltinId::Turbulence, id == BuiltinId::VfBm);
+      case BuiltinShape::MatrixFn:
+        if (id == BuiltinId::Determinant) return makeFloat(determinant(args[0]));
+        return id == BuiltinId::Inverse ? inverse(args[0]) : transposed(args[0]);
       case BuiltinShape::Displace: {
         if (args.size() == 1 && args[0].type.isTriple()) {
           displaceBy(args[0]);
@@ -1967,6 +2233,7 @@ class ShaderCodegen {
   llvm::AllocaInst* unknownSpace_ = nullptr;  // entry only
   Value* services_ = nullptr;                  // batch->services (entry function only)
   Value* spaces_ = nullptr;
+  bool usesStrings_ = false;  // format()/concat() seen: the entry frees their strings per point
   Value* orientation_ = nullptr;
 };
 

@@ -37,6 +37,18 @@ Tok compoundBase(Tok op) {
 // Result of `a op b`, or kError when the operands do not fit (not reported here).
 Type binaryResult(Tok op, Type a, Type b) {
   if (a.isArray() || b.isArray()) return kError;
+  const bool am = a.kind == TypeKind::Matrix, bm = b.kind == TypeKind::Matrix;
+  if (am || bm) {
+    // §4.1: m*m, m/m (= m·inverse), m*f, f*m, m/f; == and != compare all elements.
+    const Type m{TypeKind::Matrix};
+    switch (op) {
+      case Tok::Star: return (am || a.isScalar()) && (bm || b.isScalar()) ? m : kError;
+      case Tok::Slash: return am && (bm || b.isScalar()) ? m : kError;
+      case Tok::EqEq:
+      case Tok::NotEq: return (am || a.isScalar()) && (bm || b.isScalar()) ? kInt : kError;
+      default: return kError;
+    }
+  }
   const bool strings = a.kind == TypeKind::String && b.kind == TypeKind::String;
   switch (op) {
     case Tok::AmpAmp:
@@ -271,9 +283,7 @@ class Checker {
     pushScope();
     for (auto& p : shader.params) {
       p->storage = Storage::Parameter;
-      if (p->type.kind == TypeKind::Matrix) {
-        report(DiagId::ErrUnsupported, p->nameRange.begin).arg("'matrix' parameter").range(p->nameRange);
-      } else if (p->type.arrayLength < 0) {
+      if (p->type.arrayLength < 0) {
         report(DiagId::ErrUnsizedArray, p->nameRange.begin).range(p->nameRange);
       } else if (!p->init) {
         report(DiagId::ErrMissingDefault, p->nameRange.begin).arg(p->name).range(p->nameRange);
@@ -319,8 +329,11 @@ class Checker {
           case BuiltinShape::Area:
           case BuiltinShape::Texture:
           case BuiltinShape::Random:
-          case BuiltinShape::Transform:  // reads the batch's spaces
+          case BuiltinShape::Transform:  // reads the batch's spaces (unless given a matrix)
+            if (!e.operands.empty() && e.operands[0]->type.kind == TypeKind::Matrix) break;
+            return &e;
           case BuiltinShape::Printf:
+          case BuiltinShape::StringFn:
           case BuiltinShape::DerivRatio:
           case BuiltinShape::Setcomp:
           case BuiltinShape::SetXyz:
@@ -410,8 +423,6 @@ class Checker {
       case StmtKind::Decl:
         for (auto& d : s.decls) {
           d->storage = Storage::Local;
-          if (d->type.kind == TypeKind::Matrix)
-            report(DiagId::ErrUnsupported, d->nameRange.begin).arg("'matrix' variable").range(d->nameRange);
           if (d->type.arrayLength < 0 && !d->init)
             report(DiagId::ErrUnsizedArray, d->nameRange.begin).range(d->nameRange);
           if (d->init) {
@@ -629,7 +640,10 @@ class Checker {
       case ExprKind::Index: {
         Expr& base = *e.operands[0];
         Expr& index = *e.operands[1];
+        const bool matrixRowAllowed = matrixRowOk_;
+        matrixRowOk_ = base.kind == ExprKind::Index;
         const Type bt = checkExpr(base, kError);
+        matrixRowOk_ = false;
         const Type it = checkExpr(index, kError);
         e.isVarying = base.isVarying || index.isVarying;
         if (bt.isError() || it.isError()) return set(e, kError);
@@ -644,6 +658,24 @@ class Checker {
             return set(e, kError);
           }
           return set(e, bt.element());
+        }
+        if (bt.kind == TypeKind::Matrix) {
+          // m[i][j]: the inner index yields a row that only a second index may consume.
+          if (it.kind != TypeKind::Int) {
+            report(DiagId::ErrIndexNotInt, index.range.begin).arg(typeName(it)).range(index.range);
+            return set(e, kError);
+          }
+          if (index.kind == ExprKind::IntLiteral && (index.intValue < 0 || index.intValue > 3)) {
+            report(DiagId::ErrIndexRange, index.range.begin).arg(index.intValue).arg(typeName(bt)).range(index.range);
+            return set(e, kError);
+          }
+          if (base.matrixRow) return set(e, kFloat);
+          if (!matrixRowAllowed) {
+            report(DiagId::ErrMatrixRow, e.range.begin).range(e.range);
+            return set(e, kError);
+          }
+          e.matrixRow = true;
+          return set(e, bt);
         }
         if (!bt.isTriple()) {
           report(DiagId::ErrNotIndexable, e.opLoc).arg(typeName(bt)).range(base.range);
@@ -679,6 +711,7 @@ class Checker {
           }
         }
         if (!ok) return set(e, kError);
+        if (e.operands.size() == 16) return set(e, Type(TypeKind::Matrix));
         if (e.operands.size() != 3) {
           report(DiagId::ErrUnsupported, e.range.begin)
               .arg("a tuple of " + std::to_string(e.operands.size()) + " elements")
@@ -816,6 +849,7 @@ class Checker {
       if (args.size() != 1 || !args[0]->type.isScalar()) return bad();
       return set(e, target);
     }
+    if (target.kind == TypeKind::Matrix) return checkMatrixConstruct(e, bad);
     if (!target.isTriple()) {
       report(DiagId::ErrUnsupported, e.opLoc).arg("'" + typeName(target) + "' constructor").range(e.opRange);
       return set(e, kError);
@@ -838,6 +872,29 @@ class Checker {
     if (n == 3 && args[first]->type.isScalar() && args[first + 1]->type.isScalar() &&
         args[first + 2]->type.isScalar())
       return set(e, target);
+    return bad();
+  }
+
+  // matrix(f), matrix(m), matrix(m00, ..., m33), matrix("from", "to"), matrix("space", f),
+  // matrix("space", m00, ..., m33) (§2.2).
+  template <class Bad>
+  Type checkMatrixConstruct(Expr& e, Bad bad) {
+    std::vector<ExprPtr>& args = e.operands;
+    size_t first = 0;
+    while (first < args.size() && first < 2 && args[first]->type.kind == TypeKind::String) {
+      const Expr& space = *args[first];
+      if (space.kind == ExprKind::StringLiteral && !isKnownSpace(space.text)) {
+        report(DiagId::ErrUnknownSpace, space.range.begin).arg(space.text).range(space.range);
+        return set(e, kError);
+      }
+      ++first;
+    }
+    const size_t n = args.size() - first;
+    if (first == 2) return n == 0 ? set(e, Type(TypeKind::Matrix)) : bad();
+    bool scalars = true;
+    for (size_t i = first; i < args.size(); ++i) scalars &= args[i]->type.isScalar();
+    if ((n == 1 || n == 16) && scalars) return set(e, Type(TypeKind::Matrix));
+    if (n == 1 && first == 0 && args[0]->type == Type(TypeKind::Matrix)) return set(e, Type(TypeKind::Matrix));
     return bad();
   }
 
@@ -1103,6 +1160,9 @@ class Checker {
       case BuiltinShape::Printf:
         if (args[0]->kind == ExprKind::StringLiteral) checkFormat(*args[0], args);
         break;
+      case BuiltinShape::StringFn:
+        if (b->id == BuiltinId::Format && args[0]->kind == ExprKind::StringLiteral) checkFormat(*args[0], args);
+        break;
       case BuiltinShape::Random: e.isVarying = true; break;
       case BuiltinShape::Setcomp:
       case BuiltinShape::SetXyz:
@@ -1112,7 +1172,8 @@ class Checker {
       default: break;
     }
     const size_t numSpaces = b->shape == BuiltinShape::Displace && args.size() == 2 ? 1
-                             : b->shape == BuiltinShape::Transform                 ? args.size() - 1
+                             : b->shape == BuiltinShape::Transform &&
+                                       args[0]->type.kind == TypeKind::String ? args.size() - 1
                                                                                    : 0;
     for (size_t i = 0; i < numSpaces; ++i) {
       const Expr& space = *args[i];
@@ -1152,7 +1213,7 @@ class Checker {
         ok = a.type.kind == TypeKind::Int;
       } else if (conv == 'f' || conv == 'g' || conv == 'e') {
         want = "a number";
-        ok = a.type.isNumeric();
+        ok = a.type.isNumeric() || a.type.kind == TypeKind::Matrix;
       } else {
         continue;
       }
@@ -1309,9 +1370,12 @@ class Checker {
         if (!a->type.isNumeric()) return false;
       return true;
     };
+    const bool matrixFirst = n > 0 && args[0]->type == Type(TypeKind::Matrix);
     if (!allNumeric() && b.shape != BuiltinShape::Displace && b.shape != BuiltinShape::Transform &&
         b.shape != BuiltinShape::Filterstep && b.shape != BuiltinShape::Arraylength &&
-        b.shape != BuiltinShape::Printf)
+        b.shape != BuiltinShape::Printf && b.shape != BuiltinShape::StringFn &&
+        !(matrixFirst && (b.shape == BuiltinShape::Comp || b.shape == BuiltinShape::Setcomp ||
+                          b.shape == BuiltinShape::MatrixFn)))
       return kError;
     switch (b.shape) {
       case BuiltinShape::UnaryT: {
@@ -1365,8 +1429,15 @@ class Checker {
         return n == 2 && args[0]->type.isSpatial() && args[1]->type.isSpatial() ? kFloat : kError;
       case BuiltinShape::Ptlined: return n == 3 && allSpatial(args) ? kFloat : kError;
       case BuiltinShape::Comp:
+        if (matrixFirst)
+          return n == 3 && args[1]->type.kind == TypeKind::Int && args[2]->type.kind == TypeKind::Int ? kFloat : kError;
         return n == 2 && args[0]->type.isTriple() && args[1]->type.kind == TypeKind::Int ? kFloat : kError;
       case BuiltinShape::Setcomp:
+        if (matrixFirst)
+          return n == 4 && args[1]->type.kind == TypeKind::Int && args[2]->type.kind == TypeKind::Int &&
+                         args[3]->type.isScalar()
+                     ? kVoid
+                     : kError;
         return n == 3 && args[0]->type.isTriple() && args[1]->type.kind == TypeKind::Int && args[2]->type.isScalar()
                    ? kVoid
                    : kError;
@@ -1405,9 +1476,27 @@ class Checker {
         if (n != 2 && n != 4) return kError;
         if (!args[0]->type.isSpatial() || !args[1]->type.isScalar()) return kError;
         if (n == 4 && !(args[2]->type.isScalar() && args[3]->type.isScalar())) return kError;
-        return kFloat;
+        return b.id == BuiltinId::VfBm ? kVector : kFloat;
+      case BuiltinShape::MatrixFn:
+        if (n != 1 || !matrixFirst) return kError;
+        return b.id == BuiltinId::Determinant ? kFloat : Type(TypeKind::Matrix);
+      case BuiltinShape::StringFn: {
+        if (n < 1 || args[0]->type.kind != TypeKind::String) return kError;
+        for (const ExprPtr& a : args) {
+          if (a->type.isArray()) return kError;
+          if (b.id == BuiltinId::Concat && a->type.kind != TypeKind::String) return kError;
+        }
+        return Type(TypeKind::String);
+      }
       case BuiltinShape::FloatPred: return n == 1 && args[0]->type.isScalar() ? kInt : kError;
       case BuiltinShape::Transform: {
+        if (n == 2 && matrixFirst) {
+          const Type p = args[1]->type;
+          if (!p.isSpatial()) return kError;
+          if (b.id == BuiltinId::Vtransform) return kVector;
+          if (b.id == BuiltinId::Ntransform) return Type(TypeKind::Normal);
+          return p;
+        }
         if (n != 2 && n != 3) return kError;
         for (size_t i = 0; i + 1 < n; ++i)
           if (args[i]->type.kind != TypeKind::String) return kError;
@@ -1446,7 +1535,7 @@ class Checker {
       case BuiltinShape::Printf: {
         if (n < 1 || args[0]->type.kind != TypeKind::String) return kError;
         for (const ExprPtr& a : args)
-          if (a->type.isArray() || a->type.kind == TypeKind::Matrix) return kError;
+          if (a->type.isArray()) return kError;
         return kVoid;
       }
       case BuiltinShape::Arraylength: return n == 1 && args[0]->type.isArray() ? kInt : kError;
@@ -1480,6 +1569,7 @@ class Checker {
   int loopDepth_ = 0;
   int suppress_ = 0;
   int contextFloat_ = 0;
+  bool matrixRowOk_ = false;  // the expression being checked is the base of an Index
   bool skipUnusedWarnings_ = false;
   uint64_t inlineCost_ = 0;  // expression nodes of the shader or function being checked, inlined
   bool inlineReported_ = false;
