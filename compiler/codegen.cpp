@@ -1708,7 +1708,10 @@ class ShaderCodegen {
     if (auto* fn = llvm::dyn_cast<llvm::Function>(fnc.getCallee())) fn->setDoesNotThrow();
     Value* services = services_ ? services_ : llvm::ConstantPointerNull::get(ptr_);
     Value* ok = b_.CreateCall(fnc, {services, args[0].c[0].v, s.v, t.v, dsdx, dtdx, dsdy, dtdy, opts, ci(n), out, dds, ddt});
-    if (textureErrors_) {
+    bool silent = false;  // "missingcolor" stands in for an unreadable file without an error (§6.7)
+    for (size_t i = 0; i < e.operands.size(); ++i)
+      silent |= e.operands[i]->kind == ExprKind::StringLiteral && e.operands[i]->text == "missingcolor" && i > 0;
+    if (textureErrors_ && !silent) {
       Value* failed = b_.CreateZExt(b_.CreateICmpEQ(ok, ci(0)), i32_);
       b_.CreateStore(b_.CreateAdd(b_.CreateLoad(i32_, textureErrors_), failed), textureErrors_);
     }
@@ -1837,6 +1840,12 @@ class ShaderCodegen {
     const Type rt = e.type;
     switch (e.builtin->shape) {
       case BuiltinShape::UnaryT: {
+        if (id == BuiltinId::Log && args.size() == 2) {
+          // log(x, base) = ln x / ln base (both safe: ln of x ≤ 0 is ln FLT_MIN).
+          const Type t = bindT(args, false);
+          const Dual lb = dlogSafe(toFloatScalar(args[1]).c[0], 1.0f);
+          return map(t, convert(args[0], t), [&](Dual x) { return ddiv(dlogSafe(x, 1.0f), lb); });
+        }
         if (id == BuiltinId::Atan && args.size() == 2) {
           const Type t = bindT(args, false);
           const Val y = convert(args[0], t), x = convert(args[1], t);
@@ -1857,7 +1866,13 @@ class ShaderCodegen {
         return map(rt, convert(args[0], rt), [&](Dual x) { return unaryMath(id, x); });
       }
       case BuiltinShape::BinaryT: {
-        if (rt.kind == TypeKind::Int) return arith(Tok::Percent, args[0], args[1]);  // int mod
+        if (rt.kind == TypeKind::Int) {
+          // int mod: a - b*floor(a/b), i.e. the remainder takes the divisor's sign (by 0: 0).
+          Value* r = arith(Tok::Percent, args[0], args[1]).c[0].v;
+          Value* b = args[1].c[0].v;
+          Value* fix = b_.CreateAnd(b_.CreateICmpNE(r, ci(0)), b_.CreateICmpNE(b_.CreateICmpSLT(r, ci(0)), b_.CreateICmpSLT(b, ci(0))));
+          return makeInt(b_.CreateSelect(fix, b_.CreateAdd(r, b), r));
+        }
         const Val a = convert(args[0], rt), b = convert(args[1], rt);
         return map2(rt, a, b, [&](Dual x, Dual y) -> Dual {
           if (id == BuiltinId::Step) return {b_.CreateSelect(b_.CreateFCmpOLT(y.v, x.v), cf(0), cf(1)), nullptr, nullptr};

@@ -1383,6 +1383,10 @@ class Checker {
           const Type t = bindT(args, false);
           return allFit(args, t) ? t : kError;
         }
+        if (b.id == BuiltinId::Log && n == 2) {
+          const Type t = bindT(args, false);
+          return fits(*args[0], t) && args[1]->type.isScalar() ? t : kError;
+        }
         if (n != 1) return kError;
         const bool intForm = b.id == BuiltinId::Abs || b.id == BuiltinId::Sign;
         return bindT(args, intForm);

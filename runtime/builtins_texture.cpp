@@ -5,7 +5,13 @@
 #include <OpenImageIO/texture.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <cstring>
+#include <mutex>
+#include <set>
+#include <string>
+#include <utility>
+#include <vector>
 
 namespace {
 
@@ -16,6 +22,26 @@ OIIO::TextureSystem* textureSystem() {
     return t;
   }();
   return ts;
+}
+
+// Files that failed to read, each reported once per process (language.md §6.7: one runtime error per
+// file name); `pending` holds those the host has not taken yet.
+struct FailureLog {
+  std::mutex mutex;
+  std::set<std::string> seen;
+  std::vector<std::string> pending;
+};
+FailureLog& failureLog() {
+  static FailureLog log;
+  return log;
+}
+void recordFailure(const char* filename, const std::string& why) {
+  FailureLog& log = failureLog();
+  std::lock_guard lock(log.mutex);
+  if (!log.seen.insert(filename).second) return;
+  log.pending.push_back(filename);
+  std::fprintf(stderr, "error: cannot read texture '%s'%s%s; using the fill value\n", filename,
+               why.empty() ? "" : ": ", why.c_str());
 }
 
 void fillMissing(const RlfTextureOptions* o, int32_t n, float* out, float* ds, float* dt) {
@@ -56,7 +82,10 @@ extern "C" int32_t rlf_texture(const RlfHostServices* services, const char* file
     const bool ok = textureSystem()->texture(OIIO::ustring(filename), opt, s, t, dsdx, dtdx, dsdy, dtdy, nchannels,
                                              out, dout_ds, dout_dt);
     if (!ok) {
-      (void)textureSystem()->geterror();  // clear the per-thread message; the host counts failures
+      // Clear the per-thread message; the host counts failures, the first one per file is printed.
+      std::string why = textureSystem()->geterror();
+      if (const size_t nl = why.find('\n'); nl != std::string::npos) why.resize(nl);
+      if (!options || !options->hasMissingColor) recordFailure(filename, why);
       fillMissing(options, nchannels, out, dout_ds, dout_dt);
       return 0;
     }
@@ -67,3 +96,13 @@ extern "C" int32_t rlf_texture(const RlfHostServices* services, const char* file
     return 0;
   }
 }
+
+namespace relief::runtime {
+
+std::vector<std::string> takeTextureFailures() {
+  FailureLog& log = failureLog();
+  std::lock_guard lock(log.mutex);
+  return std::exchange(log.pending, {});
+}
+
+}  // namespace relief::runtime

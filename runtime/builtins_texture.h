@@ -33,3 +33,13 @@ int32_t rlf_texture(const RlfHostServices* services, const char* filename, float
 #ifdef __cplusplus
 }
 #endif
+
+#ifdef __cplusplus
+#include <string>
+#include <vector>
+namespace relief::runtime {
+// Names of texture files that failed to read through the shared TextureSystem since the last call,
+// each at most once per process (its first failure is also printed to stderr).
+std::vector<std::string> takeTextureFailures();
+}  // namespace relief::runtime
+#endif
