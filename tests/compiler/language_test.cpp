@@ -1,0 +1,231 @@
+// Language features evaluated through the JIT against values computed here: the matrix type
+// (constructors, m[i][j], arithmetic, transform/determinant/inverse/transpose, coordinate-space
+// forms, parameters), format()/concat(), hyperbolic functions, log(x, base), int mod and vfBm's
+// automatically differentiated derivatives.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <string>
+
+#include "compiler/compiler.h"
+#include "runtime/builtins_noise.h"
+#include "runtime/shader.h"
+#include "test_batch.h"
+
+namespace relief::compiler {
+namespace {
+
+using testing::TestBatch;
+using M4 = std::array<double, 16>;
+
+// Compiles `source`, evaluates its only shader at P = (0.25, 0.5, 0.75) on the plane z = const
+// (u = P.x, v = P.y) and returns the printed text; Pout/Nout land in `b`.
+std::string evaluate(const std::string& source, TestBatch& b, RlfStatus* statusOut = nullptr) {
+  CompileResult r = compileSource("lang.disp", source);
+  EXPECT_TRUE(r.success()) << renderDiagnostics(r) << r.internalError;
+  if (!r.success() || r.shaders.empty()) return "";
+  runtime::ShaderInstance instance(r.shaders.front());
+  b.P[0][0] = 0.25f, b.P[1][0] = 0.5f, b.P[2][0] = 0.75f;
+  b.N[2][0] = b.Ng[2][0] = 1;
+  b.dPdu[0][0] = b.dPdv[1][0] = 1;
+  b.u[0] = b.s[0] = 0.25f;
+  b.v[0] = b.t[0] = 0.5f;
+  b.dsdu[0] = b.dtdv[0] = 1;
+  b.du[0] = b.dv[0] = 0.01f;
+  std::string printed;
+  RlfHostServices services{};
+  services.context = &printed;
+  services.print = [](void* context, const char* text) { *static_cast<std::string*>(context) += text; };
+  RlfShadingBatch view = b.all();
+  view.services = &services;
+  RlfStatus status{};
+  instance.evaluate(view, status);
+  if (statusOut) *statusOut = status;
+  return printed;
+}
+
+M4 mul(const M4& a, const M4& b) {
+  M4 r{};
+  for (int i = 0; i < 4; ++i)
+    for (int j = 0; j < 4; ++j)
+      for (int k = 0; k < 4; ++k) r[i * 4 + j] += a[i * 4 + k] * b[k * 4 + j];
+  return r;
+}
+
+TEST(MatrixTest, ConstructorsIndexingAndArithmetic) {
+  TestBatch b(1);
+  // A is an affine map (scale, shear, translation in row 3, row vectors).
+  const std::string printed = evaluate(R"(
+displacement m()
+{
+    matrix A = matrix(2, 1, 0, 0,  0, 3, 0, 0,  0, 0, 4, 0,  1, 2, 3, 1);
+    matrix I = 1;
+    matrix D = matrix(5);
+    matrix T = (1,0,0,0, 0,1,0,0, 0,0,1,0, 7,8,9,1);
+    printf("%g %g %g %g\n", A[0][1], A[3][2], I[2][2] + I[2][1], D[1][1]);
+    printf("%g\n", determinant(A));
+    matrix B = A * inverse(A), C = A / A;
+    float err = 0;
+    for (int r = 0; r < 4; ++r)
+        for (int c = 0; c < 4; ++c)
+            err += abs(B[r][c] - (r == c)) + abs(C[r][c] - (r == c));
+    printf("%d\n", err < 1e-5);
+    printf("%g\n", transpose(A));
+    printf("%g\n", 2 * A / 4);
+    printf("%d %d\n", A == A, A != A * 2);
+    printf("%g\n", T * A);
+    A[1][2] = 6;
+    setcomp(A, 2, 0, -1);
+    printf("%g %g %g\n", A[1][2], comp(A, 2, 0), comp(A, 1, 1));
+    int i = 1, j = 2;
+    printf("%g %g\n", A[i][j], A[i + 9][-4]);
+    printf("%g\n", inverse(matrix(0)));
+})",
+                                       b);
+  const M4 A = {2, 1, 0, 0, 0, 3, 0, 0, 0, 0, 4, 0, 1, 2, 3, 1};
+  const M4 T = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 7, 8, 9, 1};
+  std::string expected = "1 3 1 5\n24\n1\n"
+                         "2 0 0 1 1 3 0 2 0 0 4 3 0 0 0 1\n1 0.5 0 0 0 1.5 0 0 0 0 2 0 0.5 1 1.5 0.5\n1 1\n";
+  const M4 TA = mul(T, A);
+  for (int k = 0; k < 16; ++k) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%g", TA[size_t(k)]);
+    expected += std::string(k ? " " : "") + buf;
+  }
+  expected += "\n6 -1 3\n6 1\n0 0 0 0 0 0 0 0 0 0 0 0 0 0 0 0\n";
+  EXPECT_EQ(printed, expected);
+}
+
+TEST(MatrixTest, TransformsPointsVectorsAndNormals) {
+  TestBatch b(1);
+  // Non-uniform scale (2, 1, 0.5) then translation (1, 2, 3).
+  const std::string printed = evaluate(R"(
+displacement m(matrix S = matrix(2, 0, 0, 0,  0, 1, 0, 0,  0, 0, 0.5, 0,  1, 2, 3, 1))
+{
+    point p = transform(S, point(1, 1, 1));
+    vector v = transform(S, vector(1, 1, 1));
+    normal n = transform(S, normal(1, 1, 1));
+    printf("%g; %g; %g\n", p, v, n);
+    printf("%g; %g\n", vtransform(S, point(1, 1, 1)), ntransform(S, vector(1, 1, 1)));
+    // Projective: w' = 2 divides the point.
+    printf("%g\n", transform(matrix(1, 0, 0, 0,  0, 1, 0, 0,  0, 0, 1, 0,  0, 0, 0, 2), point(2, 4, 6)));
+    P = transform(S, P);
+})",
+                                       b);
+  EXPECT_EQ(printed, "3 3 3.5; 2 1 0.5; 0.5 1 2\n2 1 0.5; 0.5 1 2\n1 2 3\n");
+  EXPECT_FLOAT_EQ(b.Pout[0][0], 0.25f * 2 + 1);
+  EXPECT_FLOAT_EQ(b.Pout[1][0], 0.5f + 2);
+  EXPECT_FLOAT_EQ(b.Pout[2][0], 0.75f * 0.5f + 3);
+  // P' = P·S: the derivatives of P were transformed too, so the host-contract normal is the
+  // scaled plane's: dPdu' = (2,0,0), dPdv' = (0,1,0).
+  EXPECT_NEAR(b.Nout[2][0], 1.0f, 1e-6);
+}
+
+TEST(MatrixTest, CoordinateSpaceForms) {
+  TestBatch b(1);
+  // object = current scaled by 2 and moved by (10, 0, 0); shader = current moved by (0, 5, 0).
+  RlfSpaces& sp = b.spaces;
+  const float objectToCurrent[16] = {2, 0, 0, 0, 0, 2, 0, 0, 0, 0, 2, 0, 10, 0, 0, 1};
+  const float currentToObject[16] = {0.5f, 0, 0, 0, 0, 0.5f, 0, 0, 0, 0, 0.5f, 0, -5, 0, 0, 1};
+  const float shaderToCurrent[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 5, 0, 1};
+  const float currentToShader[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, -5, 0, 1};
+  for (int k = 0; k < 16; ++k) {
+    sp.currentFromObject[k] = objectToCurrent[k];
+    sp.objectFromCurrent[k] = currentToObject[k];
+    sp.currentFromShader[k] = shaderToCurrent[k];
+    sp.shaderFromCurrent[k] = currentToShader[k];
+  }
+  const std::string printed = evaluate(R"(
+displacement m(string obj = "object")
+{
+    matrix os = matrix("object", "shader");
+    printf("%g\n", transform(os, point(1, 1, 1)));
+    printf("%g\n", transform(matrix(obj, "current"), point(1, 1, 1)));
+    printf("%g\n", transform(matrix("object", 1), point(1, 1, 1)));
+    printf("%g\n", transform(matrix("shader", 1, 0, 0, 0,  0, 1, 0, 0,  0, 0, 1, 0,  1, 1, 1, 1), point(0)));
+    printf("%g\n", transform("object", "shader", point(1, 1, 1)));
+})",
+                                       b);
+  // object (1,1,1) -> current (12, 2, 2) -> shader (12, -3, 2).
+  EXPECT_EQ(printed, "12 -3 2\n12 2 2\n12 2 2\n1 6 1\n12 -3 2\n");
+}
+
+TEST(StringTest, FormatAndConcatBuildStrings) {
+  TestBatch b(1);
+  const std::string printed = evaluate(R"(
+displacement s(string base = "rock")
+{
+    string a = concat(base, "_", format("%d", 7), ".exr");
+    string c = format("%s at %.2f: %g%%", base, u, vector(1, 2, 3));
+    printf("%s|%s|%d|%d\n", a, c, a == "rock_7.exr", concat("") == "");
+})",
+                                       b);
+  EXPECT_EQ(printed, "rock_7.exr|rock at 0.25: 1 2 3%|1|1\n");
+}
+
+TEST(MathTest, HyperbolicLogBaseAndIntMod) {
+  TestBatch b(1);
+  const std::string printed = evaluate(R"(
+displacement s()
+{
+    printf("%.5f %.5f %.5f %g %g\n", sinh(0.5), cosh(0.5), tanh(0.5), tanh(1000), tanh(-1000));
+    printf("%g %g %g\n", log(8, 2), log(1000, 10), log(vector(4, 16, 64), 4));
+    printf("%d %d %d %d %g\n", mod(-1, 3), mod(7, -3), mod(6, 3), mod(5, 0), mod(-1.5, 1));
+    P = point(Du(sinh(u)), Du(cosh(u)), Du(tanh(u)));
+})",
+                                       b);
+  char expected[256];
+  std::snprintf(expected, sizeof expected, "%.5f %.5f %.5f 1 -1\n3 3 1 2 3\n2 -2 0 0 0.5\n", std::sinh(0.5),
+                std::cosh(0.5), std::tanh(0.5));
+  EXPECT_EQ(printed, expected);
+  const double u = 0.25;
+  EXPECT_NEAR(b.Pout[0][0], std::cosh(u), 1e-6);
+  EXPECT_NEAR(b.Pout[1][0], std::sinh(u), 1e-6);
+  EXPECT_NEAR(b.Pout[2][0], 1 - std::tanh(u) * std::tanh(u), 1e-6);
+}
+
+TEST(NoiseTest, VectorFbmAndTurbulenceDerivativesAreAnalytic) {
+  TestBatch b(1);
+  evaluate(R"(
+displacement s()
+{
+    point p = point(u * 3 + 0.1234, v * 3 + 0.0567, 0.5371);  // off the lattice: |snoise| has kinks at zeros
+    vector f = vfBm(p, 4, 2, 0.5);
+    float t = turbulence(p, 3);
+    P = point(xcomp(f), Du(xcomp(f)), Dv(zcomp(f)));
+    N = normal(t, Du(t), Dv(t));
+})",
+           b);
+  // The same sums written here, with the x channel of vector noise at offset 0 and the z channel
+  // at the third decorrelation offset, differentiated by central differences.
+  auto channel = [](double x, double y, double z, float offset) {
+    float g[3];
+    return 2.0 * rlf_noise3(float(x) + offset, float(y) + 2 * offset, float(z) + 3 * offset, g) - 1.0;
+  };
+  auto fbm = [&](double u, double v, float offset, int octaves, bool turbulence) {
+    double sum = 0, amp = 1, freq = 1;
+    for (int o = 0; o < octaves; ++o) {
+      const double n = channel((u * 3 + 0.1234) * freq, (v * 3 + 0.0567) * freq, 0.5371 * freq, offset);
+      sum += amp * (turbulence ? std::abs(n) : n);
+      amp *= 0.5;
+      freq *= 2;
+    }
+    return sum;
+  };
+  const double u = 0.25, v = 0.5, e = 1e-3;
+  // Central differences of float-evaluated noise: good to about 1% here.
+  auto near = [](double actual, double expected) { EXPECT_NEAR(actual, expected, 0.01 * std::max(1.0, std::abs(expected))); };
+  EXPECT_NEAR(b.Pout[0][0], fbm(u, v, 0, 4, false), 1e-5);
+  near(b.Pout[1][0], (fbm(u + e, v, 0, 4, false) - fbm(u - e, v, 0, 4, false)) / (2 * e));
+  near(b.Pout[2][0], (fbm(u, v + e, -61.137f, 4, false) - fbm(u, v - e, -61.137f, 4, false)) / (2 * e));
+  EXPECT_NEAR(b.Nout[0][0], fbm(u, v, 0, 3, true), 1e-5);
+  near(b.Nout[1][0], (fbm(u + e, v, 0, 3, true) - fbm(u - e, v, 0, 3, true)) / (2 * e));
+  near(b.Nout[2][0], (fbm(u, v + e, 0, 3, true) - fbm(u, v - e, 0, 3, true)) / (2 * e));
+  EXPECT_NE(b.Pout[1][0], 0.0f);  // derivatives really flow (not the zero of a missing lane)
+  EXPECT_NE(b.Nout[1][0], 0.0f);
+}
+
+}  // namespace
+}  // namespace relief::compiler
