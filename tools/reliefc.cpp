@@ -180,8 +180,17 @@ int evaluate(const Args& args, const CompileResult& result) {
   instance.evaluate(batch, status);
   std::printf("P = (%.9g, %.9g, %.9g)\nN = (%.9g, %.9g, %.9g)\n", Pout[0], Pout[1], Pout[2], Nout[0], Nout[1],
               Nout[2]);
-  if (status.nonFinite) std::printf("note: non-finite result replaced by the input\n");
-  if (status.loopLimit) std::printf("note: loop iteration limit reached\n");
+  // Runtime problems name the shader, as the renderer's warnings do (language.md §7).
+  std::fflush(stdout);
+  if (status.nonFinite)
+    std::cerr << "reliefc: warning: shader '" << shader->name()
+              << "' produced a non-finite P or N; the undisplaced point was used\n";
+  if (status.loopLimit)
+    std::cerr << "reliefc: error: shader '" << shader->name()
+              << "' exceeded the loop iteration limit; outputs reverted to the inputs\n";
+  if (status.textureErrors)
+    std::cerr << "reliefc: warning: shader '" << shader->name() << "': " << status.textureErrors
+              << " texture lookup(s) failed\n";
   return 0;
 }
 

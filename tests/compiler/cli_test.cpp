@@ -1,0 +1,165 @@
+// reliefc as a program (language.md §8): every golden diagnostics case through the executable
+// (stderr byte for byte, exit code 1 with errors, 0 with warnings only), JSON diagnostics, usage
+// and I/O exit codes, and --eval printing the displaced P and N.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string readFile(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+std::string quote(const std::string& s) {
+  std::string q = "'";
+  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return q + "'";
+}
+
+struct CliRun {
+  int exitCode = -1;
+  std::string out, err;
+};
+
+// Runs reliefc with `args` (already quoted) in `dir`.
+CliRun reliefc(const std::string& args, const fs::path& dir = fs::current_path()) {
+  static int counter = 0;
+  const fs::path tmp = fs::path(::testing::TempDir()) / ("reliefc_cli_" + std::to_string(counter++));
+  const std::string command = "cd " + quote(dir.string()) + " && " + quote(RELIEF_RELIEFC_PATH) + " " + args +
+                              " >" + quote(tmp.string() + ".out") + " 2>" + quote(tmp.string() + ".err");
+  const int status = std::system(command.c_str());
+  CliRun r;
+  r.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  r.out = readFile(tmp.string() + ".out");
+  r.err = readFile(tmp.string() + ".err");
+  return r;
+}
+
+fs::path writeTemp(const std::string& name, const std::string& text) {
+  const fs::path p = fs::path(::testing::TempDir()) / name;
+  std::ofstream(p, std::ios::binary) << text;
+  return p;
+}
+
+TEST(CliTest, GoldenCasesPrintTheirDiagnosticsAndExitCodes) {
+  const fs::path dir = fs::path(RELIEF_TEST_DATA_DIR) / "diagnostics";
+  std::vector<fs::path> cases;
+  for (const auto& entry : fs::directory_iterator(dir))
+    if (entry.path().extension() == ".disp") cases.push_back(entry.path());
+  std::sort(cases.begin(), cases.end());
+  ASSERT_GE(cases.size(), 40u);
+  size_t withErrors = 0;
+  for (const fs::path& path : cases) {
+    SCOPED_TRACE(path.filename().string());
+    fs::path expectedPath = path;
+    expectedPath.replace_extension(".expected");
+    const std::string expected = readFile(expectedPath);
+    ASSERT_FALSE(expected.empty());
+    const CliRun r = reliefc("--color=never " + quote(path.filename().string()), dir);
+    EXPECT_EQ(r.err, expected);
+    EXPECT_EQ(r.out, "");
+    // Errors (including fatal ones) exit with 1; warnings alone with 0.
+    const bool errors = expected.find(": error: ") != std::string::npos ||
+                        expected.find(": fatal error: ") != std::string::npos;
+    withErrors += errors;
+    EXPECT_EQ(r.exitCode, errors ? 1 : 0);
+  }
+  EXPECT_GE(withErrors, 40u);
+}
+
+TEST(CliTest, WerrorTurnsWarningsIntoExitCodeOne) {
+  const fs::path dir = fs::path(RELIEF_TEST_DATA_DIR) / "diagnostics";
+  const CliRun r = reliefc("--color=never -Werror unused_variable.disp", dir);
+  EXPECT_EQ(r.exitCode, 1);
+  EXPECT_NE(r.err.find("error: unused variable 'tmp' [-Werror,-Wunused-variable]"), std::string::npos) << r.err;
+  const CliRun quiet = reliefc("--color=never -Wno-unused-variable unused_variable.disp", dir);
+  EXPECT_EQ(quiet.exitCode, 0);
+  EXPECT_EQ(quiet.err.find("unused variable"), std::string::npos) << quiet.err;
+}
+
+TEST(CliTest, JsonDiagnosticsAreOneObjectPerLine) {
+  const fs::path dir = fs::path(RELIEF_TEST_DATA_DIR) / "diagnostics";
+  const CliRun r = reliefc("--diagnostics-format=json matrix_operands.disp", dir);
+  EXPECT_EQ(r.exitCode, 1);
+  EXPECT_EQ(r.err,
+            "{\"severity\":\"error\",\"file\":\"matrix_operands.disp\",\"line\":5,\"column\":18,"
+            "\"message\":\"invalid operands to binary expression ('matrix' and 'matrix')\","
+            "\"ranges\":[{\"begin\":[5,16],\"end\":[5,17]},{\"begin\":[5,20],\"end\":[5,21]}]}\n"
+            "{\"severity\":\"error\",\"file\":\"matrix_operands.disp\",\"line\":6,\"column\":17,"
+            "\"message\":\"invalid operands to binary expression ('point' and 'matrix')\","
+            "\"ranges\":[{\"begin\":[6,15],\"end\":[6,16]},{\"begin\":[6,19],\"end\":[6,20]}]}\n");
+  const CliRun warn = reliefc("--diagnostics-format=json macro_redefined.disp", dir);
+  EXPECT_EQ(warn.exitCode, 0);
+  EXPECT_NE(warn.err.find("\"flag\":\"-Wmacro-redefined\""), std::string::npos) << warn.err;
+  EXPECT_NE(warn.err.find("\"notes\":[{\"severity\":\"note\""), std::string::npos) << warn.err;
+}
+
+TEST(CliTest, UsageAndInputErrorsExitWithTwo) {
+  EXPECT_EQ(reliefc("").exitCode, 2);
+  EXPECT_EQ(reliefc("--no-such-option x.disp").exitCode, 2);
+  EXPECT_EQ(reliefc("--diagnostics-format=xml x.disp").exitCode, 2);
+  const CliRun missing = reliefc(quote(::testing::TempDir() + "/relief_no_such_shader.disp"));
+  EXPECT_EQ(missing.exitCode, 2);
+  EXPECT_NE(missing.err.find("relief_no_such_shader.disp"), std::string::npos) << missing.err;
+  EXPECT_EQ(reliefc("--help").exitCode, 0);
+}
+
+TEST(CliTest, EvalPrintsTheDisplacedPointAndNormal) {
+  const fs::path lift = writeTemp("relief_lift.disp", "displacement lift(float Km = 0.05)\n{\n    P += Km * normalize(N);\n}\n");
+  const CliRun r = reliefc("--eval " + quote(lift.string()) + " -p Km=0.2 --at " +
+                        quote("P=(0,0,1) N=(0,0,1) u=0.5 v=0.5"));
+  EXPECT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_EQ(r.out, "P = (0, 0, 1.20000005)\nN = (0, 0, 1)\n");
+
+  // The spec's sinebumps on the plane P = (u, v, 0): P' = (u, v, h), N' ∝ (-h_u, -h_v, 1).
+  const std::string examples = std::string(RELIEF_TEST_DATA_DIR) + "/spec/examples.disp";
+  const CliRun s = reliefc("--eval " + quote(examples) + " --shader sinebumps -p Km=0.1 --at " +
+                        quote("P=(0.3,0.7,0) N=(0,0,1) u=0.3 v=0.7 dPdu=(1,0,0) dPdv=(0,1,0)"));
+  ASSERT_EQ(s.exitCode, 0) << s.err;
+  double p[3], n[3];
+  ASSERT_EQ(std::sscanf(s.out.c_str(), "P = (%lf, %lf, %lf)\nN = (%lf, %lf, %lf)", &p[0], &p[1], &p[2], &n[0], &n[1],
+                        &n[2]),
+            6)
+      << s.out;
+  const double pi = 3.14159265358979323846, Km = 0.1, f = 12, u = 0.3, v = 0.7;
+  const double h = Km * std::sin(f * 2 * pi * u) * std::sin(f * pi * v);
+  const double hu = Km * f * 2 * pi * std::cos(f * 2 * pi * u) * std::sin(f * pi * v);
+  const double hv = Km * f * pi * std::sin(f * 2 * pi * u) * std::cos(f * pi * v);
+  const double len = std::sqrt(hu * hu + hv * hv + 1);
+  EXPECT_NEAR(p[0], 0.3, 1e-6);
+  EXPECT_NEAR(p[1], 0.7, 1e-6);
+  EXPECT_NEAR(p[2], h, 1e-5);
+  EXPECT_NEAR(n[0], -hu / len, 1e-4);
+  EXPECT_NEAR(n[1], -hv / len, 1e-4);
+  EXPECT_NEAR(n[2], 1 / len, 1e-4);
+
+  // Bad parameter bindings are usage errors.
+  EXPECT_EQ(reliefc("--eval " + quote(lift.string()) + " -p nosuch=1").exitCode, 2);
+}
+
+TEST(CliTest, EvalWarnsAboutNonFiniteResultsNamingTheShader) {
+  const fs::path inf = writeTemp("relief_inf.disp",
+                                 "displacement blowup(float Km = 1e30)\n{\n    P += Km * Km * N;\n}\n");
+  const CliRun r = reliefc("--eval " + quote(inf.string()));
+  EXPECT_EQ(r.exitCode, 0) << r.err;
+  // The undisplaced point and its normal are kept.
+  EXPECT_EQ(r.out, "P = (0, 0, 1)\nN = (0, 0, 1)\n");
+  EXPECT_NE(r.err.find("shader 'blowup' produced a non-finite P or N"), std::string::npos) << r.err;
+}
+
+}  // namespace
