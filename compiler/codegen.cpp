@@ -71,8 +71,8 @@ runtime::ParamType paramTypeOf(TypeKind k) {
 
 class ShaderCodegen {
  public:
-  ShaderCodegen(llvm::Module& module, const ShaderDecl& shader)
-      : ctx_(module.getContext()), module_(module), shader_(shader), b_(ctx_) {
+  ShaderCodegen(llvm::Module& module, const ShaderDecl& shader, uint32_t loopLimit)
+      : ctx_(module.getContext()), module_(module), shader_(shader), b_(ctx_), loopLimit_(loopLimit) {
     f32_ = llvm::Type::getFloatTy(ctx_);
     i32_ = llvm::Type::getInt32Ty(ctx_);
     i64_ = llvm::Type::getInt64Ty(ctx_);
@@ -795,7 +795,7 @@ class ShaderCodegen {
     }
   }
 
-  // Loops count iterations against kLoopIterationLimit on every back edge.
+  // Loops count iterations against loopLimit_ (kLoopIterationLimit unless configured) on every back edge.
   void genLoop(const Stmt& s) {
     if (s.kind == StmtKind::For && s.init) genStmt(*s.init);
     llvm::BasicBlock* condB = newBlock("loop.cond");
@@ -820,7 +820,7 @@ class ShaderCodegen {
     if (s.step) gen(*s.step);
     Value* n = b_.CreateAdd(b_.CreateLoad(i32_, loopCounter_), ci(1));
     b_.CreateStore(n, loopCounter_);
-    b_.CreateCondBr(b_.CreateICmpUGT(n, ci(int32_t(kLoopIterationLimit))), abortBlock_, condB);
+    b_.CreateCondBr(b_.CreateICmpUGT(n, ci(int32_t(std::min<uint32_t>(loopLimit_, INT32_MAX)))), abortBlock_, condB);
 
     b_.SetInsertPoint(endB);
   }
@@ -2249,16 +2249,17 @@ class ShaderCodegen {
   Value* services_ = nullptr;                  // batch->services (entry function only)
   Value* spaces_ = nullptr;
   bool usesStrings_ = false;  // format()/concat() seen: the entry frees their strings per point
+  uint32_t loopLimit_ = kLoopIterationLimit;
   Value* orientation_ = nullptr;
 };
 
 }  // namespace
 
 std::unique_ptr<llvm::Module> generateModule(const TranslationUnit& unit, llvm::LLVMContext& context,
-                                             std::vector<ShaderLayout>& layouts) {
+                                             std::vector<ShaderLayout>& layouts, uint32_t loopLimit) {
   auto module = std::make_unique<llvm::Module>(unit.fileName, context);
   for (const auto& shader : unit.shaders) {
-    ShaderCodegen cg(*module, *shader);
+    ShaderCodegen cg(*module, *shader, std::max<uint32_t>(loopLimit, 1));
     cg.setGlobals(unit);
     layouts.push_back(cg.generate());
   }

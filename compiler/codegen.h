@@ -29,7 +29,9 @@ struct ShaderLayout {
 // Limits named in language.md §7.
 inline constexpr uint32_t kLoopIterationLimit = 1u << 20;
 
+// `loopLimit`: loop iterations allowed per invocation (all loops together) before it aborts.
 std::unique_ptr<llvm::Module> generateModule(const TranslationUnit& unit, llvm::LLVMContext& context,
-                                             std::vector<ShaderLayout>& layouts);
+                                             std::vector<ShaderLayout>& layouts,
+                                             uint32_t loopLimit = kLoopIterationLimit);
 
 }  // namespace relief::compiler

@@ -21,6 +21,8 @@ struct CompileOptions {
   int optLevel = 2;                                          // -O0..-O3
   bool warningsAsErrors = false;
   bool noWarnings = false;
+  // Loop iterations one invocation may run (all loops together) before it aborts (language.md §7).
+  uint32_t loopIterationLimit = 1u << 20;
 };
 
 // Compiles `<name>.disp` found on a search path (first match wins), caches compiled files, and returns

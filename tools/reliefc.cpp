@@ -31,6 +31,7 @@ constexpr const char* kUsage =
     "  -w                         suppress warnings\n"
     "  -W<name>, -Wno-<name>      enable or disable one warning (e.g. -Wno-unused-parameter)\n"
     "  -ferror-limit=N            stop after N errors (default 20, 0: no limit)\n"
+    "  -floop-limit=N             loop iterations per shading point before it aborts (default 1048576)\n"
     "  --emit-llvm                print the optimized LLVM IR\n"
     "  --emit-ast                 print the syntax tree\n"
     "  --color=auto|always|never  colored diagnostics\n"
@@ -238,6 +239,12 @@ int main(int argc, char** argv) {
         std::cerr << "reliefc: warning: unknown warning option '" << a << "'\n";
       else if (off)
         args.disabledWarnings.push_back(name);
+    } else if (a.rfind("-floop-limit=", 0) == 0) {
+      char* end = nullptr;
+      const unsigned long n = std::strtoul(a.c_str() + 13, &end, 10);
+      if (!*(a.c_str() + 13) || *end || n == 0 || n > 0x7fffffffUL)
+        return usageError("bad value for -floop-limit: '" + a.substr(13) + "'");
+      args.options.loopIterationLimit = uint32_t(n);
     } else if (a.rfind("-ferror-limit=", 0) == 0) {
       args.errorLimit = unsigned(std::strtoul(a.c_str() + 14, nullptr, 10));
     } else if (a == "--emit-llvm") {

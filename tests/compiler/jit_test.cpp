@@ -303,6 +303,33 @@ TEST(JitTest, LoopGuardAbortsRunawayLoops) {
   for (int k = 0; k < 3; ++k) EXPECT_EQ(b.Pout[k][1], b.P[k][1]);
 }
 
+TEST(JitTest, LoopLimitIsConfigurableAndCountsAllLoops) {
+  // Two loops of 60 iterations: 120 in all. A limit of 100 aborts (outputs = inputs), 120 does not.
+  const char* source = R"(
+displacement d()
+{
+    for (int i = 0; i < 60; ++i) P += 0.001 * N;
+    int j = 0;
+    while (j < 60) { P += 0.001 * N; j++; }
+})";
+  for (uint32_t limit : {100u, 120u}) {
+    SCOPED_TRACE(limit);
+    CompileOptions options;
+    options.loopIterationLimit = limit;
+    CompileResult r = compileSource("loops.disp", source, options);
+    ASSERT_TRUE(r.success()) << renderDiagnostics(r);
+    runtime::ShaderInstance instance(r.shaders.front());
+    TestBatch b(1);
+    fillSphere(b, 0, 0.2, 0.3);
+    RlfStatus status{};
+    RlfShadingBatch view = b.all();
+    instance.evaluate(view, status);
+    EXPECT_EQ(status.loopLimit, limit == 100u ? 1u : 0u);
+    const float expected = limit == 100u ? b.P[2][0] : b.P[2][0] + 0.12f * b.N[2][0];
+    EXPECT_NEAR(b.Pout[2][0], expected, 1e-5);
+  }
+}
+
 TEST(JitTest, ControlFlowAndIntegerArithmetic) {
   auto shader = compileOne(R"(
 displacement d(int n = 5)
