@@ -1,6 +1,8 @@
 // The built-in function table and the explicit list of runtime symbols the JIT may resolve.
 #include "compiler/builtins.h"
 
+#include <math.h>
+
 #include <cmath>
 #include <cstring>
 #include <unordered_map>
@@ -19,33 +21,11 @@ constexpr BuiltinInfo kBuiltins[] = {
 };
 
 // libm entry points LLVM lowers intrinsics to; resolved explicitly, never from the whole process.
-float sinfImpl(float x) { return std::sin(x); }
-float cosfImpl(float x) { return std::cos(x); }
-float tanfImpl(float x) { return std::tan(x); }
-float asinfImpl(float x) { return std::asin(x); }
-float acosfImpl(float x) { return std::acos(x); }
-float atanfImpl(float x) { return std::atan(x); }
-float atan2fImpl(float y, float x) { return std::atan2(y, x); }
-float expfImpl(float x) { return std::exp(x); }
-float exp2fImpl(float x) { return std::exp2(x); }
-float logfImpl(float x) { return std::log(x); }
-float log2fImpl(float x) { return std::log2(x); }
-float log10fImpl(float x) { return std::log10(x); }
-float powfImpl(float x, float y) { return std::pow(x, y); }
-float floorfImpl(float x) { return std::floor(x); }
-float ceilfImpl(float x) { return std::ceil(x); }
-float truncfImpl(float x) { return std::trunc(x); }
-float roundfImpl(float x) { return std::round(x); }
-float fmodfImpl(float x, float y) { return std::fmod(x, y); }
-float sqrtfImpl(float x) { return std::sqrt(x); }
-void sincosfImpl(float x, float* s, float* c) {
-  *s = std::sin(x);
-  *c = std::cos(x);
-}
+// Most are libm's own functions (no wrapper frame on the hot path).
+void* libm1(float (*f)(float)) { return reinterpret_cast<void*>(f); }
+void* libm2(float (*f)(float, float)) { return reinterpret_cast<void*>(f); }
 float exp10fImpl(float x) { return std::pow(10.0f, x); }
 float ldexpfImpl(float x, int e) { return std::ldexp(x, e); }
-float fminfImpl(float a, float b) { return std::fmin(a, b); }
-float fmaxfImpl(float a, float b) { return std::fmax(a, b); }
 float fmafImpl(float a, float b, float c) { return std::fma(a, b, c); }
 void* memsetImpl(void* d, int c, size_t n) { return std::memset(d, c, n); }
 void* memcpyImpl(void* d, const void* s, size_t n) { return std::memcpy(d, s, n); }
@@ -53,30 +33,30 @@ void* memmoveImpl(void* d, const void* s, size_t n) { return std::memmove(d, s, 
 int strcmpImpl(const char* a, const char* b) { return std::strcmp(a, b); }
 
 const RuntimeSymbol kSymbols[] = {
-    {"sinf", reinterpret_cast<void*>(&sinfImpl)},
-    {"cosf", reinterpret_cast<void*>(&cosfImpl)},
-    {"tanf", reinterpret_cast<void*>(&tanfImpl)},
-    {"asinf", reinterpret_cast<void*>(&asinfImpl)},
-    {"acosf", reinterpret_cast<void*>(&acosfImpl)},
-    {"atanf", reinterpret_cast<void*>(&atanfImpl)},
-    {"atan2f", reinterpret_cast<void*>(&atan2fImpl)},
-    {"expf", reinterpret_cast<void*>(&expfImpl)},
-    {"exp2f", reinterpret_cast<void*>(&exp2fImpl)},
-    {"logf", reinterpret_cast<void*>(&logfImpl)},
-    {"log2f", reinterpret_cast<void*>(&log2fImpl)},
-    {"log10f", reinterpret_cast<void*>(&log10fImpl)},
-    {"powf", reinterpret_cast<void*>(&powfImpl)},
-    {"floorf", reinterpret_cast<void*>(&floorfImpl)},
-    {"ceilf", reinterpret_cast<void*>(&ceilfImpl)},
-    {"truncf", reinterpret_cast<void*>(&truncfImpl)},
-    {"roundf", reinterpret_cast<void*>(&roundfImpl)},
-    {"fmodf", reinterpret_cast<void*>(&fmodfImpl)},
-    {"sqrtf", reinterpret_cast<void*>(&sqrtfImpl)},
-    {"sincosf", reinterpret_cast<void*>(&sincosfImpl)},
+    {"sinf", libm1(&::sinf)},
+    {"cosf", libm1(&::cosf)},
+    {"tanf", libm1(&::tanf)},
+    {"asinf", libm1(&::asinf)},
+    {"acosf", libm1(&::acosf)},
+    {"atanf", libm1(&::atanf)},
+    {"atan2f", libm2(&::atan2f)},
+    {"expf", libm1(&::expf)},
+    {"exp2f", libm1(&::exp2f)},
+    {"logf", libm1(&::logf)},
+    {"log2f", libm1(&::log2f)},
+    {"log10f", libm1(&::log10f)},
+    {"powf", libm2(&::powf)},
+    {"floorf", libm1(&::floorf)},
+    {"ceilf", libm1(&::ceilf)},
+    {"truncf", libm1(&::truncf)},
+    {"roundf", libm1(&::roundf)},
+    {"fmodf", libm2(&::fmodf)},
+    {"sqrtf", libm1(&::sqrtf)},
+    {"sincosf", reinterpret_cast<void*>(&::sincosf)},  // glibc: one call for LLVM's merged sin+cos
     {"exp10f", reinterpret_cast<void*>(&exp10fImpl)},
     {"ldexpf", reinterpret_cast<void*>(&ldexpfImpl)},
-    {"fminf", reinterpret_cast<void*>(&fminfImpl)},
-    {"fmaxf", reinterpret_cast<void*>(&fmaxfImpl)},
+    {"fminf", libm2(&::fminf)},
+    {"fmaxf", libm2(&::fmaxf)},
     {"fmaf", reinterpret_cast<void*>(&fmafImpl)},
     {"memset", reinterpret_cast<void*>(&memsetImpl)},
     {"memcpy", reinterpret_cast<void*>(&memcpyImpl)},
