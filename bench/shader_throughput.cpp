@@ -1,4 +1,4 @@
-// Shader benchmarks: points per second of the JIT-compiled §9 example shaders through the batch ABI,
+// Shader benchmarks: points per second of the JIT-compiled §9 example shaders (all seven) through the batch ABI,
 // against the same formulas hand-written in C++ (with the derivative work the shader implies), and
 // the parse+check+codegen+JIT latency of each shader at -O2. Targets: JIT throughput within 1.25x of
 // C++; compile latency under 30 ms (docs/performance.md).
@@ -16,9 +16,14 @@
 #include <string>
 #include <vector>
 
+#include <unistd.h>
+
 #include "compiler/compiler.h"
 #include "runtime/abi.h"
+#include <OpenImageIO/imageio.h>
+
 #include "runtime/builtins_noise.h"
+#include "runtime/builtins_texture.h"
 #include "runtime/shader.h"
 
 namespace relief::bench {
@@ -199,6 +204,71 @@ void cppCraggy(const RlfShadingBatch& b) {
   }
 }
 
+// The texture files of heightmap and vectordisp: smooth 256x256 patterns written at startup.
+std::string textureFile(int channels) {
+  const std::string path = "/tmp/relief_bench_tex" + std::to_string(channels) + "_" + std::to_string(getpid()) + ".exr";
+  static std::map<int, std::string> written;
+  if (written.count(channels)) return written[channels];
+  constexpr int kSize = 256;
+  std::vector<float> pixels;
+  for (int y = 0; y < kSize; ++y)
+    for (int x = 0; x < kSize; ++x)
+      for (int c = 0; c < channels; ++c)
+        pixels.push_back(0.5f + 0.5f * std::sin(float(x + 3 * c) * 0.05f) * std::cos(float(y) * 0.07f));
+  auto out = OIIO::ImageOutput::create(path);
+  OIIO::ImageSpec spec(kSize, kSize, channels, OIIO::TypeDesc::FLOAT);
+  if (!out || !out->open(path, spec) || !out->write_image(OIIO::TypeDesc::FLOAT, pixels.data()))
+    std::fprintf(stderr, "bench: cannot write %s\n", path.c_str());
+  if (out) out->close();
+  return written[channels] = path;
+}
+
+// texture(file, s, t, ...) as codegen calls it: footprint from the derivatives of s and t, result
+// derivatives by the chain rule through the texture system's d/ds and d/dt.
+inline void lookup(const char* file, const Globals& g, const RlfTextureOptions& opt, int n, D* out) {
+  float v[4], ds[4], dt[4];
+  rlf_texture(nullptr, file, g.s.v, g.t.v, g.s.du * g.du, g.t.du * g.du, g.s.dv * g.dv, g.t.dv * g.dv, &opt, n, v,
+              ds, dt);
+  for (int k = 0; k < n; ++k)
+    out[k] = {v[k], g.s.du * ds[k] + g.t.du * dt[k], g.s.dv * ds[k] + g.t.dv * dt[k]};
+}
+RlfTextureOptions defaultTextureOptions() {
+  RlfTextureOptions o{};
+  o.swidth = o.twidth = 1;
+  return o;
+}
+
+void cppHeightmap(const RlfShadingBatch& b) {
+  const float Km = 0.1f, mid = 0.5f;
+  static const std::string file = textureFile(1);
+  RlfTextureOptions opt = defaultTextureOptions();
+  opt.swrap = opt.twrap = "periodic";
+  for (uint32_t i = 0; i < b.count; ++i) {
+    const Globals g = load(b, i);
+    D h;
+    lookup(file.c_str(), g, opt, 1, &h);
+    storeWithNormal(b, i, displaceInSpace(g.P, normalize(g.N), (h - D{mid, 0, 0}) * Km, *b.spaces), g.orientation);
+  }
+}
+
+void cppVectordisp(const RlfShadingBatch& b) {
+  const float scale = 1;
+  static const std::string file = textureFile(3);
+  RlfTextureOptions opt = defaultTextureOptions();
+  opt.hasMissingColor = 1;
+  for (uint32_t i = 0; i < b.count; ++i) {
+    const Globals g = load(b, i);
+    // dPdu carries no derivatives (second derivatives are not seeded).
+    const V3 T = normalize(V3{{b.dPdu.x[i], 0, 0}, {b.dPdu.y[i], 0, 0}, {b.dPdu.z[i], 0, 0}});
+    const V3 n = normalize(g.N);
+    const V3 B{n.y * T.z - n.z * T.y, n.z * T.x - n.x * T.z, n.x * T.y - n.y * T.x};
+    D c[3];
+    lookup(file.c_str(), g, opt, 3, c);
+    const V3 off = T * c[0] + B * c[1] + n * c[2];
+    storeWithNormal(b, i, g.P + off * D{scale, 0, 0}, g.orientation);
+  }
+}
+
 void cppRoundedbox(const RlfShadingBatch& b) {
   const float radius = 0.1f, half = 1;
   const float lo = radius - half, hi = half - radius;
@@ -306,10 +376,15 @@ using CppShader = void (*)(const RlfShadingBatch&);
 struct Example {
   const char* name;
   CppShader reference;
+  const char* textureParam;  // bound to a generated texture of `textureChannels` channels
+  int textureChannels;
 };
+// The seven examples of language.md §9 (examples/shaders/ holds them verbatim).
 constexpr Example kExamples[] = {
-    {"bumps", cppBumps},   {"glassbumps", cppGlassbumps},   {"grooves", cppGrooves},
-    {"craggy", cppCraggy}, {"roundedbox", cppRoundedbox},
+    {"sinebumps", cppBumps, nullptr, 0},        {"roundedbox", cppRoundedbox, nullptr, 0},
+    {"grooves", cppGrooves, nullptr, 0},        {"craggy", cppCraggy, nullptr, 0},
+    {"glassbumps", cppGlassbumps, nullptr, 0},  {"heightmap", cppHeightmap, "texname", 1},
+    {"vectordisp", cppVectordisp, "vdmap", 3},
 };
 
 std::string readText(const std::string& path) {
@@ -323,7 +398,8 @@ std::string shaderPath(const char* name) {
 }
 
 // Compiled once per process; a shader that does not compile skips its benchmarks.
-runtime::ShaderInstance* instanceFor(const char* name) {
+runtime::ShaderInstance* instanceFor(const Example& ex) {
+  const char* name = ex.name;
   static std::map<std::string, std::unique_ptr<runtime::ShaderInstance>> cache;
   auto it = cache.find(name);
   if (it != cache.end()) return it->second.get();
@@ -331,6 +407,11 @@ runtime::ShaderInstance* instanceFor(const char* name) {
   std::unique_ptr<runtime::ShaderInstance> inst;
   if (r.success() && r.find(name)) inst = std::make_unique<runtime::ShaderInstance>(r.find(name));
   else std::fprintf(stderr, "bench: %s does not compile:\n%s", name, compiler::renderDiagnostics(r).c_str());
+  if (inst && ex.textureParam) {
+    std::string error;
+    if (!inst->bind({ex.textureParam, runtime::ParamType::String, {}, {textureFile(ex.textureChannels)}}, &error))
+      std::fprintf(stderr, "bench: %s: %s\n", name, error.c_str());
+  }
   return (cache[name] = std::move(inst)).get();
 }
 
@@ -358,7 +439,7 @@ void compareOutputs(benchmark::State& state) {
 
 void BM_Shade(benchmark::State& state, const Example& ex, bool jit) {
   const uint32_t batchSize = uint32_t(state.range(0));
-  runtime::ShaderInstance* inst = instanceFor(ex.name);
+  runtime::ShaderInstance* inst = instanceFor(ex);
   if (!inst) {
     state.SkipWithError("shader does not compile");
     return;
@@ -375,6 +456,7 @@ void BM_Shade(benchmark::State& state, const Example& ex, bool jit) {
   shadePool(kPoolSize, false, inst, ex.reference, s2);
   compareOutputs(state);
   state.counters["nonFinite"] = s2.nonFinite;
+  state.counters["textureErrors"] = s2.textureErrors;
 }
 
 // parse + check + codegen + JIT of one example file at -O2, source already in memory.

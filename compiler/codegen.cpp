@@ -535,8 +535,11 @@ class ShaderCodegen {
     slots_.clear();
     gradient_ = cellInput_ = nullptr;
 
-    zeroCell_ = entryAlloca(f32_, "zero");
-    b_.CreateStore(cf(0), zeroCell_);
+    // Absent seed arrays read this constant: a global, not an alloca, so that SROA does not turn the
+    // per-point pointer selects into branches.
+    zeroCell_ = module_.getGlobalVariable("rlf.zero", true);
+    if (!zeroCell_)
+      zeroCell_ = new llvm::GlobalVariable(module_, f32_, true, llvm::GlobalValue::PrivateLinkage, llvm::ConstantFP::get(f32_, 0.0), "rlf.zero");
     nonFinite_ = entryAlloca(i32_, "nonfinite");
     loopLimitHits_ = entryAlloca(i32_, "looplimit");
     loopCounter_ = entryAlloca(i32_, "iterations");
@@ -2235,7 +2238,7 @@ class ShaderCodegen {
   std::vector<LoopTargets> loops_;
   llvm::BasicBlock* exitBlock_ = nullptr;
   llvm::BasicBlock* abortBlock_ = nullptr;
-  llvm::AllocaInst* zeroCell_ = nullptr;
+  llvm::GlobalVariable* zeroCell_ = nullptr;
   llvm::AllocaInst* nonFinite_ = nullptr;
   llvm::AllocaInst* loopLimitHits_ = nullptr;
   llvm::AllocaInst* loopCounter_ = nullptr;
