@@ -652,11 +652,7 @@ class Checker {
             report(DiagId::ErrIndexNotInt, index.range.begin).arg(typeName(it)).range(index.range);
             return set(e, kError);
           }
-          if (index.kind == ExprKind::IntLiteral && bt.arrayLength > 0 &&
-              (index.intValue < 0 || index.intValue >= bt.arrayLength)) {
-            report(DiagId::ErrIndexRange, index.range.begin).arg(index.intValue).arg(typeName(bt)).range(index.range);
-            return set(e, kError);
-          }
+          if (bt.arrayLength > 0 && badConstantIndex(index, bt.arrayLength, bt)) return set(e, kError);
           return set(e, bt.element());
         }
         if (bt.kind == TypeKind::Matrix) {
@@ -665,10 +661,7 @@ class Checker {
             report(DiagId::ErrIndexNotInt, index.range.begin).arg(typeName(it)).range(index.range);
             return set(e, kError);
           }
-          if (index.kind == ExprKind::IntLiteral && (index.intValue < 0 || index.intValue > 3)) {
-            report(DiagId::ErrIndexRange, index.range.begin).arg(index.intValue).arg(typeName(bt)).range(index.range);
-            return set(e, kError);
-          }
+          if (badConstantIndex(index, 4, bt)) return set(e, kError);
           if (base.matrixRow) return set(e, kFloat);
           if (!matrixRowAllowed) {
             report(DiagId::ErrMatrixRow, e.range.begin).range(e.range);
@@ -685,13 +678,7 @@ class Checker {
           report(DiagId::ErrIndexNotInt, index.range.begin).arg(typeName(it)).range(index.range);
           return set(e, kError);
         }
-        if (index.kind == ExprKind::IntLiteral && (index.intValue < 0 || index.intValue > 2)) {
-          report(DiagId::ErrIndexRange, index.range.begin)
-              .arg(index.intValue)
-              .arg(typeName(bt))
-              .range(index.range);
-          return set(e, kError);
-        }
+        if (badConstantIndex(index, 3, bt)) return set(e, kError);
         return set(e, kFloat);
       }
       case ExprKind::InitList:
@@ -722,6 +709,27 @@ class Checker {
       }
     }
     return set(e, kError);
+  }
+
+  // A constant index (a literal, possibly negated) outside [0, limit) is an error at the index (§6.3);
+  // other indices are clamped at run time.
+  static bool constantInt(const Expr& e, int64_t* value) {
+    if (e.kind == ExprKind::IntLiteral) {
+      *value = e.intValue;
+      return true;
+    }
+    if (e.kind == ExprKind::Unary && (e.op == Tok::Minus || e.op == Tok::Plus) &&
+        e.operands[0]->kind == ExprKind::IntLiteral) {
+      *value = e.op == Tok::Minus ? -int64_t(e.operands[0]->intValue) : e.operands[0]->intValue;
+      return true;
+    }
+    return false;
+  }
+  bool badConstantIndex(const Expr& index, int limit, Type t) {
+    int64_t k = 0;
+    if (!constantInt(index, &k) || (k >= 0 && k < limit)) return false;
+    report(DiagId::ErrIndexRange, index.range.begin).arg(static_cast<long long>(k)).arg(typeName(t)).range(index.range);
+    return true;
   }
 
   Type checkBinary(Expr& e, Type expected) {
@@ -1164,8 +1172,19 @@ class Checker {
         if (b->id == BuiltinId::Format && args[0]->kind == ExprKind::StringLiteral) checkFormat(*args[0], args);
         break;
       case BuiltinShape::Random: e.isVarying = true; break;
+      case BuiltinShape::Comp: {
+        const bool m = args[0]->type.kind == TypeKind::Matrix;
+        if (badConstantIndex(*args[1], m ? 4 : 3, args[0]->type) || (m && badConstantIndex(*args[2], 4, args[0]->type)))
+          return set(e, kError);
+        break;
+      }
       case BuiltinShape::Setcomp:
       case BuiltinShape::SetXyz:
+        if (b->shape == BuiltinShape::Setcomp) {
+          const bool m = args[0]->type.kind == TypeKind::Matrix;
+          if (badConstantIndex(*args[1], m ? 4 : 3, args[0]->type) || (m && badConstantIndex(*args[2], 4, args[0]->type)))
+            return set(e, kError);
+        }
         // The first argument is an output: it must be a writable variable or component.
         if (!checkAssignable(*args[0], args[0]->range.begin, args[0]->range)) return set(e, kError);
         break;

@@ -56,6 +56,7 @@ M4 mul(const M4& a, const M4& b) {
 
 TEST(MatrixTest, ConstructorsIndexingAndArithmetic) {
   TestBatch b(1);
+  RlfStatus status{};
   // A is an affine map (scale, shear, translation in row 3, row vectors).
   const std::string printed = evaluate(R"(
 displacement m()
@@ -80,10 +81,11 @@ displacement m()
     setcomp(A, 2, 0, -1);
     printf("%g %g %g\n", A[1][2], comp(A, 2, 0), comp(A, 1, 1));
     int i = 1, j = 2;
-    printf("%g %g\n", A[i][j], A[i + 9][-4]);
+    printf("%g %g\n", A[i][j], A[i + 9][j - 6]);  // run-time indices clamp (and are counted)
     printf("%g\n", inverse(matrix(0)));
 })",
-                                       b);
+                                       b, &status);
+  EXPECT_EQ(status.indexClamped, 1u);
   const M4 A = {2, 1, 0, 0, 0, 3, 0, 0, 0, 0, 4, 0, 1, 2, 3, 1};
   const M4 T = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 7, 8, 9, 1};
   std::string expected = "1 3 1 5\n24\n1\n"
