@@ -8,6 +8,9 @@
 #include <array>
 #include <cmath>
 #include <string>
+#include <vector>
+
+#include <OpenImageIO/imageio.h>
 
 #include "compiler/compiler.h"
 #include "runtime/builtins_noise.h"
@@ -227,6 +230,50 @@ displacement s()
   near(b.Nout[2][0], (fbm(u, v + e, 0, 3, true) - fbm(u, v - e, 0, 3, true)) / (2 * e));
   EXPECT_NE(b.Pout[1][0], 0.0f);  // derivatives really flow (not the zero of a missing lane)
   EXPECT_NE(b.Nout[1][0], 0.0f);
+}
+
+TEST(TextureTest, FootprintComesFromTheDerivativesOfST) {
+  // Stripes one texel wide: a point lookup sees 0 or 1, a footprint of many texels their mean.
+  const std::string path = ::testing::TempDir() + "/relief_stripes.exr";
+  {
+    constexpr int kSize = 256;
+    std::vector<float> pixels;
+    for (int y = 0; y < kSize; ++y)
+      for (int x = 0; x < kSize; ++x) pixels.push_back(float(x % 2));
+    auto out = OIIO::ImageOutput::create(path);
+    ASSERT_TRUE(out);
+    OIIO::ImageSpec spec(kSize, kSize, 1, OIIO::TypeDesc::FLOAT);
+    ASSERT_TRUE(out->open(path, spec));
+    ASSERT_TRUE(out->write_image(OIIO::TypeDesc::FLOAT, pixels.data()));
+    out->close();
+  }
+  CompileResult r = compileSource("stripes.disp", R"(
+displacement stripes(string tex = "")
+{
+    P = point(texture(tex, s, t), texture(tex, 101.5 / 256 + (s - 101.5 / 256) * 0.001, t), 0);
+})");
+  ASSERT_TRUE(r.success()) << renderDiagnostics(r);
+  runtime::ShaderInstance instance(r.shaders.front());
+  std::string error;
+  ASSERT_TRUE(instance.bind({"tex", runtime::ParamType::String, {}, {path}}, &error)) << error;
+  TestBatch b(2);
+  for (size_t i = 0; i < 2; ++i) {
+    b.s[i] = (101.5f + float(i)) / 256;  // texel centres of columns 101 (value 1) and 102 (value 0)
+    b.t[i] = 0.5f;
+    b.dsdu[i] = b.dtdv[i] = 1;
+    b.du[i] = b.dv[i] = i == 0 ? 1e-4f : 0.1f;  // a tiny footprint, then ~25 texels wide
+    b.N[2][i] = b.Ng[2][i] = 1;
+  }
+  RlfStatus status{};
+  RlfShadingBatch view = b.all();
+  instance.evaluate(view, status);
+  EXPECT_EQ(status.textureErrors, 0u);
+  // A footprint below a texel keeps the stripe (OIIO's bicubic magnification gives 2/3 at the
+  // centre of a 1-texel), one of ~25 texels averages it out.
+  EXPECT_GT(b.Pout[0][0], 0.6f);
+  EXPECT_NEAR(b.Pout[0][1], 0.5f, 0.05f);
+  // Scaling s by 0.001 shrinks Du(s), and with it the footprint, a thousandfold: the stripe is back.
+  EXPECT_GT(b.Pout[1][1], 0.6f);
 }
 
 }  // namespace
