@@ -7,6 +7,8 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstring>
+#include <iterator>
 #include <string>
 #include <vector>
 
@@ -320,6 +322,46 @@ TEST_F(SpecExamplesTest, VectorDisplacementIsInTheTangentFrame) {
     expectNear(pOut(b, 0), expected, 1e-4, "P");
     // A constant offset translates the plane: its normal is unchanged.
     expectNear(nOut(b, 0), {0, 0, 1}, 1e-4, "N");
+  }
+}
+
+TEST_F(SpecExamplesTest, ResultsAreBitIdenticalAcrossOptimizationLevels) {
+  // §7: re-evaluating a vertex must give bit-identical P and N whatever compiled it.
+  const char* names[] = {"sinebumps", "roundedbox", "grooves", "craggy", "glassbumps", "heightmap", "vectordisp"};
+  constexpr size_t kPoints = 37;  // not a multiple of any vector width
+  auto fill = [](TestBatch& b) {
+    for (size_t i = 0; i < kPoints; ++i) {
+      planePoint(b, i, 0.013 + 0.027 * double(i), 0.91 - 0.023 * double(i));
+      b.P[2][i] = 0.3f * float(i % 5) - 0.6f;
+      b.N[0][i] = b.Ng[0][i] = 0.6f;
+      b.N[2][i] = b.Ng[2][i] = 0.8f;
+    }
+  };
+  std::vector<std::vector<float>> reference(std::size(names));
+  for (int level = 0; level <= 3; ++level) {
+    CompileOptions options;
+    options.optLevel = level;
+    CompileResult r = compileFile(RELIEF_TEST_DATA_DIR "/spec/examples.disp", options);
+    ASSERT_TRUE(r.success()) << renderDiagnostics(r);
+    for (size_t k = 0; k < std::size(names); ++k) {
+      SCOPED_TRACE(std::string(names[k]) + " at -O" + std::to_string(level));
+      runtime::ShaderInstance instance(r.find(names[k]));
+      TestBatch b(kPoints);
+      fill(b);
+      run(instance, b);
+      std::vector<float> out;
+      for (int c = 0; c < 3; ++c) {
+        out.insert(out.end(), b.Pout[c].begin(), b.Pout[c].end());
+        out.insert(out.end(), b.Nout[c].begin(), b.Nout[c].end());
+      }
+      if (level == 0) {
+        reference[k] = out;
+        continue;
+      }
+      ASSERT_EQ(out.size(), reference[k].size());
+      for (size_t i = 0; i < out.size(); ++i)
+        ASSERT_EQ(std::memcmp(&out[i], &reference[k][i], sizeof(float)), 0) << "value " << i;
+    }
   }
 }
 
