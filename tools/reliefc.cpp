@@ -95,6 +95,15 @@ int evaluate(const Args& args, const CompileResult& result) {
     } else if (!parseNumbers(value, &pv.numbers)) {
       std::cerr << "reliefc: error: bad value '" << value << "' for parameter '" << name << "'\n";
       return 2;
+    } else if (info && info->type == relief::runtime::ParamType::Matrix &&
+               (pv.numbers.size() == 16 || pv.numbers.size() == 1)) {
+      // 16 numbers row-major, or one number for the diagonal (as the language's matrix(f)).
+      if (pv.numbers.size() == 1) {
+        const float f = pv.numbers[0];
+        pv.numbers.assign(16, 0.0f);
+        for (int k = 0; k < 4; ++k) pv.numbers[size_t(k) * 5] = f;
+      }
+      pv.type = relief::runtime::ParamType::Matrix;
     } else {
       pv.type = pv.numbers.size() == 3 && info ? info->type : relief::runtime::ParamType::Float;
     }

@@ -148,6 +148,12 @@ TEST(CliTest, EvalPrintsTheDisplacedPointAndNormal) {
   EXPECT_NEAR(n[1], -hv / len, 1e-4);
   EXPECT_NEAR(n[2], 1 / len, 1e-4);
 
+  // A matrix parameter takes 16 numbers, row-major (translation in the last row).
+  const fs::path mv = writeTemp("relief_mv.disp", "displacement mv(matrix M = 1)\n{\n    P = transform(M, P);\n}\n");
+  const CliRun m = reliefc("--eval " + quote(mv.string()) + " -p " + quote("M=(1,0,0,0, 0,1,0,0, 0,0,1,0, 1,2,3,1)"));
+  EXPECT_EQ(m.exitCode, 0) << m.err;
+  EXPECT_EQ(m.out, "P = (1, 2, 4)\nN = (0, 0, 1)\n");
+
   // Bad parameter bindings are usage errors.
   EXPECT_EQ(reliefc("--eval " + quote(lift.string()) + " -p nosuch=1").exitCode, 2);
 }
