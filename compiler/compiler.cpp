@@ -2,8 +2,11 @@
 // Each stage runs only if no error was recorded before it.
 #include "compiler/compiler.h"
 
+#include <pthread.h>
+
 #include <algorithm>
 #include <cstring>
+#include <exception>
 #include <sstream>
 
 #include <llvm/IR/LLVMContext.h>
@@ -107,11 +110,46 @@ std::shared_ptr<const runtime::CompiledShader> CompileResult::find(std::string_v
   return nullptr;
 }
 
+// The recursive passes (parser, checker, codegen) are bounded by the nesting limits, yet a legal
+// 1024-deep expression can need more than a default 8 MiB stack in a sanitizer build. Compile on a
+// thread with a stack of its own (reserved, committed only as used), whoever the caller is.
+static void compileBufferWithLargeStack(CompileResult& result, SourceManager::FileId file, const CompileOptions& options,
+                                        const CompileFlags& flags) {
+  struct Job {
+    CompileResult* result;
+    SourceManager::FileId file;
+    const CompileOptions* options;
+    const CompileFlags* flags;
+    std::exception_ptr error;
+  } job{&result, file, &options, &flags, nullptr};
+  auto run = [](void* p) -> void* {
+    Job* j = static_cast<Job*>(p);
+    try {
+      compileBuffer(*j->result, j->file, *j->options, *j->flags);
+    } catch (...) {
+      j->error = std::current_exception();
+    }
+    return nullptr;
+  };
+  constexpr size_t kStackBytes = size_t(256) << 20;
+  pthread_attr_t attr;
+  pthread_t thread;
+  bool started = pthread_attr_init(&attr) == 0;
+  started = started && pthread_attr_setstacksize(&attr, kStackBytes) == 0 &&
+            pthread_create(&thread, &attr, run, &job) == 0;
+  pthread_attr_destroy(&attr);
+  if (started)
+    pthread_join(thread, nullptr);
+  else
+    run(&job);  // no thread to be had: compile here, with the caller's stack
+  if (job.error) std::rethrow_exception(job.error);
+}
+
 CompileResult compileSource(std::string name, std::string text, const CompileOptions& options,
                             const CompileFlags& flags) {
   CompileResult r = makeResult(options, flags);
   const auto file = r.sources->addBuffer(std::move(name), std::move(text));
-  compileBuffer(r, file, options, flags);
+  compileBufferWithLargeStack(r, file, options, flags);
   return r;
 }
 
@@ -124,7 +162,7 @@ CompileResult compileFile(const std::string& path, const CompileOptions& options
     r.diagnostics->report(DiagId::ErrCannotOpen, SourceLoc{}).arg(error);
     return r;
   }
-  compileBuffer(r, file, options, flags);
+  compileBufferWithLargeStack(r, file, options, flags);
   return r;
 }
 
