@@ -64,6 +64,11 @@ struct SubdivideCounters {
   uint64_t shaderPoints = 0;
   uint64_t displaceNanos = 0;  // time spent inside the shader
   RlfStatus status{};          // summed over batches; nonFinite also counts host replacements
+  // Micro-triangles out (after simplification) and the estimate of what the same points would
+  // give unsimplified (equal when flatness is 0): 1 - after / before is the share simplification
+  // saved (the paper's "geometry saved by simplification").
+  uint64_t trianglesBeforeSimplification = 0;
+  uint64_t trianglesAfterSimplification = 0;
 };
 
 // Subdivides and displaces triangle `triangle` of `mesh` with `displacement` (null, or a null
