@@ -2,6 +2,7 @@
 #include "renderer/subdivide.h"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <tuple>
@@ -39,6 +40,12 @@ struct Float3Soa {
 struct Batch {
   Float3Soa P, N, Ng, dPdu, dPdv, dNdu, dNdv, Pout, Nout;
   std::vector<float> u, v, s, t, du, dv, dsdu, dsdv, dtdu, dtdv;
+  // Elements [0, constCount) of the fields uniform over an input triangle (Ng, dPdu, dPdv, dNdu,
+  // dNdv, the s/t seeds) already hold the current triangle's values: each call fills them once.
+  uint32_t constCount = 0;
+  void grow(size_t n) {
+    if (P.x.size() < n) resize(std::max(n, 2 * P.x.size()));
+  }
   void resize(size_t n) {
     for (Float3Soa* a : {&P, &N, &Ng, &dPdu, &dPdv, &dNdu, &dNdv, &Pout, &Nout}) a->resize(n);
     for (std::vector<float>* a : {&u, &v, &s, &t, &du, &dv, &dsdu, &dsdv, &dtdu, &dtdv}) a->resize(n);
@@ -106,6 +113,7 @@ struct Scratch {
   std::vector<uint32_t> active, next;  // 3 indices per triangle
   std::vector<uint32_t> activeCodes, nextCodes;  // path code (or ancestor code) per triangle
   std::vector<uint32_t> ranks;                   // finished triangles per ancestor code
+  std::vector<int64_t> mids;                     // per active triangle edge: midpoint or < 0
   struct ProbeSlot {
     uint64_t key;  // not a pointer into `edges`: the table may grow while probes are collected
     uint32_t a, b, mid;
@@ -182,17 +190,17 @@ TriangleFrame makeFrame(const glm::vec3 p[3], const glm::vec3 n[3], const glm::v
   return f;
 }
 
+// Deepest vertex level: the depth limit plus the interior samples below it.
+constexpr int kMaxLevel = 40;
+
 // Displaces vertices [first, end) in one batch; falls back to the undisplaced P where the shader
 // returns a non-finite position.
 void displace(const Displacement& disp, const TriangleFrame& frame, Vertices& vs, uint32_t first,
               Batch& batch, SubdivideCounters& counters) {
   const uint32_t n = vs.size() - first;
   if (n == 0) return;
-  batch.resize(n);
-  for (uint32_t i = 0; i < n; ++i) {
-    const uint32_t k = first + i;
-    batch.P.set(i, vs.P[k]);
-    batch.N.set(i, vs.N[k]);
+  batch.grow(n);
+  for (uint32_t i = batch.constCount; i < n; ++i) {
     batch.Ng.set(i, frame.Ng);
     batch.dPdu.set(i, frame.dPdu);
     batch.dPdv.set(i, frame.dPdv);
@@ -200,10 +208,24 @@ void displace(const Displacement& disp, const TriangleFrame& frame, Vertices& vs
     batch.dNdv.set(i, frame.dNdv);
     batch.dsdu[i] = frame.dsdu, batch.dsdv[i] = frame.dsdv;
     batch.dtdu[i] = frame.dtdu, batch.dtdv[i] = frame.dtdv;
+  }
+  batch.constCount = std::max(batch.constCount, n);
+  // Parametric spacing per level: 2^-level of the triangle's extents.
+  static const auto spacing = [] {
+    std::array<float, kMaxLevel + 1> table{};
+    for (int l = 0; l <= kMaxLevel; ++l) table[size_t(l)] = std::ldexp(1.0f, -l);
+    return table;
+  }();
+  for (uint32_t i = 0; i < n; ++i) {
+    const uint32_t k = first + i;
+    batch.P.set(i, vs.P[k]);
+    batch.N.set(i, vs.N[k]);
     batch.u[i] = vs.uv[k].x, batch.v[i] = vs.uv[k].y;
     batch.s[i] = vs.st[k].x, batch.t[i] = vs.st[k].y;
-    const float spacing = std::ldexp(1.0f, -int(vs.level[k]));
-    batch.du[i] = frame.uExtent * spacing, batch.dv[i] = frame.vExtent * spacing;
+    const float sp = spacing[size_t(std::min<int>(vs.level[k], kMaxLevel))];
+    batch.du[i] = frame.uExtent * sp, batch.dv[i] = frame.vExtent * sp;
+    // The ABI has the shader write every output; preset them anyway so a shader that does not
+    // cannot leak an earlier batch's values (thread-dependent) into the geometry.
     batch.Pout.set(i, vs.P[k]);
     batch.Nout.set(i, vs.N[k]);
   }
@@ -338,6 +360,7 @@ bool mayReach(const Vertices& vs, uint32_t a, uint32_t b, uint32_t c, float boun
 void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* displacement,
                        MicroMesh& out, SubdivideCounters& counters, const CullBox* cull) {
   thread_local Scratch scratch;
+  scratch.batch.constCount = 0;  // a new triangle: its uniform fields must be filled again
   Vertices& vs = scratch.vertices;
   vs.clear();
   glm::vec3 p[3], n[3];
@@ -536,8 +559,12 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
         activeCodes.resize(kept);
       }
       const uint32_t firstNew = vs.size();
+      // Each triangle's three answers are kept: without simplification they are final, which
+      // spares a second hash lookup per edge below.
+      std::vector<int64_t>& mids = scratch.mids;
+      mids.resize(active.size());
       for (size_t k = 0; k < active.size(); k += 3)
-        for (int e = 0; e < 3; ++e) midpoint(active[k + e], active[k + (e + 1) % 3]);
+        for (int e = 0; e < 3; ++e) mids[k + size_t(e)] = midpoint(active[k + e], active[k + (e + 1) % 3]);
       displace(disp, frame, vs, firstNew, scratch.batch, counters);
       if (simplify) {
         decideFlatEdges();
@@ -552,8 +579,9 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
         int64_t m[3];  // m[e] on edge (v[e], v[e+1])
         int numSplit = 0;
         for (int e = 0; e < 3; ++e) {
-          m[e] = edges.find((uint64_t(std::min(v[e], v[(e + 1) % 3])) << 32) |
-                            std::max(v[e], v[(e + 1) % 3]));
+          m[e] = !simplify ? mids[k + size_t(e)]
+                           : edges.find((uint64_t(std::min(v[e], v[(e + 1) % 3])) << 32) |
+                                        std::max(v[e], v[(e + 1) % 3]));
           numSplit += m[e] >= 0;
         }
         if (numSplit == 0 && simplify && scratch.centre[k / 3] >= 0) {
