@@ -2,6 +2,7 @@
 #include "renderer/subdivide.h"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <tuple>
@@ -14,9 +15,15 @@ struct Vertices {
   std::vector<glm::vec3> P, N;
   std::vector<glm::vec2> uv, st, bary;
   std::vector<uint8_t> level;
+  std::vector<uint8_t> decided;  // midpoints: its edge's simplification decision was queued
   std::vector<glm::vec3> displaced;
   void clear() {
-    P.clear(), N.clear(), uv.clear(), st.clear(), bary.clear(), level.clear(), displaced.clear();
+    P.clear(), N.clear(), uv.clear(), st.clear(), bary.clear(), level.clear(), decided.clear();
+    displaced.clear();
+  }
+  void truncate(uint32_t n) {
+    P.resize(n), N.resize(n), uv.resize(n), st.resize(n), bary.resize(n), level.resize(n);
+    decided.resize(n), displaced.resize(n);
   }
   uint32_t size() const { return uint32_t(P.size()); }
 };
@@ -33,6 +40,12 @@ struct Float3Soa {
 struct Batch {
   Float3Soa P, N, Ng, dPdu, dPdv, dNdu, dNdv, Pout, Nout;
   std::vector<float> u, v, s, t, du, dv, dsdu, dsdv, dtdu, dtdv;
+  // Elements [0, constCount) of the fields uniform over an input triangle (Ng, dPdu, dPdv, dNdu,
+  // dNdv, the s/t seeds) already hold the current triangle's values: each call fills them once.
+  uint32_t constCount = 0;
+  void grow(size_t n) {
+    if (P.x.size() < n) resize(std::max(n, 2 * P.x.size()));
+  }
   void resize(size_t n) {
     for (Float3Soa* a : {&P, &N, &Ng, &dPdu, &dPdv, &dNdu, &dNdv, &Pout, &Nout}) a->resize(n);
     for (std::vector<float>* a : {&u, &v, &s, &t, &du, &dv, &dsdu, &dsdv, &dtdu, &dtdv}) a->resize(n);
@@ -100,11 +113,22 @@ struct Scratch {
   std::vector<uint32_t> active, next;  // 3 indices per triangle
   std::vector<uint32_t> activeCodes, nextCodes;  // path code (or ancestor code) per triangle
   std::vector<uint32_t> ranks;                   // finished triangles per ancestor code
+  std::vector<int64_t> mids;                     // per active triangle edge: midpoint or < 0
   struct ProbeSlot {
     uint64_t key;  // not a pointer into `edges`: the table may grow while probes are collected
     uint32_t a, b, mid;
+    bool flat;
   };
   std::vector<ProbeSlot> probes;
+  struct Look {
+    uint32_t probe, a, b, mid;
+  };
+  std::vector<Look> looks, nextLooks;
+  std::vector<int64_t> centre;  // per active triangle: its centre vertex when split 1-to-3, or -1
+  struct Interior {
+    uint32_t triangle, firstProbe, numProbes;
+  };
+  std::vector<Interior> interiors;
   EdgeMap edges;  // (min, max) vertex pair -> midpoint, or -1: kept
 };
 
@@ -166,17 +190,17 @@ TriangleFrame makeFrame(const glm::vec3 p[3], const glm::vec3 n[3], const glm::v
   return f;
 }
 
+// Deepest vertex level: the depth limit plus the interior samples below it.
+constexpr int kMaxLevel = 40;
+
 // Displaces vertices [first, end) in one batch; falls back to the undisplaced P where the shader
 // returns a non-finite position.
 void displace(const Displacement& disp, const TriangleFrame& frame, Vertices& vs, uint32_t first,
               Batch& batch, SubdivideCounters& counters) {
   const uint32_t n = vs.size() - first;
   if (n == 0) return;
-  batch.resize(n);
-  for (uint32_t i = 0; i < n; ++i) {
-    const uint32_t k = first + i;
-    batch.P.set(i, vs.P[k]);
-    batch.N.set(i, vs.N[k]);
+  batch.grow(n);
+  for (uint32_t i = batch.constCount; i < n; ++i) {
     batch.Ng.set(i, frame.Ng);
     batch.dPdu.set(i, frame.dPdu);
     batch.dPdv.set(i, frame.dPdv);
@@ -184,10 +208,24 @@ void displace(const Displacement& disp, const TriangleFrame& frame, Vertices& vs
     batch.dNdv.set(i, frame.dNdv);
     batch.dsdu[i] = frame.dsdu, batch.dsdv[i] = frame.dsdv;
     batch.dtdu[i] = frame.dtdu, batch.dtdv[i] = frame.dtdv;
+  }
+  batch.constCount = std::max(batch.constCount, n);
+  // Parametric spacing per level: 2^-level of the triangle's extents.
+  static const auto spacing = [] {
+    std::array<float, kMaxLevel + 1> table{};
+    for (int l = 0; l <= kMaxLevel; ++l) table[size_t(l)] = std::ldexp(1.0f, -l);
+    return table;
+  }();
+  for (uint32_t i = 0; i < n; ++i) {
+    const uint32_t k = first + i;
+    batch.P.set(i, vs.P[k]);
+    batch.N.set(i, vs.N[k]);
     batch.u[i] = vs.uv[k].x, batch.v[i] = vs.uv[k].y;
     batch.s[i] = vs.st[k].x, batch.t[i] = vs.st[k].y;
-    const float spacing = std::ldexp(1.0f, -int(vs.level[k]));
-    batch.du[i] = frame.uExtent * spacing, batch.dv[i] = frame.vExtent * spacing;
+    const float sp = spacing[size_t(std::min<int>(vs.level[k], kMaxLevel))];
+    batch.du[i] = frame.uExtent * sp, batch.dv[i] = frame.vExtent * sp;
+    // The ABI has the shader write every output; preset them anyway so a shader that does not
+    // cannot leak an earlier batch's values (thread-dependent) into the geometry.
     batch.Pout.set(i, vs.P[k]);
     batch.Nout.set(i, vs.N[k]);
   }
@@ -240,6 +278,7 @@ uint32_t addMidpoint(Vertices& vs, uint32_t a, uint32_t b) {
   vs.st.push_back(0.5f * (vs.st[a] + vs.st[b]));
   vs.bary.push_back(0.5f * (vs.bary[a] + vs.bary[b]));
   vs.level.push_back(uint8_t(std::max(vs.level[a], vs.level[b]) + 1));
+  vs.decided.push_back(0);
   vs.displaced.emplace_back(0.0f);
   return vs.size() - 1;
 }
@@ -252,18 +291,57 @@ void push(std::vector<uint32_t>& list, uint32_t a, uint32_t b, uint32_t c) {
 // any memory; vertex levels are stored in 8 bits.
 constexpr int kMaxSubdivisionDepth = 16;
 
-// Simplification probes only edges up to this many target edge lengths long (see its use).
-constexpr float kFlatSpan = 4.0f;
+// Interior flatness samples a triangle on the points of its uniform subdivision to at most this
+// depth ((2^d - 1)(2^d - 2) / 2 points: 465 at 5).
+constexpr int kMaxInteriorDepth = 5;
+
+// Appends the point with barycentric weights (wa, wb, wc) of triangle (a, b, c) at `level`. Used
+// for interior samples and centres only, which no other triangle sees, so no symmetry is needed.
+uint32_t addInteriorPoint(Vertices& vs, uint32_t a, uint32_t b, uint32_t c, float wa, float wb,
+                          float wc, int level) {
+  vs.P.push_back(wa * vs.P[a] + wb * vs.P[b] + wc * vs.P[c]);
+  const glm::vec3 n = wa * vs.N[a] + wb * vs.N[b] + wc * vs.N[c];
+  const float len = glm::length(n);
+  vs.N.push_back(len > 0.0f && std::isfinite(len) ? n / len : vs.N[a]);
+  vs.uv.push_back(wa * vs.uv[a] + wb * vs.uv[b] + wc * vs.uv[c]);
+  vs.st.push_back(wa * vs.st[a] + wb * vs.st[b] + wc * vs.st[c]);
+  vs.bary.push_back(wa * vs.bary[a] + wb * vs.bary[b] + wc * vs.bary[c]);
+  vs.level.push_back(uint8_t(level));
+  vs.decided.push_back(0);
+  vs.displaced.emplace_back(0.0f);
+  return vs.size() - 1;
+}
+
+float distanceToSegment2(glm::vec3 p, glm::vec3 q, glm::vec3 m) {
+  const glm::vec3 e = q - p, d = m - p;
+  const float ee = glm::dot(e, e);
+  const float t = ee > 0.0f ? std::clamp(glm::dot(d, e) / ee, 0.0f, 1.0f) : 0.0f;
+  const glm::vec3 off = d - t * e;
+  return glm::dot(off, off);
+}
+
+// Whether `m` lies within `tolerance` of the (closed) triangle (a, b, c).
+bool nearTriangle(glm::vec3 a, glm::vec3 b, glm::vec3 c, glm::vec3 m, float tolerance) {
+  const glm::vec3 n = glm::cross(b - a, c - a);
+  const float nn = glm::dot(n, n);
+  if (nn > 0.0f) {
+    const float h = glm::dot(m - a, n);
+    const glm::vec3 q = m - (h / nn) * n;  // projection onto the plane
+    const bool inside = glm::dot(glm::cross(b - a, q - a), n) >= 0.0f &&
+                        glm::dot(glm::cross(c - b, q - b), n) >= 0.0f &&
+                        glm::dot(glm::cross(a - c, q - c), n) >= 0.0f;
+    if (inside) return h * h <= tolerance * tolerance * nn;
+  }
+  const float d2 = std::min({distanceToSegment2(a, b, m), distanceToSegment2(b, c, m),
+                             distanceToSegment2(c, a, m)});
+  return d2 <= tolerance * tolerance;
+}
 
 // Whether `m` lies within `tolerance` of segment (p, q); symmetric in p and q bit for bit, as the
 // end points are put in a canonical (lexicographic) order first.
 bool nearChord(glm::vec3 p, glm::vec3 q, glm::vec3 m, float tolerance) {
   if (std::tie(q.x, q.y, q.z) < std::tie(p.x, p.y, p.z)) std::swap(p, q);
-  const glm::vec3 e = q - p, d = m - p;
-  const float ee = glm::dot(e, e);
-  const float t = ee > 0.0f ? std::clamp(glm::dot(d, e) / ee, 0.0f, 1.0f) : 0.0f;
-  const glm::vec3 off = d - t * e;
-  return glm::dot(off, off) <= tolerance * tolerance;
+  return distanceToSegment2(p, q, m) <= tolerance * tolerance;
 }
 
 // Whether the displaced descendants of triangle (a, b, c) may reach `box`: they lie within
@@ -282,6 +360,7 @@ bool mayReach(const Vertices& vs, uint32_t a, uint32_t b, uint32_t c, float boun
 void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* displacement,
                        MicroMesh& out, SubdivideCounters& counters, const CullBox* cull) {
   thread_local Scratch scratch;
+  scratch.batch.constCount = 0;  // a new triangle: its uniform fields must be filled again
   Vertices& vs = scratch.vertices;
   vs.clear();
   glm::vec3 p[3], n[3];
@@ -303,6 +382,7 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
   for (int c = 0; c < 3; ++c) {
     vs.P.push_back(p[c]), vs.N.push_back(n[c]), vs.uv.push_back(uv[c]), vs.st.push_back(st[c]);
     vs.bary.push_back(cornerBary[c]), vs.level.push_back(0), vs.displaced.push_back(p[c]);
+    vs.decided.push_back(0);
   }
 
   const bool displaced = displacement != nullptr && displacement->shader != nullptr;
@@ -324,34 +404,137 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
     activeCodes.assign({1});
     scratch.ranks.assign(size_t(1) << (1 + 2 * kCullRounds), 0);
     const float cullGrow = std::max(0.0f, disp.boundWorld);
+    uint64_t samplePoints = 0;  // interior samples, evaluated and dropped
     edges.clear();
-    // Returns the midpoint of edge (a, b), creating it if the edge wants splitting; -1 if kept.
-    // Simplification (flatness > 0): a long edge is still kept whole when its displaced midpoint
-    // lies within `flatness` of the chord between its displaced end points. The midpoint is
-    // displaced as a probe in the same batch; the test reads only the edge's own three points,
-    // taken in a canonical order, so both sides of a shared edge decide alike (no cracks).
-    //
-    // Only edges at most kFlatSpan target lengths long are probed: one midpoint says little about a
-    // long edge (a sinusoid can cross its chord there) and nothing about the triangle's interior,
-    // so merging is confined to the last two levels, where a missed feature is at most a few
-    // target edge lengths across. Within that span it removes most triangles of smooth regions.
+    // Edge-map values: a midpoint (>= 0), -1 (short or at the depth limit), or kFlat (wanted
+    // splitting, but simplification found the whole edge flat).
+    constexpr int64_t kFlat = -2;
     const bool simplify = disp.flatness > 0.0f;
-    const float flatSpan2 = edgeLength2 * kFlatSpan * kFlatSpan;
     using Probe = Scratch::ProbeSlot;
     std::vector<Probe>& probes = scratch.probes;
-    auto midpoint = [&](uint32_t a, uint32_t b) -> int64_t {
+    // Returns the midpoint of edge (a, b), creating it if the edge wants splitting (its displaced
+    // end points farther apart than edgeLength, and depth left); kKept otherwise. Reads only the
+    // edge's two end vertices, so both sides of a shared edge get the same answer.
+    auto expand = [&](uint32_t a, uint32_t b) -> int64_t {
       const uint64_t key = (uint64_t(std::min(a, b)) << 32) | std::max(a, b);
       auto [value, inserted] = edges.tryEmplace(key);
       if (inserted) {
         const glm::vec3 d = vs.displaced[a] - vs.displaced[b];
         const bool wants = glm::dot(d, d) > edgeLength2;
         const bool allowed = std::max(vs.level[a], vs.level[b]) + 1 <= maxDepth;
-        if (wants && allowed) {
-          *value = addMidpoint(vs, a, b);
-          if (simplify && glm::dot(d, d) <= flatSpan2) probes.push_back({key, a, b, uint32_t(*value)});
-        }
+        if (wants && allowed) *value = addMidpoint(vs, a, b);
       }
       return *value;
+    };
+    // A triangle's edge: as expand, and with simplification the first sight of a split edge
+    // queues its flatness decision (the midpoint may already exist from a lookahead).
+    auto midpoint = [&](uint32_t a, uint32_t b) -> int64_t {
+      const int64_t mid = expand(a, b);
+      if (simplify && mid >= 0 && !vs.decided[size_t(mid)]) {
+        vs.decided[size_t(mid)] = 1;
+        probes.push_back({(uint64_t(std::min(a, b)) << 32) | std::max(a, b), a, b, uint32_t(mid), true});
+      }
+      return mid;
+    };
+    // Simplification, edge part (paper 3.1, made crack-free): an edge that wants splitting is kept
+    // whole when every point its own recursive subdivision would create along it (the points the
+    // unsimplified mesh has on it) lies within `flatness` of its displaced chord. The lookahead
+    // walks only the edge's own descendants, each split by the same rule as everywhere, so the
+    // decision depends on the edge alone and both sides of a shared edge agree. The points it
+    // evaluates are real midpoints (kept in the edge map): when the edge does split, its halves
+    // reuse them.
+    auto decideFlatEdges = [&]() {
+      auto& looks = scratch.looks;
+      auto& nextLooks = scratch.nextLooks;
+      looks.clear();
+      for (uint32_t i = 0; i < probes.size(); ++i) {
+        const Probe& pr = probes[i];
+        looks.push_back({i, pr.a, pr.mid, 0}), looks.push_back({i, pr.mid, pr.b, 0});
+      }
+      // The first wave checks the probes' own midpoints (already displaced).
+      for (Probe& pr : probes)
+        pr.flat = nearChord(vs.displaced[pr.a], vs.displaced[pr.b], vs.displaced[pr.mid], disp.flatness);
+      while (!looks.empty()) {
+        const uint32_t first = vs.size();
+        nextLooks.clear();
+        for (Scratch::Look& l : looks) {
+          if (!probes[l.probe].flat) continue;
+          const int64_t mid = expand(l.a, l.b);
+          if (mid >= 0) nextLooks.push_back({l.probe, l.a, l.b, uint32_t(mid)});
+        }
+        displace(disp, frame, vs, first, scratch.batch, counters);
+        looks.clear();
+        for (const Scratch::Look& l : nextLooks) {
+          Probe& pr = probes[l.probe];
+          if (!pr.flat) continue;
+          if (!nearChord(vs.displaced[pr.a], vs.displaced[pr.b], vs.displaced[l.mid], disp.flatness)) {
+            pr.flat = false;
+            continue;
+          }
+          looks.push_back({l.probe, l.a, l.mid, 0}), looks.push_back({l.probe, l.mid, l.b, 0});
+        }
+      }
+      for (const Probe& pr : probes)
+        if (pr.flat) *edges.tryEmplace(pr.key).first = kFlat;  // its points stay unreferenced
+      probes.clear();
+    };
+    // Simplification, interior part: a triangle left with three whole edges of which at least one
+    // was kept whole for flatness has lost interior detail unless its interior is flat too. It is
+    // sampled on the interior points of its uniform subdivision down to the target edge length
+    // (at most kMaxInteriorDepth levels) plus its centre; when all lie within `flatness` of the
+    // displaced triangle it is final (the paper's merge of all its descendants), else it is split
+    // 1-to-3 at its displaced centre (no new point on its edges, whose decisions are final) and
+    // the children carry on. Interior points are not shared, so this cannot crack.
+    auto decideInteriors = [&]() {
+      auto& centre = scratch.centre;
+      auto& interiors = scratch.interiors;
+      centre.assign(active.size() / 3, -1);
+      interiors.clear();
+      const uint32_t firstCentre = vs.size();
+      for (size_t k = 0; k < active.size(); k += 3) {
+        const uint32_t a = active[k], b = active[k + 1], c = active[k + 2];
+        int64_t m[3] = {edges.find((uint64_t(std::min(a, b)) << 32) | std::max(a, b)),
+                        edges.find((uint64_t(std::min(b, c)) << 32) | std::max(b, c)),
+                        edges.find((uint64_t(std::min(c, a)) << 32) | std::max(c, a))};
+        if (m[0] >= 0 || m[1] >= 0 || m[2] >= 0) continue;
+        if (m[0] != kFlat && m[1] != kFlat && m[2] != kFlat) continue;
+        const int level = std::max({vs.level[a], vs.level[b], vs.level[c]});
+        if (level + 1 > maxDepth) continue;
+        centre[k / 3] = addInteriorPoint(vs, a, b, c, 1.0f / 3, 1.0f / 3, 1.0f / 3, level + 1);
+        interiors.push_back({uint32_t(k / 3), 0, 0});
+      }
+      const uint32_t firstSample = vs.size();
+      for (Scratch::Interior& in : interiors) {
+        const uint32_t a = active[3 * in.triangle], b = active[3 * in.triangle + 1],
+                       c = active[3 * in.triangle + 2];
+        const float longest = std::sqrt(std::max({glm::dot(vs.displaced[a] - vs.displaced[b], vs.displaced[a] - vs.displaced[b]),
+                                                  glm::dot(vs.displaced[b] - vs.displaced[c], vs.displaced[b] - vs.displaced[c]),
+                                                  glm::dot(vs.displaced[c] - vs.displaced[a], vs.displaced[c] - vs.displaced[a])}));
+        const int level = std::max({vs.level[a], vs.level[b], vs.level[c]});
+        int depth = 1;
+        while (depth < kMaxInteriorDepth && depth < maxDepth - level &&
+               longest > disp.edgeLength * float(1 << depth))
+          ++depth;
+        const int steps = 1 << depth;
+        in.firstProbe = vs.size();
+        for (int i = 1; i < steps; ++i)
+          for (int j = 1; i + j < steps; ++j)
+            addInteriorPoint(vs, a, b, c, float(steps - i - j) / float(steps), float(i) / float(steps),
+                             float(j) / float(steps), level + depth);
+        in.numProbes = vs.size() - in.firstProbe;
+      }
+      displace(disp, frame, vs, firstCentre, scratch.batch, counters);
+      for (const Scratch::Interior& in : interiors) {
+        const uint32_t a = active[3 * in.triangle], b = active[3 * in.triangle + 1],
+                       c = active[3 * in.triangle + 2];
+        const glm::vec3 A = vs.displaced[a], B = vs.displaced[b], C = vs.displaced[c];
+        bool flat = nearTriangle(A, B, C, vs.displaced[size_t(centre[in.triangle])], disp.flatness);
+        for (uint32_t i = 0; flat && i < in.numProbes; ++i)
+          flat = nearTriangle(A, B, C, vs.displaced[in.firstProbe + i], disp.flatness);
+        if (flat) centre[in.triangle] = -1;  // final: the centre stays unreferenced
+      }
+      samplePoints += vs.size() - firstSample;
+      vs.truncate(firstSample);  // samples are never referenced; centres may be
     };
     // A finished triangle's id: its own path code while rounds < kCullRounds, else its ancestor's
     // code and its rank among that ancestor's finished descendants.
@@ -376,14 +559,17 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
         activeCodes.resize(kept);
       }
       const uint32_t firstNew = vs.size();
+      // Each triangle's three answers are kept: without simplification they are final, which
+      // spares a second hash lookup per edge below.
+      std::vector<int64_t>& mids = scratch.mids;
+      mids.resize(active.size());
       for (size_t k = 0; k < active.size(); k += 3)
-        for (int e = 0; e < 3; ++e) midpoint(active[k + e], active[k + (e + 1) % 3]);
+        for (int e = 0; e < 3; ++e) mids[k + size_t(e)] = midpoint(active[k + e], active[k + (e + 1) % 3]);
       displace(disp, frame, vs, firstNew, scratch.batch, counters);
-      for (const Probe& probe : probes)
-        if (nearChord(vs.displaced[probe.a], vs.displaced[probe.b], vs.displaced[probe.mid],
-                      disp.flatness))
-          *edges.tryEmplace(probe.key).first = -1;  // the probe vertex stays unreferenced
-      probes.clear();
+      if (simplify) {
+        decideFlatEdges();
+        decideInteriors();
+      }
       next.clear();
       nextCodes.clear();
       for (size_t k = 0; k < active.size(); k += 3) {
@@ -393,11 +579,17 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
         int64_t m[3];  // m[e] on edge (v[e], v[e+1])
         int numSplit = 0;
         for (int e = 0; e < 3; ++e) {
-          m[e] = edges.find((uint64_t(std::min(v[e], v[(e + 1) % 3])) << 32) |
-                            std::max(v[e], v[(e + 1) % 3]));
+          m[e] = !simplify ? mids[k + size_t(e)]
+                           : edges.find((uint64_t(std::min(v[e], v[(e + 1) % 3])) << 32) |
+                                        std::max(v[e], v[(e + 1) % 3]));
           numSplit += m[e] >= 0;
         }
-        if (numSplit == 0) {
+        if (numSplit == 0 && simplify && scratch.centre[k / 3] >= 0) {
+          const uint32_t g = uint32_t(scratch.centre[k / 3]);
+          push(next, v[0], v[1], g);
+          push(next, v[1], v[2], g);
+          push(next, v[2], v[0], g);
+        } else if (numSplit == 0) {
           finish(v[0], v[1], v[2], code, round);
         } else if (numSplit == 3) {
           const uint32_t m0 = uint32_t(m[0]), m1 = uint32_t(m[1]), m2 = uint32_t(m[2]);
@@ -435,9 +627,23 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
       std::swap(active, next);
       std::swap(activeCodes, nextCodes);
     }
+    const uint64_t after = out.indices.size() / 3;
+    uint64_t before = after;
+    if (simplify) {
+      // A conforming triangulation of V points, B of them on the input triangle's border, has
+      // 2V - B - 2 triangles (Euler); the unsimplified mesh triangulates (about) every point
+      // evaluated here: the points along flat edges exactly, interiors as sampled.
+      uint64_t border = 0;
+      for (glm::vec2 b : vs.bary) border += b.x == 0.0f || b.y == 0.0f || b.x + b.y == 1.0f;
+      const int64_t points = int64_t(vs.size() + samplePoints);
+      before = uint64_t(std::max(int64_t(after), 2 * points - int64_t(border) - 2));
+    }
+    counters.trianglesBeforeSimplification += before;
+    counters.trianglesAfterSimplification += after;
   } else {
     push(out.indices, 0, 1, 2);
     out.ids.push_back(kWholeTriangleId);
+    ++counters.trianglesBeforeSimplification, ++counters.trianglesAfterSimplification;
   }
   out.P = vs.displaced;
   out.bary = vs.bary;

@@ -20,12 +20,14 @@
 // 2 bits per round behind a leading 1) in the high bits, and its rank among the finished
 // descendants of that ancestor in the low kMicroRankBits bits.
 // Determinism rule 1: the result depends only on the input triangle, its shader and settings.
-// Simplification (Displacement::flatness > 0, paper 3.1): an edge at most a few target lengths
-// long also stays whole when its displaced midpoint (evaluated as a probe in the round's batch)
-// lies within `flatness` of its chord. That is again a decision on the edge alone, so it cannot
-// crack; unlike the paper's bottom-up merge it never samples the interior of a kept triangle, which
-// is why it is limited to short edges.
-//
+// Simplification (Displacement::flatness > 0, paper 3.1; docs/subdivision.md): an edge that wants
+// splitting is kept whole when every point its own recursive subdivision would put on it lies
+// within `flatness` of its displaced chord (a lookahead along the edge alone, so both sides agree).
+// A triangle left with three whole edges, one of them kept for flatness, is final when its
+// interior samples (its uniform subdivision to the target length, at most kMaxInteriorDepth
+// levels, and its centre) lie within `flatness` of it, and is split 1-to-3 at its centre
+// otherwise. Simplification costs shader evaluations (the lookahead and samples) and saves
+// micro-triangles; SubdivideCounters reports both counts.
 // Known limit: a shader reading dPdu/dPdv, dNdu/dNdv, the s/t seeds, du/dv or Ng (all per input
 // triangle) may displace a shared edge differently from its two sides; P, N, u, v, s, t are shared
 // exactly.
@@ -64,6 +66,11 @@ struct SubdivideCounters {
   uint64_t shaderPoints = 0;
   uint64_t displaceNanos = 0;  // time spent inside the shader
   RlfStatus status{};          // summed over batches; nonFinite also counts host replacements
+  // Micro-triangles out (after simplification) and the estimate of what the same points would
+  // give unsimplified (equal when flatness is 0): 1 - after / before is the share simplification
+  // saved (the paper's "geometry saved by simplification").
+  uint64_t trianglesBeforeSimplification = 0;
+  uint64_t trianglesAfterSimplification = 0;
 };
 
 // Subdivides and displaces triangle `triangle` of `mesh` with `displacement` (null, or a null

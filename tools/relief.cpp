@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <exception>
@@ -41,6 +42,8 @@ constexpr const char* kUsage =
     "  --order ORDER             pixel order: scanline, bucket or hilbert (default)\n"
     "  --cache-triangles N       geometry cache budget in displaced triangles, or 'unlimited'\n"
     "  --no-displacement         render the undisplaced surfaces\n"
+    "  --edge-length L           target micro-triangle edge length in world units for every\n"
+    "                            Displacement (overrides Attribute \"relief\" \"edgelength\")\n"
     "  --stats                   print cache statistics and timings\n"
     "  --stats-json FILE         write the same statistics as JSON (for benchmark scripts)\n"
     "  --quiet                   no warnings or progress, only errors and the image path\n"
@@ -61,6 +64,7 @@ struct CommandLine {
   relief::PixelOrder order = relief::PixelOrder::Hilbert;
   uint64_t cacheTriangles = UINT64_MAX;
   bool displace = true;
+  float edgeLength = 0.0f;  // 0: the scene's
   bool stats = false;
   std::string statsJson;
   bool quiet = false;
@@ -140,6 +144,12 @@ int parseCommandLine(int argc, char** argv, CommandLine* cl) {
       }
     } else if (a == "--no-displacement") {
       cl->displace = false;
+    } else if (a == "--edge-length") {
+      char* end = nullptr;
+      const float l = value(&v) ? std::strtof(v.c_str(), &end) : 0.0f;
+      if (v.empty() || end != v.c_str() + v.size() || !(l > 0.0f) || !std::isfinite(l))
+        return usageError("'--edge-length' needs a positive length");
+      cl->edgeLength = l;
     } else if (a == "--stats-json") {
       if (!value(&v)) return usageError("'--stats-json' needs a file name");
       cl->statsJson = v;
@@ -302,6 +312,8 @@ int run(const CommandLine& cl) {
     scene.width = cl.width;
     scene.height = cl.height;
   }
+  if (cl.edgeLength > 0.0f)
+    for (relief::Displacement& d : scene.displacements) d.edgeLength = cl.edgeLength;
 
   std::vector<std::string> outputs;
   std::vector<bool> alpha;

@@ -1,0 +1,200 @@
+// Tests of simplification (paper 3.1) and of the depth guard: removed geometry stays within the
+// flatness tolerance of the simplified surface, the bevelled box loses most of its triangles, the
+// saved-fraction counters agree with the meshes, and runaway shaders stop at maxDepth.
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <set>
+#include <tuple>
+
+#include <gtest/gtest.h>
+
+#include "geometry_test_util.h"
+#include "renderer/subdivide.h"
+
+namespace relief {
+namespace {
+
+// The bevel of examples/shaders/roundedbox.disp, in world space (object = world here): the point
+// moves to the nearest point of the shrunken box, pushed out by `radius` along the way it came.
+void roundedBoxEntry(const RlfShadingBatch* b, const void* params, RlfStatus*) {
+  float radius, half;
+  std::memcpy(&radius, params, 4);
+  std::memcpy(&half, static_cast<const char*>(params) + 4, 4);
+  for (uint32_t i = 0; i < b->count; ++i) {
+    const glm::vec3 p(b->P.x[i], b->P.y[i], b->P.z[i]);
+    const glm::vec3 q = glm::clamp(p, glm::vec3(radius - half), glm::vec3(half - radius));
+    const glm::vec3 d = p - q;
+    const float len = glm::length(d);
+    const glm::vec3 out = len > 0.0f ? q + radius * (d / len) : p;
+    b->Pout.x[i] = out.x, b->Pout.y[i] = out.y, b->Pout.z[i] = out.z;
+    b->Nout.x[i] = b->N.x[i], b->Nout.y[i] = b->N.y[i], b->Nout.z[i] = b->N.z[i];
+  }
+}
+
+// Never settles: each point moves by a large pseudo-random amount, so every edge always wants
+// splitting.
+void runawayEntry(const RlfShadingBatch* b, const void*, RlfStatus*) {
+  for (uint32_t i = 0; i < b->count; ++i) {
+    uint32_t h;
+    std::memcpy(&h, &b->u[i], 4);
+    uint32_t k;
+    std::memcpy(&k, &b->v[i], 4);
+    h = (h ^ (k * 0x9E3779B9u)) * 0x85EBCA6Bu;
+    h ^= h >> 13;
+    const float jump = float(h % 1000u);
+    b->Pout.x[i] = b->P.x[i], b->Pout.y[i] = b->P.y[i], b->Pout.z[i] = b->P.z[i] + jump;
+    b->Nout.x[i] = b->N.x[i], b->Nout.y[i] = b->N.y[i], b->Nout.z[i] = b->N.z[i];
+  }
+}
+
+// The 12 triangles of the cube [-1, 1]^3, wound outward, corners shared between faces.
+Mesh makeCube() {
+  Mesh mesh;
+  mesh.P = {{-1, -1, -1}, {1, -1, -1}, {1, -1, 1}, {-1, -1, 1},
+            {-1, 1, -1},  {1, 1, -1},  {1, 1, 1},  {-1, 1, 1}};
+  const uint32_t quads[6][4] = {{0, 1, 2, 3}, {4, 7, 6, 5}, {0, 4, 5, 1},
+                                {1, 5, 6, 2}, {2, 6, 7, 3}, {3, 7, 4, 0}};
+  for (const auto& q : quads)
+    for (uint32_t i : {q[0], q[1], q[2], q[0], q[2], q[3]}) mesh.indices.push_back(i);
+  return mesh;
+}
+
+Mesh makeQuad() {
+  Mesh mesh;
+  mesh.P = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}};
+  mesh.N.assign(4, glm::vec3(0, 0, 1));
+  mesh.uv = {{0, 0}, {1, 0}, {1, 1}, {0, 1}};
+  mesh.indices = {0, 1, 2, 0, 2, 3};
+  return mesh;
+}
+
+Displacement makeDisplacement(RlfShaderEntry entry, float p0, float p1, float edgeLength,
+                              int maxDepth, float flatness) {
+  Displacement d;
+  d.shader = testing::makeShader(entry, p0, p1);
+  d.boundWorld = 1.0f;
+  d.edgeLength = edgeLength;
+  d.maxDepth = maxDepth;
+  d.flatness = flatness;
+  return d;
+}
+
+float segmentDistance(glm::vec3 p, glm::vec3 a, glm::vec3 b) {
+  const glm::vec3 e = b - a;
+  const float t = std::clamp(glm::dot(p - a, e) / glm::dot(e, e), 0.0f, 1.0f);
+  return glm::length(p - (a + t * e));
+}
+
+// Distance from p to a triangle (double-checked by brute force: plane if the projection is inside,
+// else the nearest edge).
+float triangleDistance(glm::vec3 p, glm::vec3 a, glm::vec3 b, glm::vec3 c) {
+  const glm::vec3 n = glm::normalize(glm::cross(b - a, c - a));
+  const float h = glm::dot(p - a, n);
+  const glm::vec3 q = p - h * n;
+  if (glm::dot(glm::cross(b - a, q - a), n) >= 0 && glm::dot(glm::cross(c - b, q - b), n) >= 0 &&
+      glm::dot(glm::cross(a - c, q - c), n) >= 0)
+    return std::fabs(h);
+  return std::min({segmentDistance(p, a, b), segmentDistance(p, b, c), segmentDistance(p, c, a)});
+}
+
+float meshDistance(glm::vec3 p, const MicroMesh& mm) {
+  float best = std::numeric_limits<float>::infinity();
+  for (uint32_t t = 0; t < mm.numTriangles(); ++t)
+    best = std::min(best, triangleDistance(p, mm.P[mm.indices[3 * t]], mm.P[mm.indices[3 * t + 1]],
+                                           mm.P[mm.indices[3 * t + 2]]));
+  return best;
+}
+
+// Every vertex of the unsimplified micro-mesh (what simplification removes) lies within the
+// tolerance of the simplified surface, for several tolerances and shapes.
+TEST(Simplify, RemovedVerticesLieWithinTolerance) {
+  const Mesh quad = makeQuad();
+  for (float flatness : {0.001f, 0.005f, 0.02f}) {
+    for (float freq : {1.0f, 2.0f}) {
+      const Displacement full = makeDisplacement(testing::bumpyEntry, 0.1f, freq, 0.03f, 10, 0.0f);
+      const Displacement simple =
+          makeDisplacement(testing::bumpyEntry, 0.1f, freq, 0.03f, 10, flatness);
+      MicroMesh a, b;
+      SubdivideCounters counters;
+      subdivideTriangle(quad, 0, &full, a, counters);
+      subdivideTriangle(quad, 0, &simple, b, counters);
+      EXPECT_LT(b.numTriangles(), a.numTriangles());
+      std::vector<bool> used(a.P.size(), false);
+      for (uint32_t i : a.indices) used[i] = true;
+      float worst = 0.0f;
+      for (size_t i = 0; i < a.P.size(); ++i)
+        if (used[i]) worst = std::max(worst, meshDistance(a.P[i], b));
+      EXPECT_LE(worst, flatness * 1.001f + 1e-6f) << "flatness " << flatness << " freq " << freq;
+    }
+  }
+}
+
+// The paper's bevelled box: flat faces merge back to their input triangles; only the bevels keep
+// fine triangles. Most of the geometry is saved, and the counters say so.
+TEST(Simplify, BevelledBoxSavesMostGeometry) {
+  const Mesh cube = makeCube();
+  const Displacement full = makeDisplacement(roundedBoxEntry, 0.25f, 1.0f, 0.05f, 12, 0.0f);
+  const Displacement simple = makeDisplacement(roundedBoxEntry, 0.25f, 1.0f, 0.05f, 12, 0.002f);
+  uint64_t fullCount = 0, simpleCount = 0;
+  SubdivideCounters fullCounters, simpleCounters;
+  MicroMesh mm;
+  for (uint32_t t = 0; t < cube.numTriangles(); ++t) {
+    subdivideTriangle(cube, t, &full, mm, fullCounters);
+    fullCount += mm.numTriangles();
+    subdivideTriangle(cube, t, &simple, mm, simpleCounters);
+    simpleCount += mm.numTriangles();
+  }
+  EXPECT_EQ(fullCounters.trianglesBeforeSimplification, fullCount);
+  EXPECT_EQ(fullCounters.trianglesAfterSimplification, fullCount);
+  EXPECT_EQ(simpleCounters.trianglesAfterSimplification, simpleCount);
+  const double saved = 1.0 - double(simpleCount) / double(fullCount);
+  EXPECT_GT(saved, 0.5) << simpleCount << " of " << fullCount;
+  // The estimate of the unsimplified count is close to the real one.
+  const double estimate = double(simpleCounters.trianglesBeforeSimplification);
+  EXPECT_GT(estimate, 0.5 * double(fullCount));
+  EXPECT_LT(estimate, 2.0 * double(fullCount));
+}
+
+// Shared cube edges are decided from the edge alone: the micro-vertices on a cube edge are the
+// same from both faces, with simplification on.
+TEST(Simplify, SharedEdgesAgreeAcrossInputTriangles) {
+  const Mesh cube = makeCube();
+  const Displacement simple = makeDisplacement(roundedBoxEntry, 0.25f, 1.0f, 0.05f, 12, 0.002f);
+  // Triangles 0 (face y = -1: 0,1,2) and 7 (face x = 1: 1,6,2) share the cube edge (1, 2).
+  auto edgePoints = [&](uint32_t t) {
+    MicroMesh mm;
+    SubdivideCounters counters;
+    subdivideTriangle(cube, t, &simple, mm, counters);
+    std::set<std::tuple<float, float, float>> points;
+    for (uint32_t i : mm.indices) {
+      const glm::vec3 p = mm.P[i];
+      // The cube edge x = 1, y = -1 maps to the middle of the bevel's arc.
+      if (std::fabs(p.x - (1.0f - 0.25f + 0.25f * std::sqrt(0.5f))) < 1e-4f &&
+          std::fabs(p.y + (1.0f - 0.25f + 0.25f * std::sqrt(0.5f))) < 1e-4f)
+        points.insert({p.x, p.y, p.z});
+    }
+    return points;
+  };
+  const auto a = edgePoints(0), b = edgePoints(7);
+  EXPECT_GT(a.size(), 4u);
+  EXPECT_EQ(a, b);
+}
+
+// A shader that never settles still stops at maxDepth, with and without simplification.
+TEST(Simplify, DepthGuardStopsRunawayShaders) {
+  const Mesh quad = makeQuad();
+  for (float flatness : {0.0f, 0.5f}) {
+    const Displacement d = makeDisplacement(runawayEntry, 0.0f, 0.0f, 0.01f, 5, flatness);
+    MicroMesh mm;
+    SubdivideCounters counters;
+    subdivideTriangle(quad, 0, &d, mm, counters);
+    for (uint32_t i : mm.indices) EXPECT_LE(mm.level[i], 5);
+    EXPECT_LE(mm.numTriangles(), 1024u);  // 4^5
+    EXPECT_GT(mm.numTriangles(), 64u);
+  }
+}
+
+}  // namespace
+}  // namespace relief
