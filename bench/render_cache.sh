@@ -5,8 +5,8 @@
 #
 # usage: bench/render_cache.sh [scene.rib] [relief binary]
 #   ORDERS="hilbert bucket scanline"  THREADS="1 2"  BUDGETS="10 20"  (environment, to run subsets)
-#   RES=720x480  SPP=1
-# relief has no machine-readable statistics, so this parses its --stats text.
+#   RES=720x480  SPP=1  EXTRA="--no-refine"  (extra relief options)
+# Reads relief --stats-json (docs/statistics.md); peak RSS is memory.peak_rss_bytes.
 set -euo pipefail
 
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
@@ -20,32 +20,29 @@ spp="${SPP:-1}"
 
 [[ -x "$relief" ]] || { echo "render_cache.sh: no relief binary at '$relief'" >&2; exit 1; }
 [[ -f "$scene" ]] || { echo "render_cache.sh: no scene at '$scene'" >&2; exit 1; }
-[[ -x /usr/bin/time ]] || { echo "render_cache.sh: /usr/bin/time (GNU time) is needed for peak RSS" >&2; exit 1; }
+command -v python3 >/dev/null || { echo "render_cache.sh: python3 is needed to read the JSON" >&2; exit 1; }
 
 tmp="$(mktemp -d)"
 trap 'rm -rf "$tmp"' EXIT
 
 # run ORDER THREADS BUDGET -> sets: r_time r_rss r_hits r_cap r_unique r_peak
 run() {
-  local order="$1" threads="$2" budget="$3" log="$tmp/run.log"
-  if ! /usr/bin/time -v "$relief" "$scene" --quiet --stats -o "$tmp/out.png" --resolution "$res" \
+  local order="$1" threads="$2" budget="$3" log="$tmp/run.log" json="$tmp/stats.json"
+  if ! "$relief" "$scene" --quiet --stats-json "$json" -o "$tmp/out.png" --resolution "$res" \
       --spp "$spp" --order "$order" --threads "$threads" --cache-triangles "$budget" \
-      >"$log" 2>&1; then
+      ${EXTRA:-} >"$log" 2>&1; then
     echo "render_cache.sh: relief failed (order $order, threads $threads, budget $budget):" >&2
     cat "$log" >&2
     exit 1
   fi
-  r_time="$(sed -n 's/^render: *\([0-9.]*\) s.*/\1/p' "$log")"
-  r_hits="$(sed -n 's/^cache:.*, \([0-9.]*\)% hits.*/\1/p' "$log")"
-  r_cap="$(sed -n 's/^cache:.* + \([0-9]*\) capacity misses.*/\1/p' "$log")"
-  r_unique="$(sed -n 's/^triangles: .*created, \([0-9]*\) unique.*/\1/p' "$log")"
-  r_peak="$(sed -n 's/^triangles: .*unique, peak \([0-9]*\) resident.*/\1/p' "$log")"
-  r_rss="$(sed -n 's/^.*Maximum resident set size (kbytes): *\([0-9]*\).*/\1/p' "$log")"
-  if [[ -z "$r_time" || -z "$r_hits" || -z "$r_unique" || -z "$r_rss" ]]; then
-    echo "render_cache.sh: could not parse relief --stats output:" >&2
-    cat "$log" >&2
-    exit 1
-  fi
+  read -r r_time r_rss r_hits r_cap r_unique r_peak < <(python3 - "$json" <<'PY'
+import json, sys
+s = json.load(open(sys.argv[1]))
+print(s["time.render_s"], s["memory.peak_rss_bytes"] // 1024, "%.2f" % s["cache.hit_percent"],
+      s["cache.capacity_misses"], s["cache.unique_displaced_triangles"],
+      s["cache.peak_resident_triangles"])
+PY
+)
 }
 
 # The budgets are fractions of what an unlimited render creates once (2 threads, hilbert).

@@ -25,6 +25,7 @@
 
 #include <atomic>
 #include <cstdint>
+#include <cstdio>
 #include <memory>
 #include <mutex>
 #include <vector>
@@ -71,7 +72,12 @@ struct CacheStats {
   uint64_t residentTriangles = 0, peakResidentTriangles = 0;
   uint64_t residentBytes = 0, peakResidentBytes = 0;
   uint64_t evictions = 0;
+  uint64_t createdBytes = 0;      // summed over fills, refills included
+  uint64_t budgetViolations = 0;  // only counted when checking (setCheckBudget)
 };
+
+// A small per-thread number, for spreading per-thread counters over cache lines.
+int cacheThreadShard();
 
 class GeometryCache {
  public:
@@ -89,6 +95,9 @@ class GeometryCache {
 
   CacheStats stats() const;
   uint64_t budget() const { return budget_; }
+  // Debug mode: after every fill, check that the resident set without the voxel just filled is
+  // within the budget, apart from voxels pinned by other threads (which eviction must skip).
+  void setCheckBudget(bool check) { checkBudget_ = check; }
 
  private:
   // Slot word: state in the top two bits, pin count below.
@@ -117,6 +126,8 @@ class GeometryCache {
   uint64_t residentTriangles_ = 0, peakResidentTriangles_ = 0;
   uint64_t residentBytes_ = 0, peakResidentBytes_ = 0;
   uint64_t evictions_ = 0;
+  uint64_t budgetViolations_ = 0;
+  bool checkBudget_ = false;
   // Hits are counted on every voxel visit of every ray, so they are sharded by thread to keep
   // threads off one cache line; misses and fills are rare enough for plain atomics. Every access
   // ends as exactly one hit or miss, so accesses are their sum.
@@ -125,7 +136,7 @@ class GeometryCache {
     std::atomic<uint64_t> hits{0};
   };
   HitShard hitShards_[kHitShards];
-  std::atomic<uint64_t> compulsory_{0}, capacity_{0}, created_{0};
+  std::atomic<uint64_t> compulsory_{0}, capacity_{0}, created_{0}, createdBytes_{0};
 };
 
 template <typename Build>

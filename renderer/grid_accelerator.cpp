@@ -4,7 +4,9 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <limits>
+#include <string_view>
 
 #include "renderer/intersect.h"
 
@@ -131,8 +133,11 @@ GridAccelerator::GridAccelerator(const Scene& scene, const AccelOptions& options
       grid_(scene, options),
       voxelCounted_(grid_.numVoxels()),
       knownEmpty_(grid_.numVoxels()) {
-  if (grid_.anyDisplaced())
+  if (grid_.anyDisplaced()) {
     cache_ = std::make_unique<GeometryCache>(grid_.numVoxels(), options.cacheBudgetTriangles);
+    const char* env = std::getenv("RELIEF_CHECK_BUDGET");
+    cache_->setCheckBudget(options.checkBudget || (env && std::string_view(env) == "1"));
+  }
 }
 
 GridAccelerator::~GridAccelerator() = default;
@@ -160,15 +165,20 @@ std::unique_ptr<VoxelGeometry> GridAccelerator::buildVoxel(uint32_t voxel) {
   uint64_t unique = 0;
   thread_local MicroMesh mm;
   thread_local std::vector<uint32_t> remap;
+  thread_local std::vector<uint8_t> reached;  // per contributor: some micro-triangle kept here
   std::vector<uint32_t> indices;
   SubdivideCounters counters;
-  for (uint32_t id : grid_.contributors(voxel)) {
+  const std::span<const uint32_t> contributors = grid_.contributors(voxel);
+  reached.assign(contributors.size(), 0);
+  for (size_t k = 0; k < contributors.size(); ++k) {
+    const uint32_t id = contributors[k];
     const auto [mesh, triangle] = grid_.split(id);
     subdivideTriangle(scene_.meshes[mesh], triangle, grid_.displacement(mesh), mm, counters, &cull);
     remap.assign(mm.P.size(), UINT32_MAX);
     for (uint32_t i = 0; i < mm.numTriangles(); ++i) {
       const uint32_t* tri = &mm.indices[3 * size_t(i)];
       if (!overlaps(box, mm.P[tri[0]], mm.P[tri[1]], mm.P[tri[2]])) continue;
+      reached[k] = 1;
       for (int c = 0; c < 3; ++c) {
         uint32_t& slot = remap[tri[c]];
         if (slot == UINT32_MAX) {
@@ -189,6 +199,12 @@ std::unique_ptr<VoxelGeometry> GridAccelerator::buildVoxel(uint32_t voxel) {
     }
   }
   addCounters(counters);
+  // Refinement: a contributor none of whose micro-triangles reached the voxel never will (rule 1),
+  // so refills of this voxel skip it.
+  if (options_.refineContributors) {
+    if (const uint32_t dropped = grid_.refine(voxel, reached))
+      droppedContributors_.fetch_add(dropped, std::memory_order_relaxed);
+  }
   if (unique) uniqueTriangles_.fetch_add(unique, std::memory_order_relaxed);
   if (g->P.size() <= 65536) g->indices16.assign(indices.begin(), indices.end());
   else g->indices32 = std::move(indices);
@@ -266,6 +282,13 @@ void GridAccelerator::intersectVoxel(uint32_t voxel, const WatertightRay& wr, co
   cache_->release(voxel);
 }
 
+void GridAccelerator::addTraverseTime(std::chrono::steady_clock::time_point start) {
+  const auto nanos = std::chrono::duration_cast<std::chrono::nanoseconds>(
+      std::chrono::steady_clock::now() - start);
+  traverseNanos_[cacheThreadShard() % kTimeShards].nanos.fetch_add(uint64_t(nanos.count()),
+                                                                  std::memory_order_relaxed);
+}
+
 template <bool kAnyHit>
 void GridAccelerator::traverse(const Ray& ray, Best& best) {
   const Bounds3& bounds = grid_.bounds();
@@ -281,8 +304,7 @@ void GridAccelerator::traverse(const Ray& ray, Best& best) {
   for (;;) {
     const float tExit = dda.tExit();
     const uint32_t voxel = grid_.voxelIndex(dda.cell);
-    if (!grid_.contributors(voxel).empty() &&
-        !knownEmpty_[voxel].load(std::memory_order_relaxed)) {
+    if (grid_.hasContributors(voxel) && !knownEmpty_[voxel].load(std::memory_order_relaxed)) {
       intersectVoxel(voxel, wr, ray, stamp, kAnyHit, best);
       if (kAnyHit && best.found) return;
       if (best.found && best.t < tExit) return;
@@ -293,7 +315,9 @@ void GridAccelerator::traverse(const Ray& ray, Best& best) {
 
 std::optional<Hit> GridAccelerator::intersect(const Ray& ray) {
   Best best;
+  const auto start = std::chrono::steady_clock::now();
   traverse<false>(ray, best);
+  addTraverseTime(start);
   if (!best.found) return std::nullopt;
   Hit hit;
   hit.t = best.t;
@@ -322,7 +346,9 @@ std::optional<Hit> GridAccelerator::intersect(const Ray& ray) {
 
 bool GridAccelerator::occluded(const Ray& ray) {
   Best best;
+  const auto start = std::chrono::steady_clock::now();
   traverse<true>(ray, best);
+  addTraverseTime(start);
   return best.found;
 }
 
@@ -335,12 +361,23 @@ AccelStats GridAccelerator::stats() const {
     s.displacedTrianglesCreated = c.createdTriangles;
     s.peakResidentTriangles = c.peakResidentTriangles, s.residentTriangles = c.residentTriangles;
     s.peakResidentBytes = c.peakResidentBytes, s.residentBytes = c.residentBytes;
+    s.createdBytes = c.createdBytes, s.evictions = c.evictions;
+    s.budgetViolations = c.budgetViolations;
   }
+  s.budgetTriangles = options_.cacheBudgetTriangles;
+  s.contributorEntries = grid_.numEntries();
+  s.droppedContributors = droppedContributors_.load(std::memory_order_relaxed);
+  s.maxVoxelTriangles = maxVoxelTriangles();
+  s.gridResolution = grid_.resolution();
   s.uniqueDisplacedTriangles = uniqueTriangles_.load(std::memory_order_relaxed);
   s.shaderPoints = shaderPoints_.load(std::memory_order_relaxed);
   const double displace = double(displaceNanos_.load(std::memory_order_relaxed)) * 1e-9;
   s.displaceSeconds = displace;
-  s.subdivideSeconds = std::max(0.0, double(fillNanos_.load(std::memory_order_relaxed)) * 1e-9 - displace);
+  const double fill = double(fillNanos_.load(std::memory_order_relaxed)) * 1e-9;
+  s.subdivideSeconds = std::max(0.0, fill - displace);
+  uint64_t traverse = 0;
+  for (const TimeShard& shard : traverseNanos_) traverse += shard.nanos.load(std::memory_order_relaxed);
+  s.intersectSeconds = std::max(0.0, double(traverse) * 1e-9 - fill);
   return s;
 }
 
