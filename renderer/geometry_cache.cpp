@@ -2,6 +2,7 @@
 #include "renderer/geometry_cache.h"
 
 #include <algorithm>
+#include <cmath>
 
 namespace relief {
 
@@ -12,9 +13,34 @@ int cacheThreadShard() {
 }
 
 uint64_t VoxelGeometry::bytes() const {
-  return sizeof(VoxelGeometry) + P.size() * sizeof(glm::vec3) + bary.size() * sizeof(glm::vec2) +
-         indices16.size() * 2 + indices32.size() * 4 + triangleIds.size() * 4 + microIds.size() * 4 +
-         subOffsets.size() * 4 + subTriangles.size() * 4;
+  return sizeof(VoxelGeometry) + P.size() * sizeof(glm::vec3) + bary16.size() * 2 +
+         baryF.size() * sizeof(glm::vec2) + indices16.size() * 2 + indices32.size() * 4 +
+         microLow.size() * 2 + segments.size() * sizeof(Segment) + subOffsets.size() * 4 +
+         subTriangles16.size() * 2 + subTriangles32.size() * 4;
+}
+
+std::pair<uint32_t, uint32_t> VoxelGeometry::key(uint32_t i) const {
+  const auto it = std::upper_bound(segments.begin(), segments.end(), i,
+                                   [](uint32_t t, const Segment& s) { return t < s.first; });
+  const Segment& s = *(it - 1);
+  return {s.triangleId, (s.microHigh << 16) | microLow[i]};
+}
+
+void VoxelGeometry::setBary(const std::vector<glm::vec2>& b) {
+  bary16.clear(), baryF.clear();
+  bary16.reserve(2 * b.size());
+  for (const glm::vec2& v : b) {
+    for (int c = 0; c < 2; ++c) {
+      const float scaled = v[c] * 32768.0f;  // exact: a power-of-two scale
+      if (!(scaled >= 0.0f && scaled <= 32768.0f) || scaled != std::floor(scaled)) {
+        bary16.clear();
+        baryF = b;
+        baryF.shrink_to_fit();
+        return;
+      }
+      bary16.push_back(uint16_t(scaled));
+    }
+  }
 }
 
 GeometryCache::GeometryCache(uint32_t numVoxels, uint64_t budgetTriangles)

@@ -36,16 +36,30 @@
 
 namespace relief {
 
-// The displaced geometry resident for one voxel. Shared vertices + 3 narrow indices per triangle +
-// a (input triangle, micro-triangle) key per triangle for tie-breaking and hit reporting. Face
-// normals are computed at a hit, so no per-vertex normals are stored.
+// The displaced geometry resident for one voxel, stored compactly (docs/cache.md, "Density"):
+// - shared vertices (float3) with their position in the input triangle as two 16-bit fixed-point
+//   numbers (exact: subdivision barycentrics are dyadic, k / 2^level; float pairs are kept only in
+//   the rare voxel holding a level beyond 15);
+// - 3 narrow indices per triangle (16-bit where the voxel has <= 65536 vertices);
+// - the (input triangle, micro-triangle) key per triangle as runs: a triangle stores the low 16
+//   bits of its micro id, and a segment table gives, from each segment's first triangle on, the
+//   input triangle and the micro id's high 16 bits. Keys are only needed at a hit (tie-breaking
+//   and reporting), where a binary search over the few segments is cheap;
+// - the sub-voxel grid over dense voxels with 16-bit triangle references.
+// Face normals are computed at a hit, so no per-vertex normals are stored.
 struct VoxelGeometry {
+  struct Segment {
+    uint32_t first;       // first triangle of the segment
+    uint32_t triangleId;  // global input triangle id
+    uint32_t microHigh;   // micro id >> 16
+  };
   std::vector<glm::vec3> P;
-  std::vector<glm::vec2> bary;      // position in the input triangle, for st at a hit
+  std::vector<uint16_t> bary16;     // 2 per vertex: (b1, b2) * 2^15, when exact
+  std::vector<glm::vec2> baryF;     // otherwise: (b1, b2)
   std::vector<uint16_t> indices16;  // used when P.size() <= 65536
   std::vector<uint32_t> indices32;  // otherwise
-  std::vector<uint32_t> triangleIds;  // global input triangle id per micro-triangle
-  std::vector<uint32_t> microIds;     // index within that input triangle's micro-mesh
+  std::vector<uint16_t> microLow;   // per triangle: micro id & 0xffff
+  std::vector<Segment> segments;
 
   // Sub-voxel grid over dense voxels (kSubGridThreshold triangles or more): cells in compressed
   // rows of triangle indices; empty when the voxel is sparse.
@@ -53,13 +67,33 @@ struct VoxelGeometry {
   glm::vec3 subOrigin{0};
   float subCellSize = 0;
   std::vector<uint32_t> subOffsets;
-  std::vector<uint32_t> subTriangles;
+  std::vector<uint16_t> subTriangles16;  // when numTriangles() <= 65536
+  std::vector<uint32_t> subTriangles32;  // otherwise
 
-  uint32_t numTriangles() const { return uint32_t(triangleIds.size()); }
+  uint32_t numTriangles() const { return uint32_t(microLow.size()); }
   glm::uvec3 triangle(uint32_t i) const {
     if (!indices16.empty()) return {indices16[3 * i], indices16[3 * i + 1], indices16[3 * i + 2]};
     return {indices32[3 * i], indices32[3 * i + 1], indices32[3 * i + 2]};
   }
+  uint32_t subTriangle(uint32_t k) const {
+    return subTriangles16.empty() ? subTriangles32[k] : subTriangles16[k];
+  }
+  glm::vec2 bary(uint32_t vertex) const {
+    if (baryF.empty())
+      return glm::vec2(float(bary16[2 * vertex]), float(bary16[2 * vertex + 1])) * (1.0f / 32768.0f);
+    return baryF[vertex];
+  }
+  // Appends the key of the next triangle (keys must be appended in triangle order).
+  void appendKey(uint32_t triangleId, uint32_t microId) {
+    if (segments.empty() || segments.back().triangleId != triangleId ||
+        segments.back().microHigh != microId >> 16)
+      segments.push_back({numTriangles(), triangleId, microId >> 16});
+    microLow.push_back(uint16_t(microId & 0xffff));
+  }
+  // The key of triangle i: (global input triangle id, micro id).
+  std::pair<uint32_t, uint32_t> key(uint32_t i) const;
+  // Stores vertex bary (b1, b2) in the compact form if every one is exact in it.
+  void setBary(const std::vector<glm::vec2>& b);
   uint64_t bytes() const;
 };
 

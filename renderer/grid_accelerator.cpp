@@ -90,10 +90,11 @@ void buildSubGrid(VoxelGeometry& g, const Bounds3& box, float padding) {
     hi = glm::clamp(glm::ivec3(glm::floor((b - g.subOrigin) / g.subCellSize)), glm::ivec3(0), g.subResolution - 1);
   };
   std::vector<uint32_t> cursor;
+  thread_local std::vector<uint32_t> refs;
   for (int pass = 0; pass < 2; ++pass) {
     if (pass == 1) {
       for (size_t c = 0; c < numCells; ++c) g.subOffsets[c + 1] += g.subOffsets[c];
-      g.subTriangles.resize(g.subOffsets[numCells]);
+      refs.resize(g.subOffsets[numCells]);
       cursor.assign(g.subOffsets.begin(), g.subOffsets.end() - 1);
     }
     for (uint32_t i = 0; i < n; ++i) {
@@ -104,10 +105,12 @@ void buildSubGrid(VoxelGeometry& g, const Bounds3& box, float padding) {
           for (int x = lo.x; x <= hi.x; ++x) {
             const size_t c = (size_t(z) * r + y) * r + x;
             if (pass == 0) ++g.subOffsets[c + 1];
-            else g.subTriangles[cursor[c]++] = i;
+            else refs[cursor[c]++] = i;
           }
     }
   }
+  if (n <= 65536) g.subTriangles16.assign(refs.begin(), refs.end());
+  else g.subTriangles32.assign(refs.begin(), refs.end());
 }
 
 }  // namespace
@@ -165,7 +168,9 @@ std::unique_ptr<VoxelGeometry> GridAccelerator::buildVoxel(uint32_t voxel) {
   uint64_t unique = 0;
   thread_local MicroMesh mm;
   thread_local std::vector<uint32_t> remap;
-  thread_local std::vector<uint8_t> reached;  // per contributor: some micro-triangle kept here
+  thread_local std::vector<uint8_t> reached;
+  thread_local std::vector<glm::vec2> bary;
+  bary.clear();  // per contributor: some micro-triangle kept here
   std::vector<uint32_t> indices;
   SubdivideCounters counters;
   const std::span<const uint32_t> contributors = grid_.contributors(voxel);
@@ -184,12 +189,11 @@ std::unique_ptr<VoxelGeometry> GridAccelerator::buildVoxel(uint32_t voxel) {
         if (slot == UINT32_MAX) {
           slot = uint32_t(g->P.size());
           g->P.push_back(mm.P[tri[c]]);
-          g->bary.push_back(mm.bary[tri[c]]);
+          bary.push_back(mm.bary[tri[c]]);
         }
         indices.push_back(slot);
       }
-      g->triangleIds.push_back(id);
-      g->microIds.push_back(mm.ids[i]);
+      g->appendKey(id, mm.ids[i]);
       if (countUnique) {
         const glm::vec3 centroid = (mm.P[tri[0]] + mm.P[tri[1]] + mm.P[tri[2]]) / 3.0f;
         const glm::ivec3 cell = glm::clamp(
@@ -209,8 +213,9 @@ std::unique_ptr<VoxelGeometry> GridAccelerator::buildVoxel(uint32_t voxel) {
   if (g->P.size() <= 65536) g->indices16.assign(indices.begin(), indices.end());
   else g->indices32 = std::move(indices);
   // Resident memory is what the budget and the byte statistics describe: no growth slack.
-  g->P.shrink_to_fit(), g->bary.shrink_to_fit(), g->indices32.shrink_to_fit();
-  g->triangleIds.shrink_to_fit(), g->microIds.shrink_to_fit();
+  g->setBary(bary);
+  g->P.shrink_to_fit(), g->indices32.shrink_to_fit();
+  g->microLow.shrink_to_fit(), g->segments.shrink_to_fit();
   buildSubGrid(*g, box, grid_.padding());
   const uint64_t n = g->numTriangles();
   // Contributors whose displaced geometry misses the voxel: later rays skip it without a lookup.
@@ -251,10 +256,11 @@ void GridAccelerator::intersectVoxel(uint32_t voxel, const WatertightRay& wr, co
   auto test = [&](uint32_t i) {
     const glm::uvec3 tri = g->triangle(i);
     if (!intersectTriangle(wr, g->P[tri.x], g->P[tri.y], g->P[tri.z], ray.tMin, tLimit(), h)) return;
-    if (!best.better(h.t, g->triangleIds[i], g->microIds[i])) return;
-    best.found = true, best.t = h.t, best.triangleId = g->triangleIds[i];
-    best.microId = g->microIds[i], best.hit = h;
-    for (int c = 0; c < 3; ++c) best.p[c] = g->P[tri[c]], best.bary[c] = g->bary[tri[c]];
+    const auto [triangleId, microId] = g->key(i);
+    if (!best.better(h.t, triangleId, microId)) return;
+    best.found = true, best.t = h.t, best.triangleId = triangleId;
+    best.microId = microId, best.hit = h;
+    for (int c = 0; c < 3; ++c) best.p[c] = g->P[tri[c]], best.bary[c] = g->bary(tri[c]);
   };
   if (g->subResolution.x == 0) {
     for (uint32_t i = 0; i < g->numTriangles() && !(anyHit && best.found); ++i) test(i);
@@ -269,7 +275,7 @@ void GridAccelerator::intersectVoxel(uint32_t voxel, const WatertightRay& wr, co
       for (;;) {
         const size_t c = (size_t(dda.cell.z) * r + dda.cell.y) * r + dda.cell.x;
         for (uint32_t k = g->subOffsets[c]; k < g->subOffsets[c + 1]; ++k) {
-          test(g->subTriangles[k]);
+          test(g->subTriangle(k));
           if (anyHit && best.found) break;
         }
         if (anyHit && best.found) break;

@@ -91,6 +91,20 @@ TEST(CacheImage, BitIdenticalAcrossBudgetsOrdersAndThreads) {
   }
 }
 
+// The smallest threaded case on its own (one reference, one two-thread render at a 5% budget), so
+// that tools/tsan.sh can run it under ThreadSanitizer in reasonable time.
+TEST(CacheThreads, TwoThreadsAtASmallBudgetMatchOneThreadUnlimited) {
+  const Scene scene = bumpyScene();
+  ASSERT_FALSE(scene.meshes.empty());
+  const Result reference = renderWith(scene, PixelOrder::Hilbert, 1, UINT64_MAX, false);
+  const Result r = renderWith(scene, PixelOrder::Scanline, 2,
+                              reference.stats.uniqueDisplacedTriangles / 20, true);
+  EXPECT_TRUE(r.film.data() == reference.film.data());
+  EXPECT_GT(r.stats.capacityMisses, 0u);
+  EXPECT_GT(r.stats.droppedContributors, 0u);
+  EXPECT_EQ(r.stats.budgetViolations, 0u);
+}
+
 // The check counts only what eviction could have freed: a pinned voxel may keep the resident set
 // over budget, and the next fill after it is released evicts it.
 TEST(CacheImage, BudgetCheckAllowsPinnedOvershootOnly) {
@@ -98,7 +112,7 @@ TEST(CacheImage, BudgetCheckAllowsPinnedOvershootOnly) {
   cache.setCheckBudget(true);
   auto build = [](uint32_t voxel) {
     auto g = std::make_unique<VoxelGeometry>();
-    for (uint32_t i = 0; i < 8; ++i) g->triangleIds.push_back(voxel), g->microIds.push_back(i);
+    for (uint32_t i = 0; i < 8; ++i) g->appendKey(voxel, i);
     return g;
   };
   cache.acquire(0, 1, build);  // kept pinned
