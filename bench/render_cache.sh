@@ -25,7 +25,7 @@ command -v python3 >/dev/null || { echo "render_cache.sh: python3 is needed to r
 tmp="$(mktemp -d)"
 trap 'rm -rf "$tmp"' EXIT
 
-# run ORDER THREADS BUDGET -> sets: r_time r_rss r_hits r_cap r_unique r_peak
+# run ORDER THREADS BUDGET -> sets: r_time r_rss r_hits r_cap r_unique r_peak r_cachemib
 run() {
   local order="$1" threads="$2" budget="$3" log="$tmp/run.log" json="$tmp/stats.json"
   if ! "$relief" "$scene" --quiet --stats-json "$json" -o "$tmp/out.png" --resolution "$res" \
@@ -35,12 +35,12 @@ run() {
     cat "$log" >&2
     exit 1
   fi
-  read -r r_time r_rss r_hits r_cap r_unique r_peak < <(python3 - "$json" <<'PY'
+  read -r r_time r_rss r_hits r_cap r_unique r_peak r_cachemib < <(python3 - "$json" <<'PY'
 import json, sys
 s = json.load(open(sys.argv[1]))
 print(s["time.render_s"], s["memory.peak_rss_bytes"] // 1024, "%.2f" % s["cache.hit_percent"],
       s["cache.capacity_misses"], s["cache.unique_displaced_triangles"],
-      s["cache.peak_resident_triangles"])
+      s["cache.peak_resident_triangles"], "%.1f" % (s["cache.peak_resident_bytes"] / 2**20))
 PY
 )
 }
@@ -50,19 +50,19 @@ run hilbert 2 unlimited
 unique="$r_unique"
 echo "scene: $scene ($res, $spp spp); unlimited run: $unique unique displaced triangles"
 echo
-echo "| order | threads | cache budget (triangles) | render s | peak RSS MiB | hit % | capacity misses | peak resident tris | time / unlimited |"
-echo "|---|---|---|---|---|---|---|---|---|"
+echo "| order | threads | cache budget (triangles) | render s | peak RSS MiB | cache peak MiB | hit % | capacity misses | peak resident tris | time / unlimited |"
+echo "|---|---|---|---|---|---|---|---|---|---|"
 for threads in $threads_list; do
   for order in $orders; do
     run "$order" "$threads" unlimited
     base="$r_time"
-    printf '| %s | %s | unlimited | %.2f | %.0f | %s | %s | %s | 1.00 |\n' "$order" "$threads" \
-      "$r_time" "$(echo "$r_rss / 1024" | bc -l)" "$r_hits" "$r_cap" "$r_peak"
+    printf '| %s | %s | unlimited | %.2f | %.0f | %s | %s | %s | %s | 1.00 |\n' "$order" "$threads" \
+      "$r_time" "$(echo "$r_rss / 1024" | bc -l)" "$r_cachemib" "$r_hits" "$r_cap" "$r_peak"
     for pct in $budgets; do
       budget=$(( unique * pct / 100 ))
       run "$order" "$threads" "$budget"
-      printf '| %s | %s | %s%% = %s | %.2f | %.0f | %s | %s | %s | %.2f |\n' "$order" "$threads" \
-        "$pct" "$budget" "$r_time" "$(echo "$r_rss / 1024" | bc -l)" "$r_hits" "$r_cap" "$r_peak" \
+      printf '| %s | %s | %s%% = %s | %.2f | %.0f | %s | %s | %s | %s | %.2f |\n' "$order" "$threads" \
+        "$pct" "$budget" "$r_time" "$(echo "$r_rss / 1024" | bc -l)" "$r_cachemib" "$r_hits" "$r_cap" "$r_peak" \
         "$(echo "$r_time / $base" | bc -l)"
     done
   done

@@ -45,6 +45,11 @@ struct AccelOptions {
   // AccelStats::budgetViolations. Also switched on by the environment variable
   // RELIEF_CHECK_BUDGET=1.
   bool checkBudget = false;
+  // Side cache (docs/cache.md): each fill thread keeps the whole subdivisions of the contributors
+  // it subdivided last, up to this many micro-triangles, so that neighbouring voxel fills reuse
+  // them instead of re-subdividing. 0: off (each fill subdivides its contributors culled to the
+  // voxel). Never changes the image: culled and whole subdivisions agree triangle for triangle.
+  uint64_t sideCacheTriangles = 0;
 };
 
 struct AccelStats {
@@ -64,6 +69,8 @@ struct AccelStats {
   uint64_t maxVoxelTriangles = 0;           // largest voxel filled (bounds budget overshoot)
   double intersectSeconds = 0;              // traversal + triangle tests, fills excluded
   glm::ivec3 gridResolution{0};
+  uint64_t sideCacheHits = 0, sideCacheMisses = 0;
+  uint64_t sideCachePeakTriangles = 0;      // summed over threads
 };
 
 class Accelerator {

@@ -46,6 +46,8 @@ constexpr const char* kUsage =
     "  --cache-triangles N       geometry cache budget in displaced triangles, or 'unlimited'\n"
     "  --grid-resolution N       contributor-grid voxels along the longest axis (default: automatic)\n"
     "  --no-refine               keep contributors that reached nothing in their voxels' lists\n"
+    "  --side-cache N            per-thread cache of N micro-triangles of whole subdivisions\n"
+    "                            reused by neighbouring voxel fills (0: off)\n"
     "  --no-displacement         render the undisplaced surfaces\n"
     "  --stats                   print cache statistics and timings\n"
     "  --stats-json FILE         write the same statistics as JSON (for benchmark scripts)\n"
@@ -68,6 +70,7 @@ struct CommandLine {
   uint64_t cacheTriangles = UINT64_MAX;
   int gridResolution = 0;  // 0: automatic
   bool refine = true;
+  uint64_t sideCache = 0;
   bool displace = true;
   bool stats = false;
   std::string statsJson;
@@ -151,6 +154,10 @@ int parseCommandLine(int argc, char** argv, CommandLine* cl) {
         return usageError("'--grid-resolution' needs a voxel count between 1 and " +
                           std::to_string(relief::kMaxGridResolution));
       cl->gridResolution = int(n);
+    } else if (a == "--side-cache") {
+      if (!value(&v) || !(v == "0" || parsePositive(v, (1LL << 40), &n)))
+        return usageError("'--side-cache' needs a micro-triangle count (0: off)");
+      cl->sideCache = v == "0" ? 0 : uint64_t(n);
     } else if (a == "--no-refine") {
       cl->refine = false;
     } else if (a == "--no-displacement") {
@@ -281,6 +288,9 @@ StatList collectStats(const CommandLine& cl, const relief::Scene& scene,
       {"cache.bytes_per_triangle", ratio(double(a.createdBytes), double(a.displacedTrianglesCreated))},
       {"cache.simplification_saved_fraction", simplifies ? std::string("null") : "0"},
       {"cache.shader_points", u(a.shaderPoints)},
+      {"cache.side_cache_hits", u(a.sideCacheHits)},
+      {"cache.side_cache_misses", u(a.sideCacheMisses)},
+      {"cache.side_cache_peak_triangles", u(a.sideCachePeakTriangles)},
       {"cache.budget_violations", u(a.budgetViolations)},
       {"time.load_s", f(loadSeconds)},
       {"time.build_s", f(buildSeconds)},
@@ -398,6 +408,7 @@ int run(const CommandLine& cl) {
   accelOptions.displace = cl.displace;
   accelOptions.gridResolution = cl.gridResolution;
   accelOptions.refineContributors = cl.refine;
+  accelOptions.sideCacheTriangles = cl.sideCache;
   std::unique_ptr<relief::Accelerator> accel = relief::makeGridAccelerator(scene, accelOptions);
   const double buildSeconds = secondsSince(buildStart);
 
