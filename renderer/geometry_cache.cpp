@@ -23,7 +23,7 @@ std::pair<uint32_t, uint32_t> VoxelGeometry::key(uint32_t i) const {
   const auto it = std::upper_bound(segments.begin(), segments.end(), i,
                                    [](uint32_t t, const Segment& s) { return t < s.first; });
   const Segment& s = *(it - 1);
-  return {s.triangleId, (s.microHigh << 16) | microLow[i]};
+  return {s.triangleId, unpackMicro((s.microHigh << 16) | microLow[i])};
 }
 
 void VoxelGeometry::setBary(const std::vector<glm::vec2>& b) {

@@ -33,6 +33,7 @@
 #include <glm/glm.hpp>
 
 #include "renderer/contributor_grid.h"
+#include "renderer/subdivide.h"
 
 namespace relief {
 
@@ -42,8 +43,8 @@ namespace relief {
 //   the rare voxel holding a level beyond 15);
 // - 3 narrow indices per triangle (16-bit where the voxel has <= 65536 vertices);
 // - the (input triangle, micro-triangle) key per triangle as runs: a triangle stores the low 16
-//   bits of its micro id, and a segment table gives, from each segment's first triangle on, the
-//   input triangle and the micro id's high 16 bits. Keys are only needed at a hit (tie-breaking
+//   bits of its micro id (rotated, see packMicro), and a segment table gives, from each segment's
+//   first triangle on, the input triangle and the high 16 bits. Keys are only needed at a hit (tie-breaking
 //   and reporting), where a binary search over the few segments is cheap;
 // - the sub-voxel grid over dense voxels with 16-bit triangle references.
 // Face normals are computed at a hit, so no per-vertex normals are stored.
@@ -51,7 +52,7 @@ struct VoxelGeometry {
   struct Segment {
     uint32_t first;       // first triangle of the segment
     uint32_t triangleId;  // global input triangle id
-    uint32_t microHigh;   // micro id >> 16
+    uint32_t microHigh;   // packMicro(micro id) >> 16
   };
   std::vector<glm::vec3> P;
   std::vector<uint16_t> bary16;     // 2 per vertex: (b1, b2) * 2^15, when exact
@@ -85,10 +86,20 @@ struct VoxelGeometry {
   }
   // Appends the key of the next triangle (keys must be appended in triangle order).
   void appendKey(uint32_t triangleId, uint32_t microId) {
+    const uint32_t packed = packMicro(microId);
     if (segments.empty() || segments.back().triangleId != triangleId ||
-        segments.back().microHigh != microId >> 16)
-      segments.push_back({numTriangles(), triangleId, microId >> 16});
-    microLow.push_back(uint16_t(microId & 0xffff));
+        segments.back().microHigh != packed >> 16)
+      segments.push_back({numTriangles(), triangleId, packed >> 16});
+    microLow.push_back(uint16_t(packed & 0xffff));
+  }
+  // Micro ids are (path code << kMicroRankBits) | rank (subdivide.h), and the path code changes
+  // every few triangles; rotated so the path code sits in the low bits, a segment spans every
+  // triangle of a contributor whose ranks stay below 2^(16 - path bits).
+  static uint32_t packMicro(uint32_t id) {
+    return (id << (32 - kMicroRankBits)) | (id >> kMicroRankBits);
+  }
+  static uint32_t unpackMicro(uint32_t packed) {
+    return (packed >> (32 - kMicroRankBits)) | (packed << kMicroRankBits);
   }
   // The key of triangle i: (global input triangle id, micro id).
   std::pair<uint32_t, uint32_t> key(uint32_t i) const;

@@ -168,7 +168,16 @@ TEST(VoxelStorage, KeysAndBarycentricsRoundTrip) {
   for (auto [t, m] : keys) g.appendKey(t, m);
   ASSERT_EQ(g.numTriangles(), 7u);
   for (uint32_t i = 0; i < 7; ++i) EXPECT_EQ(g.key(i), keys[i]) << i;
-  EXPECT_EQ(g.segments.size(), 5u);  // 7/0, 7/1, 9/1, 9/0, 4e9/0xffff
+  for (uint32_t m : {0u, 1u, 0x12345u, 0xdeadbeefu, 0xffffffffu})
+    EXPECT_EQ(VoxelGeometry::unpackMicro(VoxelGeometry::packMicro(m)), m);
+  // Ids of one input triangle whose ranks are small share a segment, whatever their path codes.
+  const uint32_t rank = 1u << kMicroRankBits;
+  const size_t before = g.segments.size();
+  for (uint32_t path = 1; path < 512; path += 37)
+    for (uint32_t r = 0; r < 20; ++r) g.appendKey(11, path * rank + r);
+  EXPECT_EQ(g.segments.size(), before + 1);
+  for (uint32_t i = 7, path = 1; path < 512; path += 37)
+    for (uint32_t r = 0; r < 20; ++r, ++i) ASSERT_EQ(g.key(i), std::make_pair(11u, path * rank + r));
 
   // Dyadic barycentrics up to level 15 use 16 bits and decode exactly.
   const std::vector<glm::vec2> dyadic = {{0, 0}, {1, 0}, {0, 1}, {0.5f, 0.25f}, {1.0f / 32768, 0.75f}};
