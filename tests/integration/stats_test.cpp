@@ -204,7 +204,7 @@ TEST(Stats, JsonHasTheDocumentedKeysAndInvariants) {
   }
 }
 
-TEST(Stats, RefinementAndGridResolutionFlags) {
+TEST(Stats, RefinementSideCacheAndGridResolutionFlags) {
   const StatsRun refined = render("refined", "--threads 1 --grid-resolution 12");
   const StatsRun plain = render("plain", "--threads 1 --grid-resolution 12 --no-refine");
   expectInvariants(refined);
@@ -213,10 +213,17 @@ TEST(Stats, RefinementAndGridResolutionFlags) {
   EXPECT_EQ(plain.stats.at("grid.refinement"), "false");
   EXPECT_GT(refined.num("grid.dropped_contributors"), 0);
   EXPECT_EQ(plain.num("grid.dropped_contributors"), 0);
-  relief::test::ImageDiff d =
-      relief::test::compareImages(refined.image.string(), plain.image.string(), 0.0f);
-  ASSERT_TRUE(d.loaded) << d.error;
-  EXPECT_EQ(d.failingPixels, 0);
+  const StatsRun side = render("side", "--threads 1 --grid-resolution 12 --side-cache 20000");
+  expectInvariants(side);
+  EXPECT_GT(side.num("cache.side_cache_hits"), 0);
+  EXPECT_GT(side.num("cache.side_cache_peak_triangles"), 0);
+  EXPECT_EQ(plain.num("cache.side_cache_hits"), 0);
+  for (const StatsRun* other : {&plain, &side}) {
+    relief::test::ImageDiff d =
+        relief::test::compareImages(other->image.string(), refined.image.string(), 0.0f);
+    ASSERT_TRUE(d.loaded) << d.error;
+    EXPECT_EQ(d.failingPixels, 0) << other->image;
+  }
 }
 
 TEST(Stats, HumanReadableStatsShowTheSameKeys) {
