@@ -46,7 +46,8 @@ namespace relief {
 //   bits of its micro id (rotated, see packMicro), and a segment table gives, from each segment's
 //   first triangle on, the input triangle and the high 16 bits. Keys are only needed at a hit (tie-breaking
 //   and reporting), where a binary search over the few segments is cheap;
-// - the sub-voxel grid over dense voxels with 16-bit triangle references.
+// - the sub-voxel grid over dense voxels with 16-bit cell offsets and triangle references where
+//   they fit.
 // Face normals are computed at a hit, so no per-vertex normals are stored.
 struct VoxelGeometry {
   struct Segment {
@@ -67,7 +68,8 @@ struct VoxelGeometry {
   glm::ivec3 subResolution{0};
   glm::vec3 subOrigin{0};
   float subCellSize = 0;
-  std::vector<uint32_t> subOffsets;
+  std::vector<uint16_t> subOffsets16;    // cell c's references: [offset(c), offset(c + 1)),
+  std::vector<uint32_t> subOffsets32;    // 16-bit while there are fewer than 65536 references
   std::vector<uint16_t> subTriangles16;  // when numTriangles() <= 65536
   std::vector<uint32_t> subTriangles32;  // otherwise
 
@@ -75,6 +77,9 @@ struct VoxelGeometry {
   glm::uvec3 triangle(uint32_t i) const {
     if (!indices16.empty()) return {indices16[3 * i], indices16[3 * i + 1], indices16[3 * i + 2]};
     return {indices32[3 * i], indices32[3 * i + 1], indices32[3 * i + 2]};
+  }
+  uint32_t subOffset(size_t cell) const {
+    return subOffsets16.empty() ? subOffsets32[cell] : subOffsets16[cell];
   }
   uint32_t subTriangle(uint32_t k) const {
     return subTriangles16.empty() ? subTriangles32[k] : subTriangles16[k];

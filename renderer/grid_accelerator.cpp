@@ -85,7 +85,8 @@ void buildSubGrid(VoxelGeometry& g, const Bounds3& box, float padding) {
   g.subOrigin = box.lo;
   g.subResolution = glm::ivec3(r);
   const size_t numCells = size_t(r) * r * r;
-  g.subOffsets.assign(numCells + 1, 0);
+  thread_local std::vector<uint32_t> offsets;
+  offsets.assign(numCells + 1, 0);
   auto range = [&](uint32_t i, glm::ivec3& lo, glm::ivec3& hi) {
     const glm::uvec3 t = g.triangle(i);
     const glm::vec3 a = glm::min(g.P[t.x], glm::min(g.P[t.y], g.P[t.z])) - glm::vec3(padding);
@@ -97,9 +98,9 @@ void buildSubGrid(VoxelGeometry& g, const Bounds3& box, float padding) {
   thread_local std::vector<uint32_t> refs;
   for (int pass = 0; pass < 2; ++pass) {
     if (pass == 1) {
-      for (size_t c = 0; c < numCells; ++c) g.subOffsets[c + 1] += g.subOffsets[c];
-      refs.resize(g.subOffsets[numCells]);
-      cursor.assign(g.subOffsets.begin(), g.subOffsets.end() - 1);
+      for (size_t c = 0; c < numCells; ++c) offsets[c + 1] += offsets[c];
+      refs.resize(offsets[numCells]);
+      cursor.assign(offsets.begin(), offsets.end() - 1);
     }
     for (uint32_t i = 0; i < n; ++i) {
       glm::ivec3 lo, hi;
@@ -108,11 +109,13 @@ void buildSubGrid(VoxelGeometry& g, const Bounds3& box, float padding) {
         for (int y = lo.y; y <= hi.y; ++y)
           for (int x = lo.x; x <= hi.x; ++x) {
             const size_t c = (size_t(z) * r + y) * r + x;
-            if (pass == 0) ++g.subOffsets[c + 1];
+            if (pass == 0) ++offsets[c + 1];
             else refs[cursor[c]++] = i;
           }
     }
   }
+  if (offsets[numCells] <= 65535) g.subOffsets16.assign(offsets.begin(), offsets.end());
+  else g.subOffsets32.assign(offsets.begin(), offsets.end());
   if (n <= 65536) g.subTriangles16.assign(refs.begin(), refs.end());
   else g.subTriangles32.assign(refs.begin(), refs.end());
 }
@@ -340,7 +343,8 @@ void GridAccelerator::intersectVoxel(uint32_t voxel, const WatertightRay& wr, co
       const int r = g->subResolution.x;
       for (;;) {
         const size_t c = (size_t(dda.cell.z) * r + dda.cell.y) * r + dda.cell.x;
-        for (uint32_t k = g->subOffsets[c]; k < g->subOffsets[c + 1]; ++k) {
+        const uint32_t end = g->subOffset(c + 1);
+        for (uint32_t k = g->subOffset(c); k < end; ++k) {
           test(g->subTriangle(k));
           if (anyHit && best.found) break;
         }

@@ -194,3 +194,34 @@ TEST(VoxelStorage, KeysAndBarycentricsRoundTrip) {
 
 }  // namespace
 }  // namespace relief
+
+namespace relief {
+namespace {
+
+// One voxel holding everything: more than 65536 vertices, triangles and sub-grid references, so
+// the 32-bit forms of indices, sub-grid offsets and references are used, and still agree exactly
+// with brute force.
+TEST(VoxelStorage, WideVoxelsUseTheir32BitFormsCorrectly) {
+  SphereOptions o;
+  o.nu = 24, o.nv = 12;
+  o.edgeLength = 0.02f;
+  const Scene scene = makeSphereScene(o);
+  AccelOptions options;
+  options.gridResolution = 1;
+  GridAccelerator accel(scene, options);
+  testing::BruteForce expected(scene);
+  for (const Ray& ray : testing::randomRays(60, 13, 3.0f, 1.2f)) {
+    const auto hit = accel.intersect(ray);
+    const auto ref = expected.intersect(ray);
+    ASSERT_EQ(hit.has_value(), ref.has_value());
+    if (hit) {
+      EXPECT_EQ(hit->t, ref->t);
+      EXPECT_EQ(hit->triangleIndex, ref->triangle);
+      EXPECT_EQ(hit->microIndex, ref->micro);
+    }
+  }
+  EXPECT_GT(accel.maxVoxelTriangles(), 100000u);
+}
+
+}  // namespace
+}  // namespace relief
