@@ -1,6 +1,7 @@
 // The contributor grid (paper, phase 1): for each voxel of a regular grid over the scene, the input
 // triangles whose displaced geometry may reach it. Built once by the grid accelerator from the
-// immutable Scene and immutable afterwards (safe to read from any thread).
+// immutable Scene. Afterwards only refinement changes it (a voxel's filler drops contributors that
+// reached nothing there, see refine()); everything else is safe to read from any thread.
 #pragma once
 
 #include <atomic>
