@@ -13,7 +13,9 @@
 // fills evaluate 1.72M at the automatic 10^3 grid, 3.07M at 16^3 and 8.85M at 32^3, and store
 // 897K triangles (8% duplicates across voxel borders). With costly shaders this factor is the
 // price of independent voxels. Because a voxel's content is a pure function of the voxel
-// (determinism rule 1), a refill after eviction is identical.
+// (determinism rule 1), a refill after eviction is identical. The paper's fill-once scheme and a
+// side cache of whole subdivisions (AccelOptions::sideCacheTriangles, off by default) were measured
+// against this on the facade; docs/cache.md records why per-voxel fills stay the default.
 //
 // Thread safety: each slot has one atomic word holding its state (empty, filling, ready) and a pin
 // count. Readers pin a ready slot with a compare-and-swap; exactly one thread wins empty -> filling
