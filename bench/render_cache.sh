@@ -5,8 +5,8 @@
 #
 # usage: bench/render_cache.sh [scene.rib] [relief binary]
 #   ORDERS="hilbert bucket scanline"  THREADS="1 2"  BUDGETS="10 20"  (environment, to run subsets)
-#   RES=720x480  SPP=1
-# relief has no machine-readable statistics, so this parses its --stats text.
+#   RES=720x480  SPP=1  EXTRA="--no-refine"  (extra relief options)
+# Reads relief --stats-json (docs/statistics.md); peak RSS is memory.peak_rss_bytes.
 set -euo pipefail
 
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
@@ -20,32 +20,29 @@ spp="${SPP:-1}"
 
 [[ -x "$relief" ]] || { echo "render_cache.sh: no relief binary at '$relief'" >&2; exit 1; }
 [[ -f "$scene" ]] || { echo "render_cache.sh: no scene at '$scene'" >&2; exit 1; }
-[[ -x /usr/bin/time ]] || { echo "render_cache.sh: /usr/bin/time (GNU time) is needed for peak RSS" >&2; exit 1; }
+command -v python3 >/dev/null || { echo "render_cache.sh: python3 is needed to read the JSON" >&2; exit 1; }
 
 tmp="$(mktemp -d)"
 trap 'rm -rf "$tmp"' EXIT
 
-# run ORDER THREADS BUDGET -> sets: r_time r_rss r_hits r_cap r_unique r_peak
+# run ORDER THREADS BUDGET -> sets: r_time r_rss r_hits r_cap r_unique r_peak r_cachemib
 run() {
-  local order="$1" threads="$2" budget="$3" log="$tmp/run.log"
-  if ! /usr/bin/time -v "$relief" "$scene" --quiet --stats -o "$tmp/out.png" --resolution "$res" \
+  local order="$1" threads="$2" budget="$3" log="$tmp/run.log" json="$tmp/stats.json"
+  if ! "$relief" "$scene" --quiet --stats-json "$json" -o "$tmp/out.png" --resolution "$res" \
       --spp "$spp" --order "$order" --threads "$threads" --cache-triangles "$budget" \
-      >"$log" 2>&1; then
+      ${EXTRA:-} >"$log" 2>&1; then
     echo "render_cache.sh: relief failed (order $order, threads $threads, budget $budget):" >&2
     cat "$log" >&2
     exit 1
   fi
-  r_time="$(sed -n 's/^render: *\([0-9.]*\) s.*/\1/p' "$log")"
-  r_hits="$(sed -n 's/^cache:.*, \([0-9.]*\)% hits.*/\1/p' "$log")"
-  r_cap="$(sed -n 's/^cache:.* + \([0-9]*\) capacity misses.*/\1/p' "$log")"
-  r_unique="$(sed -n 's/^triangles: .*created, \([0-9]*\) unique.*/\1/p' "$log")"
-  r_peak="$(sed -n 's/^triangles: .*unique, peak \([0-9]*\) resident.*/\1/p' "$log")"
-  r_rss="$(sed -n 's/^.*Maximum resident set size (kbytes): *\([0-9]*\).*/\1/p' "$log")"
-  if [[ -z "$r_time" || -z "$r_hits" || -z "$r_unique" || -z "$r_rss" ]]; then
-    echo "render_cache.sh: could not parse relief --stats output:" >&2
-    cat "$log" >&2
-    exit 1
-  fi
+  read -r r_time r_rss r_hits r_cap r_unique r_peak r_cachemib < <(python3 - "$json" <<'PY'
+import json, sys
+s = json.load(open(sys.argv[1]))
+print(s["time.render_s"], s["memory.peak_rss_bytes"] // 1024, "%.2f" % s["cache.hit_percent"],
+      s["cache.capacity_misses"], s["cache.unique_displaced_triangles"],
+      s["cache.peak_resident_triangles"], "%.1f" % (s["cache.peak_resident_bytes"] / 2**20))
+PY
+)
 }
 
 # The budgets are fractions of what an unlimited render creates once (2 threads, hilbert).
@@ -53,19 +50,19 @@ run hilbert 2 unlimited
 unique="$r_unique"
 echo "scene: $scene ($res, $spp spp); unlimited run: $unique unique displaced triangles"
 echo
-echo "| order | threads | cache budget (triangles) | render s | peak RSS MiB | hit % | capacity misses | peak resident tris | time / unlimited |"
-echo "|---|---|---|---|---|---|---|---|---|"
+echo "| order | threads | cache budget (triangles) | render s | peak RSS MiB | cache peak MiB | hit % | capacity misses | peak resident tris | time / unlimited |"
+echo "|---|---|---|---|---|---|---|---|---|---|"
 for threads in $threads_list; do
   for order in $orders; do
     run "$order" "$threads" unlimited
     base="$r_time"
-    printf '| %s | %s | unlimited | %.2f | %.0f | %s | %s | %s | 1.00 |\n' "$order" "$threads" \
-      "$r_time" "$(echo "$r_rss / 1024" | bc -l)" "$r_hits" "$r_cap" "$r_peak"
+    printf '| %s | %s | unlimited | %.2f | %.0f | %s | %s | %s | %s | 1.00 |\n' "$order" "$threads" \
+      "$r_time" "$(echo "$r_rss / 1024" | bc -l)" "$r_cachemib" "$r_hits" "$r_cap" "$r_peak"
     for pct in $budgets; do
       budget=$(( unique * pct / 100 ))
       run "$order" "$threads" "$budget"
-      printf '| %s | %s | %s%% = %s | %.2f | %.0f | %s | %s | %s | %.2f |\n' "$order" "$threads" \
-        "$pct" "$budget" "$r_time" "$(echo "$r_rss / 1024" | bc -l)" "$r_hits" "$r_cap" "$r_peak" \
+      printf '| %s | %s | %s%% = %s | %.2f | %.0f | %s | %s | %s | %s | %.2f |\n' "$order" "$threads" \
+        "$pct" "$budget" "$r_time" "$(echo "$r_rss / 1024" | bc -l)" "$r_cachemib" "$r_hits" "$r_cap" "$r_peak" \
         "$(echo "$r_time / $base" | bc -l)"
     done
   done

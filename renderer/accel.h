@@ -37,6 +37,19 @@ struct AccelOptions {
   uint64_t cacheBudgetTriangles = UINT64_MAX;  // UINT64_MAX: unlimited
   int gridResolution = 0;                      // voxels along the longest axis; 0: automatic
   bool displace = true;                        // false: the undisplaced scene
+  // Contributor refinement: a fill drops from the voxel's contributor list every input triangle
+  // none of whose micro-triangles reached the voxel, so refills skip it (never changes the image).
+  bool refineContributors = true;
+  // Debug check after every fill: the resident set minus the voxel just filled stays within the
+  // budget, except for voxels other threads hold pinned. Violations are counted in
+  // AccelStats::budgetViolations. Also switched on by the environment variable
+  // RELIEF_CHECK_BUDGET=1.
+  bool checkBudget = false;
+  // Side cache (docs/cache.md): each fill thread keeps the whole subdivisions of the contributors
+  // it subdivided last, up to this many micro-triangles, so that neighbouring voxel fills reuse
+  // them instead of re-subdividing. 0: off (each fill subdivides its contributors culled to the
+  // voxel). Never changes the image: culled and whole subdivisions agree triangle for triangle.
+  uint64_t sideCacheTriangles = 0;
 };
 
 struct AccelStats {
@@ -46,6 +59,18 @@ struct AccelStats {
   uint64_t peakResidentBytes = 0, residentBytes = 0;  // the same resident sets, in bytes
   uint64_t shaderPoints = 0;
   double subdivideSeconds = 0, displaceSeconds = 0;
+  // Additions for the statistics interface (docs/statistics.md). Times are summed over threads.
+  uint64_t budgetTriangles = UINT64_MAX;    // UINT64_MAX: unlimited
+  uint64_t createdBytes = 0;                // bytes of all filled voxels, refills included
+  uint64_t evictions = 0;
+  uint64_t contributorEntries = 0;          // contributor-grid entries at build time
+  uint64_t droppedContributors = 0;         // entries removed by refinement
+  uint64_t budgetViolations = 0;            // only counted with AccelOptions::checkBudget
+  uint64_t maxVoxelTriangles = 0;           // largest voxel filled (bounds budget overshoot)
+  double intersectSeconds = 0;              // traversal + triangle tests, fills excluded
+  glm::ivec3 gridResolution{0};
+  uint64_t sideCacheHits = 0, sideCacheMisses = 0;
+  uint64_t sideCachePeakTriangles = 0;      // summed over threads
 };
 
 class Accelerator {

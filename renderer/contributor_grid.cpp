@@ -97,6 +97,27 @@ ContributorGrid::ContributorGrid(const Scene& scene, const AccelOptions& options
           }
     }
   }
+  live_ = std::make_unique<std::atomic<uint32_t>[]>(numVoxels);
+  for (size_t v = 0; v < numVoxels; ++v)
+    live_[v].store(offsets_[v + 1] - offsets_[v], std::memory_order_relaxed);
+}
+
+uint32_t ContributorGrid::refine(uint32_t voxel, const std::vector<uint8_t>& keep) {
+  const uint32_t live = live_[voxel].load(std::memory_order_relaxed);
+  uint32_t* row = ids_.data() + offsets_[voxel];
+  // Stable partition, kept first; the dropped ids move behind the live count, in order.
+  thread_local std::vector<uint32_t> dropped;
+  dropped.clear();
+  uint32_t kept = 0;
+  for (uint32_t i = 0; i < live; ++i) {
+    if (keep[i]) row[kept++] = row[i];
+    else dropped.push_back(row[i]);
+  }
+  if (kept == live) return 0;
+  std::copy(dropped.begin(), dropped.end(), row + kept);
+  // Release: a reader that sees the new count (hasContributors) also sees the new row.
+  live_[voxel].store(kept, std::memory_order_release);
+  return live - kept;
 }
 
 std::pair<uint32_t, uint32_t> ContributorGrid::split(uint32_t globalId) const {

@@ -1,9 +1,12 @@
 // The contributor grid (paper, phase 1): for each voxel of a regular grid over the scene, the input
 // triangles whose displaced geometry may reach it. Built once by the grid accelerator from the
-// immutable Scene and immutable afterwards (safe to read from any thread).
+// immutable Scene. Afterwards only refinement changes it (a voxel's filler drops contributors that
+// reached nothing there, see refine()); everything else is safe to read from any thread.
 #pragma once
 
+#include <atomic>
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <vector>
 
@@ -67,10 +70,26 @@ class ContributorGrid {
   Bounds3 voxelBounds(uint32_t voxel) const;
   // Slack added to every overlap test: absorbs the rounding of boxes and of the traversal.
   float padding() const { return padding_; }
+  // The voxel's contributors, less those refinement dropped. Reading the ids (not just the size)
+  // while another thread may refine the voxel is a race: only the voxel's filler (which the
+  // geometry cache makes exclusive) and single-threaded callers may do it.
   std::span<const uint32_t> contributors(uint32_t voxel) const {
+    return {ids_.data() + offsets_[voxel], live_[voxel].load(std::memory_order_acquire)};
+  }
+  bool hasContributors(uint32_t voxel) const {
+    return live_[voxel].load(std::memory_order_relaxed) != 0;
+  }
+  // Every contributor found at build time: the live ones (in their original order) followed by
+  // the dropped ones.
+  std::span<const uint32_t> allContributors(uint32_t voxel) const {
     return {ids_.data() + offsets_[voxel], ids_.data() + offsets_[voxel + 1]};
   }
   uint64_t numEntries() const { return ids_.size(); }
+
+  // Contributor refinement (paper, section 3): drops the live contributors i of `voxel` with
+  // !keep[i] (keep parallels contributors(voxel)), keeping the others' order. Only the voxel's
+  // filler may call it. Returns how many were dropped.
+  uint32_t refine(uint32_t voxel, const std::vector<uint8_t>& keep);
 
  private:
   std::vector<uint32_t> meshOffsets_;  // numMeshes + 1
@@ -82,6 +101,8 @@ class ContributorGrid {
   float padding_ = 0.0f;
   std::vector<uint32_t> offsets_;  // numVoxels + 1, into ids_ (compressed rows)
   std::vector<uint32_t> ids_;
+  // Per voxel: how many of its row's ids are live (refinement shrinks it).
+  std::unique_ptr<std::atomic<uint32_t>[]> live_;
 };
 
 }  // namespace relief

@@ -2,23 +2,45 @@
 #include "renderer/geometry_cache.h"
 
 #include <algorithm>
+#include <cmath>
 
 namespace relief {
-namespace {
 
-// A small per-thread number spreading threads over the hit shards.
-int threadShard() {
+int cacheThreadShard() {
   static std::atomic<int> nextThread{0};
   thread_local const int shard = nextThread.fetch_add(1, std::memory_order_relaxed);
   return shard;
 }
 
-}  // namespace
-
 uint64_t VoxelGeometry::bytes() const {
-  return sizeof(VoxelGeometry) + P.size() * sizeof(glm::vec3) + bary.size() * sizeof(glm::vec2) +
-         indices16.size() * 2 + indices32.size() * 4 + triangleIds.size() * 4 + microIds.size() * 4 +
-         subOffsets.size() * 4 + subTriangles.size() * 4;
+  return sizeof(VoxelGeometry) + P.size() * sizeof(glm::vec3) + bary16.size() * 2 +
+         baryF.size() * sizeof(glm::vec2) + indices16.size() * 2 + indices32.size() * 4 +
+         microLow.size() * 2 + segments.size() * sizeof(Segment) + subOffsets16.size() * 2 + subOffsets32.size() * 4 +
+         subTriangles16.size() * 2 + subTriangles32.size() * 4;
+}
+
+std::pair<uint32_t, uint32_t> VoxelGeometry::key(uint32_t i) const {
+  const auto it = std::upper_bound(segments.begin(), segments.end(), i,
+                                   [](uint32_t t, const Segment& s) { return t < s.first; });
+  const Segment& s = *(it - 1);
+  return {s.triangleId, unpackMicro((s.microHigh << 16) | microLow[i])};
+}
+
+void VoxelGeometry::setBary(const std::vector<glm::vec2>& b) {
+  bary16.clear(), baryF.clear();
+  bary16.reserve(2 * b.size());
+  for (const glm::vec2& v : b) {
+    for (int c = 0; c < 2; ++c) {
+      const float scaled = v[c] * 32768.0f;  // exact: a power-of-two scale
+      if (!(scaled >= 0.0f && scaled <= 32768.0f) || scaled != std::floor(scaled)) {
+        bary16.clear();
+        baryF = b;
+        baryF.shrink_to_fit();
+        return;
+      }
+      bary16.push_back(uint16_t(scaled));
+    }
+  }
 }
 
 GeometryCache::GeometryCache(uint32_t numVoxels, uint64_t budgetTriangles)
@@ -36,7 +58,7 @@ const VoxelGeometry* GeometryCache::tryPin(uint32_t voxel, bool& mustFill) {
     if (state == kReady) {
       if (slot.word.compare_exchange_weak(word, word + 1, std::memory_order_acquire)) {
         // Waiting for another thread's fill costs no work here: count it as a hit.
-        hitShards_[threadShard() % kHitShards].hits.fetch_add(1, std::memory_order_relaxed);
+        hitShards_[cacheThreadShard() % kHitShards].hits.fetch_add(1, std::memory_order_relaxed);
         return slot.geometry;
       }
     } else if (state == kEmpty) {
@@ -56,12 +78,12 @@ const VoxelGeometry* GeometryCache::publish(uint32_t voxel, std::unique_ptr<Voxe
   Slot& slot = slots_[voxel];
   const uint64_t n = geometry->numTriangles(), bytes = geometry->bytes();
   created_.fetch_add(n, std::memory_order_relaxed);
+  createdBytes_.fetch_add(bytes, std::memory_order_relaxed);
   {
     std::lock_guard lock(mutex_);
     residentTriangles_ += n;
     residentBytes_ += bytes;
-    peakResidentTriangles_ = std::max(peakResidentTriangles_, residentTriangles_);
-    peakResidentBytes_ = std::max(peakResidentBytes_, residentBytes_);
+    uint64_t skippedPinned = 0;
     if (residentTriangles_ > budget_) {
       // Evict least recently used first, down to a low-water mark so that one scan pays for
       // several fills. The slot being filled is not in resident_ yet, so it survives.
@@ -75,8 +97,10 @@ const VoxelGeometry* GeometryCache::publish(uint32_t voxel, std::unique_ptr<Voxe
         Slot& victim = slots_[v];
         uint32_t expected = kReady << kStateShift;  // ready with no pins
         if (!victim.word.compare_exchange_strong(expected, kEmpty << kStateShift,
-                                                 std::memory_order_acq_rel))
+                                                 std::memory_order_acq_rel)) {
+          skippedPinned += victim.geometry->numTriangles();
           continue;
+        }
         residentTriangles_ -= victim.geometry->numTriangles();
         residentBytes_ -= victim.geometry->bytes();
         delete victim.geometry;
@@ -88,6 +112,21 @@ const VoxelGeometry* GeometryCache::publish(uint32_t voxel, std::unique_ptr<Voxe
         ++evictions_;
       }
     }
+    // The scan above runs whenever this is over budget, and stops early only at the low-water
+    // mark, so what it left beyond the budget was pinned by readers when it tried.
+    if (checkBudget_ && residentTriangles_ - n > budget_ &&
+        residentTriangles_ - n - skippedPinned > budget_) {
+      ++budgetViolations_;
+      std::fprintf(stderr,
+                   "relief: geometry cache over budget after filling voxel %u: %llu resident "
+                   "(%llu pinned, %llu just filled), budget %llu\n",
+                   voxel, (unsigned long long)residentTriangles_, (unsigned long long)skippedPinned,
+                   (unsigned long long)n, (unsigned long long)budget_);
+    }
+    // The peak is taken once the fill's evictions are done: the resident set any reader can see.
+    // (For a moment the new geometry and its victims coexist in memory; peak RSS shows that.)
+    peakResidentTriangles_ = std::max(peakResidentTriangles_, residentTriangles_);
+    peakResidentBytes_ = std::max(peakResidentBytes_, residentBytes_);
     slot.residentPosition = uint32_t(resident_.size());
     resident_.push_back(voxel);
     slot.geometry = geometry.release();
@@ -115,12 +154,14 @@ CacheStats GeometryCache::stats() const {
   s.capacityMisses = capacity_.load(std::memory_order_relaxed);
   s.accesses = s.hits + s.compulsoryMisses + s.capacityMisses;
   s.createdTriangles = created_.load(std::memory_order_relaxed);
+  s.createdBytes = createdBytes_.load(std::memory_order_relaxed);
   std::lock_guard lock(mutex_);
   s.residentTriangles = residentTriangles_;
   s.peakResidentTriangles = peakResidentTriangles_;
   s.residentBytes = residentBytes_;
   s.peakResidentBytes = peakResidentBytes_;
   s.evictions = evictions_;
+  s.budgetViolations = budgetViolations_;
   return s;
 }
 

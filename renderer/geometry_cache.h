@@ -13,7 +13,9 @@
 // fills evaluate 1.72M at the automatic 10^3 grid, 3.07M at 16^3 and 8.85M at 32^3, and store
 // 897K triangles (8% duplicates across voxel borders). With costly shaders this factor is the
 // price of independent voxels. Because a voxel's content is a pure function of the voxel
-// (determinism rule 1), a refill after eviction is identical.
+// (determinism rule 1), a refill after eviction is identical. The paper's fill-once scheme and a
+// side cache of whole subdivisions (AccelOptions::sideCacheTriangles, off by default) were measured
+// against this on the facade; docs/cache.md records why per-voxel fills stay the default.
 //
 // Thread safety: each slot has one atomic word holding its state (empty, filling, ready) and a pin
 // count. Readers pin a ready slot with a compare-and-swap; exactly one thread wins empty -> filling
@@ -25,6 +27,7 @@
 
 #include <atomic>
 #include <cstdint>
+#include <cstdio>
 #include <memory>
 #include <mutex>
 #include <vector>
@@ -32,33 +35,83 @@
 #include <glm/glm.hpp>
 
 #include "renderer/contributor_grid.h"
+#include "renderer/subdivide.h"
 
 namespace relief {
 
-// The displaced geometry resident for one voxel. Shared vertices + 3 narrow indices per triangle +
-// a (input triangle, micro-triangle) key per triangle for tie-breaking and hit reporting. Face
-// normals are computed at a hit, so no per-vertex normals are stored.
+// The displaced geometry resident for one voxel, stored compactly (docs/cache.md, "Density"):
+// - shared vertices (float3) with their position in the input triangle as two 16-bit fixed-point
+//   numbers (exact: subdivision barycentrics are dyadic, k / 2^level; float pairs are kept only in
+//   the rare voxel holding a level beyond 15);
+// - 3 narrow indices per triangle (16-bit where the voxel has <= 65536 vertices);
+// - the (input triangle, micro-triangle) key per triangle as runs: a triangle stores the low 16
+//   bits of its micro id (rotated, see packMicro), and a segment table gives, from each segment's
+//   first triangle on, the input triangle and the high 16 bits. Keys are only needed at a hit (tie-breaking
+//   and reporting), where a binary search over the few segments is cheap;
+// - the sub-voxel grid over dense voxels with 16-bit cell offsets and triangle references where
+//   they fit.
+// Face normals are computed at a hit, so no per-vertex normals are stored.
 struct VoxelGeometry {
+  struct Segment {
+    uint32_t first;       // first triangle of the segment
+    uint32_t triangleId;  // global input triangle id
+    uint32_t microHigh;   // packMicro(micro id) >> 16
+  };
   std::vector<glm::vec3> P;
-  std::vector<glm::vec2> bary;      // position in the input triangle, for st at a hit
+  std::vector<uint16_t> bary16;     // 2 per vertex: (b1, b2) * 2^15, when exact
+  std::vector<glm::vec2> baryF;     // otherwise: (b1, b2)
   std::vector<uint16_t> indices16;  // used when P.size() <= 65536
   std::vector<uint32_t> indices32;  // otherwise
-  std::vector<uint32_t> triangleIds;  // global input triangle id per micro-triangle
-  std::vector<uint32_t> microIds;     // index within that input triangle's micro-mesh
+  std::vector<uint16_t> microLow;   // per triangle: micro id & 0xffff
+  std::vector<Segment> segments;
 
   // Sub-voxel grid over dense voxels (kSubGridThreshold triangles or more): cells in compressed
   // rows of triangle indices; empty when the voxel is sparse.
   glm::ivec3 subResolution{0};
   glm::vec3 subOrigin{0};
   float subCellSize = 0;
-  std::vector<uint32_t> subOffsets;
-  std::vector<uint32_t> subTriangles;
+  std::vector<uint16_t> subOffsets16;    // cell c's references: [offset(c), offset(c + 1)),
+  std::vector<uint32_t> subOffsets32;    // 16-bit while there are fewer than 65536 references
+  std::vector<uint16_t> subTriangles16;  // when numTriangles() <= 65536
+  std::vector<uint32_t> subTriangles32;  // otherwise
 
-  uint32_t numTriangles() const { return uint32_t(triangleIds.size()); }
+  uint32_t numTriangles() const { return uint32_t(microLow.size()); }
   glm::uvec3 triangle(uint32_t i) const {
     if (!indices16.empty()) return {indices16[3 * i], indices16[3 * i + 1], indices16[3 * i + 2]};
     return {indices32[3 * i], indices32[3 * i + 1], indices32[3 * i + 2]};
   }
+  uint32_t subOffset(size_t cell) const {
+    return subOffsets16.empty() ? subOffsets32[cell] : subOffsets16[cell];
+  }
+  uint32_t subTriangle(uint32_t k) const {
+    return subTriangles16.empty() ? subTriangles32[k] : subTriangles16[k];
+  }
+  glm::vec2 bary(uint32_t vertex) const {
+    if (baryF.empty())
+      return glm::vec2(float(bary16[2 * vertex]), float(bary16[2 * vertex + 1])) * (1.0f / 32768.0f);
+    return baryF[vertex];
+  }
+  // Appends the key of the next triangle (keys must be appended in triangle order).
+  void appendKey(uint32_t triangleId, uint32_t microId) {
+    const uint32_t packed = packMicro(microId);
+    if (segments.empty() || segments.back().triangleId != triangleId ||
+        segments.back().microHigh != packed >> 16)
+      segments.push_back({numTriangles(), triangleId, packed >> 16});
+    microLow.push_back(uint16_t(packed & 0xffff));
+  }
+  // Micro ids are (path code << kMicroRankBits) | rank (subdivide.h), and the path code changes
+  // every few triangles; rotated so the path code sits in the low bits, a segment spans every
+  // triangle of a contributor whose ranks stay below 2^(16 - path bits).
+  static uint32_t packMicro(uint32_t id) {
+    return (id << (32 - kMicroRankBits)) | (id >> kMicroRankBits);
+  }
+  static uint32_t unpackMicro(uint32_t packed) {
+    return (packed >> (32 - kMicroRankBits)) | (packed << kMicroRankBits);
+  }
+  // The key of triangle i: (global input triangle id, micro id).
+  std::pair<uint32_t, uint32_t> key(uint32_t i) const;
+  // Stores vertex bary (b1, b2) in the compact form if every one is exact in it.
+  void setBary(const std::vector<glm::vec2>& b);
   uint64_t bytes() const;
 };
 
@@ -71,7 +124,12 @@ struct CacheStats {
   uint64_t residentTriangles = 0, peakResidentTriangles = 0;
   uint64_t residentBytes = 0, peakResidentBytes = 0;
   uint64_t evictions = 0;
+  uint64_t createdBytes = 0;      // summed over fills, refills included
+  uint64_t budgetViolations = 0;  // only counted when checking (setCheckBudget)
 };
+
+// A small per-thread number, for spreading per-thread counters over cache lines.
+int cacheThreadShard();
 
 class GeometryCache {
  public:
@@ -89,6 +147,9 @@ class GeometryCache {
 
   CacheStats stats() const;
   uint64_t budget() const { return budget_; }
+  // Debug mode: after every fill, check that the resident set without the voxel just filled is
+  // within the budget, apart from voxels pinned by other threads (which eviction must skip).
+  void setCheckBudget(bool check) { checkBudget_ = check; }
 
  private:
   // Slot word: state in the top two bits, pin count below.
@@ -117,6 +178,8 @@ class GeometryCache {
   uint64_t residentTriangles_ = 0, peakResidentTriangles_ = 0;
   uint64_t residentBytes_ = 0, peakResidentBytes_ = 0;
   uint64_t evictions_ = 0;
+  uint64_t budgetViolations_ = 0;
+  bool checkBudget_ = false;
   // Hits are counted on every voxel visit of every ray, so they are sharded by thread to keep
   // threads off one cache line; misses and fills are rare enough for plain atomics. Every access
   // ends as exactly one hit or miss, so accesses are their sum.
@@ -125,7 +188,7 @@ class GeometryCache {
     std::atomic<uint64_t> hits{0};
   };
   HitShard hitShards_[kHitShards];
-  std::atomic<uint64_t> compulsory_{0}, capacity_{0}, created_{0};
+  std::atomic<uint64_t> compulsory_{0}, capacity_{0}, created_{0}, createdBytes_{0};
 };
 
 template <typename Build>

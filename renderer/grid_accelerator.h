@@ -12,6 +12,7 @@
 #pragma once
 
 #include <atomic>
+#include <chrono>
 #include <memory>
 #include <optional>
 #include <vector>
@@ -47,7 +48,10 @@ class GridAccelerator final : public Accelerator {
   void intersectVoxel(uint32_t voxel, const struct WatertightRay& wr, const Ray& ray,
                       uint64_t stamp, bool anyHit, Best& best);
   std::unique_ptr<VoxelGeometry> buildVoxel(uint32_t voxel);
+  // The whole micro-mesh of contributor `id` from this thread's side cache, subdividing on a miss.
+  const MicroMesh& sideCached(uint32_t id, SubdivideCounters& counters);
   void addCounters(const SubdivideCounters& counters);
+  void addTraverseTime(std::chrono::steady_clock::time_point start);
 
   const Scene& scene_;
   AccelOptions options_;
@@ -58,6 +62,16 @@ class GridAccelerator final : public Accelerator {
   std::vector<std::atomic<uint8_t>> knownEmpty_;    // per voxel: filled once with no triangles
   std::atomic<uint64_t> uniqueTriangles_{0}, shaderPoints_{0}, fillNanos_{0}, displaceNanos_{0};
   std::atomic<uint64_t> maxVoxelTriangles_{0};
+  std::atomic<uint64_t> droppedContributors_{0};
+  const uint64_t serial_;  // tells this accelerator's side-cache entries from an earlier one's
+  std::atomic<uint64_t> sideHits_{0}, sideMisses_{0}, sideTriangles_{0}, sidePeak_{0};
+  // Traversal time per ray, fills included (they are subtracted in stats()), summed per thread
+  // shard so that the two clock reads per ray are the only cost on the ray path.
+  static constexpr int kTimeShards = 16;
+  struct alignas(64) TimeShard {
+    std::atomic<uint64_t> nanos{0};
+  };
+  TimeShard traverseNanos_[kTimeShards];
   std::atomic<uint32_t> nonFinite_{0}, loopLimit_{0}, indexClamped_{0}, unknownSpace_{0},
       textureErrors_{0};
 };

@@ -1,8 +1,10 @@
 // relief: renders a RIB scene with displacement shaders compiled on the fly. The only place where
 // the compiler (ShaderLibrary, the ShaderProvider) meets the renderer (reader, accelerator, render
 // loop, film). Exit codes: 0 image written, 1 scene/shader/render error, 2 usage error.
+#include <sys/resource.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -13,6 +15,7 @@
 #include <iostream>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "compiler/shader_library.h"
@@ -41,6 +44,10 @@ constexpr const char* kUsage =
     "  --threads N               render threads (default: all cores)\n"
     "  --order ORDER             pixel order: scanline, bucket or hilbert (default)\n"
     "  --cache-triangles N       geometry cache budget in displaced triangles, or 'unlimited'\n"
+    "  --grid-resolution N       contributor-grid voxels along the longest axis (default: automatic)\n"
+    "  --no-refine               keep contributors that reached nothing in their voxels' lists\n"
+    "  --side-cache N            per-thread cache of N micro-triangles of whole subdivisions\n"
+    "                            reused by neighbouring voxel fills (0: off)\n"
     "  --no-displacement         render the undisplaced surfaces\n"
     "  --edge-length L           target micro-triangle edge length in world units for every\n"
     "                            Displacement (overrides Attribute \"relief\" \"edgelength\")\n"
@@ -63,6 +70,9 @@ struct CommandLine {
   int threads = 0;
   relief::PixelOrder order = relief::PixelOrder::Hilbert;
   uint64_t cacheTriangles = UINT64_MAX;
+  int gridResolution = 0;  // 0: automatic
+  bool refine = true;
+  uint64_t sideCache = 0;
   bool displace = true;
   float edgeLength = 0.0f;  // 0: the scene's
   bool stats = false;
@@ -142,6 +152,17 @@ int parseCommandLine(int argc, char** argv, CommandLine* cl) {
       } else {
         return usageError("invalid triangle budget '" + v + "'");
       }
+    } else if (a == "--grid-resolution") {
+      if (!value(&v) || !parsePositive(v, relief::kMaxGridResolution, &n))
+        return usageError("'--grid-resolution' needs a voxel count between 1 and " +
+                          std::to_string(relief::kMaxGridResolution));
+      cl->gridResolution = int(n);
+    } else if (a == "--side-cache") {
+      if (!value(&v) || !(v == "0" || parsePositive(v, (1LL << 40), &n)))
+        return usageError("'--side-cache' needs a micro-triangle count (0: off)");
+      cl->sideCache = v == "0" ? 0 : uint64_t(n);
+    } else if (a == "--no-refine") {
+      cl->refine = false;
     } else if (a == "--no-displacement") {
       cl->displace = false;
     } else if (a == "--edge-length") {
@@ -200,27 +221,104 @@ double secondsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
-void printStats(const relief::AccelStats& a, const relief::RenderStats& r, double loadSeconds,
-                double buildSeconds, uint64_t inputTriangles) {
-  const double accesses = a.accesses ? double(a.accesses) : 1.0;
-  std::printf("scene:      %llu input triangles, loaded in %.3f s\n",
-              (unsigned long long)inputTriangles, loadSeconds);
-  std::printf("accel:      built in %.3f s\n", buildSeconds);
-  std::printf("render:     %.3f s on %d threads, %d spp\n", r.seconds, r.threads,
-              r.samplesPerPixel);
-  std::printf("rays:       %llu camera (%llu hit), %llu shadow\n",
-              (unsigned long long)r.cameraRays, (unsigned long long)r.cameraHits,
-              (unsigned long long)r.shadowRays);
-  std::printf("cache:      %llu accesses, %.2f%% hits, %llu compulsory + %llu capacity misses\n",
-              (unsigned long long)a.accesses, 100.0 * double(a.hits) / accesses,
-              (unsigned long long)a.compulsoryMisses, (unsigned long long)a.capacityMisses);
-  std::printf("triangles:  %llu displaced created, %llu unique, peak %llu resident (%llu now)\n",
-              (unsigned long long)a.displacedTrianglesCreated,
-              (unsigned long long)a.uniqueDisplacedTriangles,
-              (unsigned long long)a.peakResidentTriangles,
-              (unsigned long long)a.residentTriangles);
-  std::printf("shading:    %llu shader points; subdivide %.3f s, displace %.3f s\n",
-              (unsigned long long)a.shaderPoints, a.subdivideSeconds, a.displaceSeconds);
+// The statistics of docs/statistics.md, in order, as (dotted key, JSON value) pairs: one list
+// feeds both --stats and --stats-json so they cannot drift apart.
+using StatList = std::vector<std::pair<std::string, std::string>>;
+
+std::string jsonString(const std::string& text);
+
+// Process start, for time.total_s.
+const auto gProcessStart = std::chrono::steady_clock::now();
+
+uint64_t peakRssBytes() {
+  struct rusage usage {};
+  if (::getrusage(RUSAGE_SELF, &usage) != 0) return 0;
+  return uint64_t(usage.ru_maxrss) * 1024;  // kilobytes on Linux
+}
+
+StatList collectStats(const CommandLine& cl, const relief::Scene& scene,
+                      const relief::AccelStats& a, const relief::RenderStats& r,
+                      double loadSeconds, double buildSeconds, uint64_t inputTriangles) {
+  auto u = [](uint64_t v) { return std::to_string(v); };
+  auto f = [](double v) {
+    if (!std::isfinite(v)) return std::string("null");
+    char text[32];
+    std::snprintf(text, sizeof text, "%.6g", v);
+    return std::string(text);
+  };
+  auto ratio = [&](double num, double den) { return den > 0 ? f(num / den) : std::string("null"); };
+  const uint64_t misses = a.compulsoryMisses + a.capacityMisses;
+  // Fill and ray times are summed over threads; dividing by the thread count makes the four
+  // parts add up to the render's wall time, with shading (the integrator) the remainder.
+  const double threads = r.threads > 0 ? double(r.threads) : 1.0;
+  const double subdivide = a.subdivideSeconds / threads, displace = a.displaceSeconds / threads;
+  const double intersect = a.intersectSeconds / threads;
+  const double shade = std::max(0.0, r.seconds - subdivide - displace - intersect);
+  // Simplification savings are not reported by the subdivider yet: exact (0) only when off.
+  bool simplifies = false;
+  for (const relief::Displacement& d : scene.displacements) simplifies |= d.flatness > 0.0f;
+  StatList s = {
+      {"scene.file", jsonString(cl.scene)},
+      {"scene.input_triangles", u(inputTriangles)},
+      {"image.width", u(uint64_t(scene.width))},
+      {"image.height", u(uint64_t(scene.height))},
+      {"render.samples_per_pixel", u(uint64_t(r.samplesPerPixel))},
+      {"render.threads", u(uint64_t(r.threads))},
+      {"render.order", jsonString(std::string(relief::pixelOrderName(cl.order)))},
+      {"render.displacement", cl.displace ? "true" : "false"},
+      {"rays.camera", u(r.cameraRays)},
+      {"rays.camera_hits", u(r.cameraHits)},
+      {"rays.shadow", u(r.shadowRays)},
+      {"grid.resolution_x", u(uint64_t(a.gridResolution.x))},
+      {"grid.resolution_y", u(uint64_t(a.gridResolution.y))},
+      {"grid.resolution_z", u(uint64_t(a.gridResolution.z))},
+      {"grid.contributor_entries", u(a.contributorEntries)},
+      {"grid.refinement", cl.refine ? "true" : "false"},
+      {"grid.dropped_contributors", u(a.droppedContributors)},
+      {"cache.budget_triangles",
+       a.budgetTriangles == UINT64_MAX ? std::string("null") : u(a.budgetTriangles)},
+      {"cache.accesses", u(a.accesses)},
+      {"cache.hits", u(a.hits)},
+      {"cache.misses", u(misses)},
+      {"cache.compulsory_misses", u(a.compulsoryMisses)},
+      {"cache.capacity_misses", u(a.capacityMisses)},
+      {"cache.hit_percent", ratio(100.0 * double(a.hits), double(a.accesses))},
+      {"cache.capacity_miss_share", ratio(double(a.capacityMisses), double(misses))},
+      {"cache.evictions", u(a.evictions)},
+      {"cache.peak_resident_triangles", u(a.peakResidentTriangles)},
+      {"cache.resident_triangles", u(a.residentTriangles)},
+      {"cache.max_voxel_triangles", u(a.maxVoxelTriangles)},
+      {"cache.peak_resident_bytes", u(a.peakResidentBytes)},
+      {"cache.unique_displaced_triangles", u(a.uniqueDisplacedTriangles)},
+      {"cache.displaced_triangles_created", u(a.displacedTrianglesCreated)},
+      {"cache.created_per_unique",
+       ratio(double(a.displacedTrianglesCreated), double(a.uniqueDisplacedTriangles))},
+      {"cache.created_bytes", u(a.createdBytes)},
+      {"cache.bytes_per_triangle", ratio(double(a.createdBytes), double(a.displacedTrianglesCreated))},
+      {"cache.simplification_saved_fraction", simplifies ? std::string("null") : "0"},
+      {"cache.shader_points", u(a.shaderPoints)},
+      {"cache.side_cache_hits", u(a.sideCacheHits)},
+      {"cache.side_cache_misses", u(a.sideCacheMisses)},
+      {"cache.side_cache_peak_triangles", u(a.sideCachePeakTriangles)},
+      {"cache.budget_violations", u(a.budgetViolations)},
+      {"time.load_s", f(loadSeconds)},
+      {"time.build_s", f(buildSeconds)},
+      {"time.render_s", f(r.seconds)},
+      {"time.subdivide_s", f(subdivide)},
+      {"time.displace_s", f(displace)},
+      {"time.intersect_s", f(intersect)},
+      {"time.shade_s", f(shade)},
+      {"time.total_s", f(secondsSince(gProcessStart))},
+      {"memory.peak_rss_bytes", u(peakRssBytes())},
+  };
+  return s;
+}
+
+void printStats(const StatList& stats) {
+  size_t width = 0;
+  for (const auto& [key, value] : stats) width = std::max(width, key.size());
+  for (const auto& [key, value] : stats)
+    std::printf("%-*s  %s\n", int(width), key.c_str(), value.c_str());
 }
 
 // Runtime problems inside displacement shaders are counted, not thrown (abi.h); say so once.
@@ -255,35 +353,15 @@ std::string jsonString(const std::string& text) {
   return out + "\"";
 }
 
-bool writeStatsJson(const std::string& path, const CommandLine& cl, const relief::Scene& scene,
-                    const relief::AccelStats& a, const relief::RenderStats& r, double loadSeconds,
-                    double buildSeconds, uint64_t inputTriangles) {
+// A flat JSON object whose keys are the dotted names (docs/statistics.md).
+bool writeStatsJson(const std::string& path, const StatList& stats) {
   std::ofstream out(path);
   if (!out) return false;
-  auto u = [](uint64_t v) { return std::to_string(v); };
-  out << "{\n"
-      << "  \"scene\": " << jsonString(cl.scene) << ",\n"
-      << "  \"width\": " << scene.width << ", \"height\": " << scene.height << ",\n"
-      << "  \"samplesPerPixel\": " << r.samplesPerPixel << ", \"threads\": " << r.threads << ",\n"
-      << "  \"order\": \"" << relief::pixelOrderName(cl.order) << "\",\n"
-      << "  \"cacheBudgetTriangles\": "
-      << (cl.cacheTriangles == UINT64_MAX ? std::string("null") : u(cl.cacheTriangles)) << ",\n"
-      << "  \"displacement\": " << (cl.displace ? "true" : "false") << ",\n"
-      << "  \"inputTriangles\": " << u(inputTriangles) << ",\n"
-      << "  \"loadSeconds\": " << loadSeconds << ", \"buildSeconds\": " << buildSeconds
-      << ", \"renderSeconds\": " << r.seconds << ",\n"
-      << "  \"cameraRays\": " << u(r.cameraRays) << ", \"cameraHits\": " << u(r.cameraHits)
-      << ", \"shadowRays\": " << u(r.shadowRays) << ",\n"
-      << "  \"accesses\": " << u(a.accesses) << ", \"hits\": " << u(a.hits)
-      << ", \"compulsoryMisses\": " << u(a.compulsoryMisses)
-      << ", \"capacityMisses\": " << u(a.capacityMisses) << ",\n"
-      << "  \"displacedTrianglesCreated\": " << u(a.displacedTrianglesCreated)
-      << ", \"uniqueDisplacedTriangles\": " << u(a.uniqueDisplacedTriangles) << ",\n"
-      << "  \"peakResidentTriangles\": " << u(a.peakResidentTriangles)
-      << ", \"residentTriangles\": " << u(a.residentTriangles) << ",\n"
-      << "  \"shaderPoints\": " << u(a.shaderPoints) << ", \"subdivideSeconds\": "
-      << a.subdivideSeconds << ", \"displaceSeconds\": " << a.displaceSeconds << "\n"
-      << "}\n";
+  out << "{\n";
+  for (size_t i = 0; i < stats.size(); ++i)
+    out << "  " << jsonString(stats[i].first) << ": " << stats[i].second
+        << (i + 1 < stats.size() ? ",\n" : "\n");
+  out << "}\n";
   return bool(out);
 }
 
@@ -339,6 +417,9 @@ int run(const CommandLine& cl) {
   relief::AccelOptions accelOptions;
   accelOptions.cacheBudgetTriangles = cl.cacheTriangles;
   accelOptions.displace = cl.displace;
+  accelOptions.gridResolution = cl.gridResolution;
+  accelOptions.refineContributors = cl.refine;
+  accelOptions.sideCacheTriangles = cl.sideCache;
   std::unique_ptr<relief::Accelerator> accel = relief::makeGridAccelerator(scene, accelOptions);
   const double buildSeconds = secondsSince(buildStart);
 
@@ -370,13 +451,13 @@ int run(const CommandLine& cl) {
     }
   }
   if (warnings) reportShaderProblems(*accel, *warnings);
-  if (!cl.statsJson.empty() &&
-      !writeStatsJson(cl.statsJson, cl, scene, accel->stats(), renderStats, loadSeconds,
-                      buildSeconds, inputTriangles)) {
+  const StatList stats =
+      collectStats(cl, scene, accel->stats(), renderStats, loadSeconds, buildSeconds, inputTriangles);
+  if (!cl.statsJson.empty() && !writeStatsJson(cl.statsJson, stats)) {
     std::cerr << "relief: error: cannot write statistics to '" << cl.statsJson << "'\n";
     return 1;
   }
-  if (cl.stats) printStats(accel->stats(), renderStats, loadSeconds, buildSeconds, inputTriangles);
+  if (cl.stats) printStats(stats);
   for (const std::string& path : outputs) std::cout << path << "\n";
   return 0;
 }

@@ -128,7 +128,7 @@ TEST(GeometryCache, FillsOnceAndNeverEvictsPinnedVoxels) {
   auto build = [&](uint32_t voxel) {
     ++builds;
     auto g = std::make_unique<VoxelGeometry>();
-    for (uint32_t i = 0; i < 6; ++i) g->triangleIds.push_back(voxel), g->microIds.push_back(i);
+    for (uint32_t i = 0; i < 6; ++i) g->appendKey(voxel, i);
     return g;
   };
   const VoxelGeometry* g0 = cache.acquire(0, 1, build);
@@ -138,8 +138,8 @@ TEST(GeometryCache, FillsOnceAndNeverEvictsPinnedVoxels) {
   // Over budget while voxel 0 is pinned: it must survive.
   const VoxelGeometry* g1 = cache.acquire(1, 3, build);
   EXPECT_EQ(builds, 2);
-  EXPECT_EQ(g0->triangleIds[0], 0u);
-  EXPECT_EQ(g1->triangleIds[0], 1u);
+  EXPECT_EQ(g0->key(0).first, 0u);
+  EXPECT_EQ(g1->key(0).first, 1u);
   cache.release(0), cache.release(0), cache.release(1);
   // Now voxel 0 is the least recently used and unpinned: filling voxel 2 evicts it.
   cache.acquire(2, 4, build);
@@ -151,6 +151,76 @@ TEST(GeometryCache, FillsOnceAndNeverEvictsPinnedVoxels) {
   cache.release(0);
   EXPECT_EQ(cache.stats().capacityMisses, 1u);
   EXPECT_EQ(builds, 4);
+}
+
+}  // namespace
+}  // namespace relief
+
+namespace relief {
+namespace {
+
+// The compact per-voxel storage returns exactly what was put in: keys across segment boundaries
+// (input triangle changes, micro ids beyond 16 bits) and barycentrics in both encodings.
+TEST(VoxelStorage, KeysAndBarycentricsRoundTrip) {
+  VoxelGeometry g;
+  const std::pair<uint32_t, uint32_t> keys[] = {
+      {7, 1}, {7, 2}, {7, 0x12345}, {7, 0x12346}, {9, 0x12346}, {9, 3}, {4000000000u, 0xffffffffu}};
+  for (auto [t, m] : keys) g.appendKey(t, m);
+  ASSERT_EQ(g.numTriangles(), 7u);
+  for (uint32_t i = 0; i < 7; ++i) EXPECT_EQ(g.key(i), keys[i]) << i;
+  for (uint32_t m : {0u, 1u, 0x12345u, 0xdeadbeefu, 0xffffffffu})
+    EXPECT_EQ(VoxelGeometry::unpackMicro(VoxelGeometry::packMicro(m)), m);
+  // Ids of one input triangle whose ranks are small share a segment, whatever their path codes.
+  const uint32_t rank = 1u << kMicroRankBits;
+  const size_t before = g.segments.size();
+  for (uint32_t path = 1; path < 512; path += 37)
+    for (uint32_t r = 0; r < 20; ++r) g.appendKey(11, path * rank + r);
+  EXPECT_EQ(g.segments.size(), before + 1);
+  for (uint32_t i = 7, path = 1; path < 512; path += 37)
+    for (uint32_t r = 0; r < 20; ++r, ++i) ASSERT_EQ(g.key(i), std::make_pair(11u, path * rank + r));
+
+  // Dyadic barycentrics up to level 15 use 16 bits and decode exactly.
+  const std::vector<glm::vec2> dyadic = {{0, 0}, {1, 0}, {0, 1}, {0.5f, 0.25f}, {1.0f / 32768, 0.75f}};
+  g.setBary(dyadic);
+  EXPECT_EQ(g.bary16.size(), 2 * dyadic.size());
+  EXPECT_TRUE(g.baryF.empty());
+  for (uint32_t v = 0; v < dyadic.size(); ++v) EXPECT_EQ(g.bary(v), dyadic[v]);
+  // A finer value falls back to floats, still exact.
+  const std::vector<glm::vec2> fine = {{0.5f, 0.5f}, {1.0f / 65536, 0.0f}, {0.3f, 0.1f}};
+  g.setBary(fine);
+  EXPECT_TRUE(g.bary16.empty());
+  for (uint32_t v = 0; v < fine.size(); ++v) EXPECT_EQ(g.bary(v), fine[v]);
+}
+
+}  // namespace
+}  // namespace relief
+
+namespace relief {
+namespace {
+
+// One voxel holding everything: more than 65536 vertices, triangles and sub-grid references, so
+// the 32-bit forms of indices, sub-grid offsets and references are used, and still agree exactly
+// with brute force.
+TEST(VoxelStorage, WideVoxelsUseTheir32BitFormsCorrectly) {
+  SphereOptions o;
+  o.nu = 24, o.nv = 12;
+  o.edgeLength = 0.02f;
+  const Scene scene = makeSphereScene(o);
+  AccelOptions options;
+  options.gridResolution = 1;
+  GridAccelerator accel(scene, options);
+  testing::BruteForce expected(scene);
+  for (const Ray& ray : testing::randomRays(60, 13, 3.0f, 1.2f)) {
+    const auto hit = accel.intersect(ray);
+    const auto ref = expected.intersect(ray);
+    ASSERT_EQ(hit.has_value(), ref.has_value());
+    if (hit) {
+      EXPECT_EQ(hit->t, ref->t);
+      EXPECT_EQ(hit->triangleIndex, ref->triangle);
+      EXPECT_EQ(hit->microIndex, ref->micro);
+    }
+  }
+  EXPECT_GT(accel.maxVoxelTriangles(), 100000u);
 }
 
 }  // namespace

@@ -1,0 +1,239 @@
+// End-to-end test of the statistics interface (docs/statistics.md): relief --stats-json writes a
+// flat JSON object with the documented dotted keys, and the figures obey the cache's invariants
+// (every access is one hit or one miss, the resident set stays within budget plus one voxel, the
+// time split adds up) with the budget check mode on and the image unchanged by the budget.
+#include <sys/wait.h>
+
+#include <cctype>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "image_compare.h"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+const std::string kSource = RELIEF_SOURCE_DIR;
+const std::string kRelief = RELIEF_BIN;
+const std::string kSphereScene = kSource + "/examples/scenes/sphere.rib";
+
+fs::path scratchDir() {
+  const fs::path dir = fs::temp_directory_path() /
+                       ("relief-stats-" + std::to_string(::getpid()) + "-" +
+                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+  fs::create_directories(dir);
+  return dir;
+}
+
+int runCommand(const std::string& command, const fs::path& log) {
+  const std::string line = command + " >" + log.string() + " 2>&1 </dev/null";
+  const int status = std::system(line.c_str());
+  return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+}
+
+std::string readFile(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+// The raw text of each value of a flat JSON object (strings keep their quotes). Fails the test on
+// anything but a flat object of scalars.
+std::map<std::string, std::string> parseFlatJson(const std::string& text) {
+  std::map<std::string, std::string> out;
+  size_t i = 0;
+  auto skip = [&] {
+    while (i < text.size() && std::isspace(static_cast<unsigned char>(text[i]))) ++i;
+  };
+  auto string = [&] {
+    std::string s;
+    EXPECT_EQ(text[i], '"');
+    for (++i; i < text.size() && text[i] != '"'; ++i) {
+      if (text[i] == '\\') ++i;
+      s += text[i];
+    }
+    ++i;
+    return s;
+  };
+  skip();
+  if (i >= text.size() || text[i] != '{') {
+    ADD_FAILURE() << "not a JSON object: " << text;
+    return out;
+  }
+  ++i;
+  for (;;) {
+    skip();
+    if (text[i] == '}') break;
+    const std::string key = string();
+    skip();
+    if (text[i] != ':') {
+      ADD_FAILURE() << "expected ':' after " << key;
+      return out;
+    }
+    ++i;
+    skip();
+    const size_t start = i;
+    if (text[i] == '"') {
+      string();
+    } else {
+      while (i < text.size() && text[i] != ',' && text[i] != '}' &&
+             !std::isspace(static_cast<unsigned char>(text[i])))
+        ++i;
+    }
+    const std::string value = text.substr(start, i - start);
+    EXPECT_TRUE(value.size() && value != "{" && value != "[") << key << " is not a scalar";
+    EXPECT_FALSE(out.count(key)) << "duplicate key " << key;
+    out[key] = value;
+    skip();
+    if (text[i] == ',') ++i;
+  }
+  return out;
+}
+
+struct StatsRun {
+  std::map<std::string, std::string> stats;
+  fs::path image;
+  double num(const std::string& key) const {
+    const auto it = stats.find(key);
+    if (it == stats.end()) {
+      ADD_FAILURE() << "missing key " << key;
+      return 0;
+    }
+    return std::strtod(it->second.c_str(), nullptr);
+  }
+};
+
+StatsRun render(const std::string& name, const std::string& options) {
+  const fs::path dir = scratchDir();
+  StatsRun r;
+  r.image = dir / (name + ".png");
+  const fs::path json = dir / (name + ".json"), log = dir / (name + ".log");
+  const int code = runCommand("RELIEF_CHECK_BUDGET=1 " + kRelief + " " + kSphereScene +
+                                  " --quiet --resolution 96x72 --stats-json " + json.string() +
+                                  " -o " + r.image.string() + " " + options,
+                              log);
+  EXPECT_EQ(code, 0) << readFile(log);
+  r.stats = parseFlatJson(readFile(json));
+  return r;
+}
+
+const char* const kRequiredKeys[] = {
+    "cache.budget_triangles",        "cache.accesses",
+    "cache.hits",                    "cache.compulsory_misses",
+    "cache.capacity_misses",         "cache.peak_resident_triangles",
+    "cache.unique_displaced_triangles", "cache.displaced_triangles_created",
+    "cache.simplification_saved_fraction", "cache.bytes_per_triangle",
+    "cache.hit_percent",             "cache.capacity_miss_share",
+    "cache.max_voxel_triangles",     "cache.budget_violations",
+    "time.total_s",                  "time.subdivide_s",
+    "time.displace_s",               "time.intersect_s",
+    "time.shade_s",                  "time.render_s",
+    "memory.peak_rss_bytes",
+};
+
+void expectInvariants(const StatsRun& r) {
+  for (const char* key : kRequiredKeys) EXPECT_TRUE(r.stats.count(key)) << "missing " << key;
+  EXPECT_EQ(r.num("cache.hits") + r.num("cache.compulsory_misses") + r.num("cache.capacity_misses"),
+            r.num("cache.accesses"));
+  EXPECT_GT(r.num("cache.accesses"), 0);
+  EXPECT_GE(r.num("cache.displaced_triangles_created"), r.num("cache.unique_displaced_triangles"));
+  EXPECT_GT(r.num("cache.unique_displaced_triangles"), 1000);
+  EXPECT_NEAR(r.num("cache.hit_percent"), 100.0 * r.num("cache.hits") / r.num("cache.accesses"), 1e-3);
+  EXPECT_EQ(r.num("cache.budget_violations"), 0);
+  // Per triangle: at least its three narrow indices and two 32-bit ids.
+  EXPECT_GT(r.num("cache.bytes_per_triangle"), 6);
+  EXPECT_GE(r.num("cache.simplification_saved_fraction"), 0);
+  EXPECT_LT(r.num("cache.simplification_saved_fraction"), 1);
+  // The parts of the render time are non-negative and add up to it.
+  double parts = 0;
+  for (const char* key : {"time.subdivide_s", "time.displace_s", "time.intersect_s", "time.shade_s"}) {
+    EXPECT_GE(r.num(key), 0) << key;
+    parts += r.num(key);
+  }
+  EXPECT_NEAR(parts, r.num("time.render_s"), 1e-3 + 1e-3 * r.num("time.render_s"));
+  EXPECT_GT(r.num("time.displace_s"), 0);
+  EXPECT_GE(r.num("time.total_s"), r.num("time.render_s"));
+  EXPECT_GT(r.num("memory.peak_rss_bytes"), r.num("cache.peak_resident_bytes"));
+}
+
+TEST(Stats, JsonHasTheDocumentedKeysAndInvariants) {
+  const StatsRun unlimited = render("unlimited", "--threads 1");
+  expectInvariants(unlimited);
+  EXPECT_EQ(unlimited.stats.at("cache.budget_triangles"), "null");
+  EXPECT_EQ(unlimited.num("cache.capacity_misses"), 0);
+  EXPECT_EQ(unlimited.num("cache.capacity_miss_share"), 0);
+  // Unlimited: everything created stays resident.
+  EXPECT_EQ(unlimited.num("cache.peak_resident_triangles"),
+            unlimited.num("cache.displaced_triangles_created"));
+
+  const uint64_t budget = uint64_t(unlimited.num("cache.unique_displaced_triangles") / 20);
+  const StatsRun small = render("small", "--threads 1 --cache-triangles " + std::to_string(budget));
+  expectInvariants(small);
+  EXPECT_EQ(small.num("cache.budget_triangles"), double(budget));
+  EXPECT_GT(small.num("cache.capacity_misses"), 0);
+  EXPECT_GT(small.num("cache.capacity_miss_share"), 0);
+  EXPECT_EQ(small.num("cache.compulsory_misses"), unlimited.num("cache.compulsory_misses"));
+  EXPECT_EQ(small.num("cache.unique_displaced_triangles"),
+            unlimited.num("cache.unique_displaced_triangles"));
+  // One thread pins one voxel at a time: the budget plus the voxel being filled.
+  EXPECT_LE(small.num("cache.peak_resident_triangles"),
+            double(budget) + small.num("cache.max_voxel_triangles"));
+  EXPECT_GT(small.num("cache.displaced_triangles_created"),
+            unlimited.num("cache.displaced_triangles_created"));
+
+  const StatsRun threaded = render("threaded", "--threads 2 --order scanline --cache-triangles " +
+                                              std::to_string(budget));
+  expectInvariants(threaded);
+  EXPECT_LE(threaded.num("cache.peak_resident_triangles"),
+            double(budget) + 2 * threaded.num("cache.max_voxel_triangles"));
+
+  // The budget never reaches the image.
+  for (const StatsRun* other : {&small, &threaded}) {
+    relief::test::ImageDiff d =
+        relief::test::compareImages(other->image.string(), unlimited.image.string(), 0.0f);
+    ASSERT_TRUE(d.loaded) << d.error;
+    EXPECT_EQ(d.failingPixels, 0) << other->image;
+  }
+}
+
+TEST(Stats, RefinementSideCacheAndGridResolutionFlags) {
+  const StatsRun refined = render("refined", "--threads 1 --grid-resolution 12");
+  const StatsRun plain = render("plain", "--threads 1 --grid-resolution 12 --no-refine");
+  expectInvariants(refined);
+  EXPECT_EQ(refined.num("grid.resolution_x"), 12);
+  EXPECT_EQ(refined.stats.at("grid.refinement"), "true");
+  EXPECT_EQ(plain.stats.at("grid.refinement"), "false");
+  EXPECT_GT(refined.num("grid.dropped_contributors"), 0);
+  EXPECT_EQ(plain.num("grid.dropped_contributors"), 0);
+  const StatsRun side = render("side", "--threads 1 --grid-resolution 12 --side-cache 20000");
+  expectInvariants(side);
+  EXPECT_GT(side.num("cache.side_cache_hits"), 0);
+  EXPECT_GT(side.num("cache.side_cache_peak_triangles"), 0);
+  EXPECT_EQ(plain.num("cache.side_cache_hits"), 0);
+  for (const StatsRun* other : {&plain, &side}) {
+    relief::test::ImageDiff d =
+        relief::test::compareImages(other->image.string(), refined.image.string(), 0.0f);
+    ASSERT_TRUE(d.loaded) << d.error;
+    EXPECT_EQ(d.failingPixels, 0) << other->image;
+  }
+}
+
+TEST(Stats, HumanReadableStatsShowTheSameKeys) {
+  const fs::path dir = scratchDir(), log = dir / "stats.txt";
+  ASSERT_EQ(runCommand(kRelief + " " + kSphereScene + " --quiet --resolution 32x24 --stats -o " +
+                           (dir / "s.png").string(),
+                       log),
+            0);
+  const std::string text = readFile(log);
+  for (const char* key : kRequiredKeys) EXPECT_NE(text.find(key), std::string::npos) << key;
+}
+
+}  // namespace
