@@ -205,10 +205,12 @@ glm::vec3 Integrator::transmittance(const Ray& ray, RenderStats* stats) const {
       if (m.type == SurfaceType::Glass) {
         // Light crossing the interface: what Fresnel lets through, tinted once per object (on the
         // way in), as a camera ray refracted through it would be. The bending is ignored, as in
-        // every Whitted renderer: shadows of glass are coloured, not focused.
+        // every Whitted renderer: shadows of glass are coloured, not focused. Since the unbent
+        // ray meets the far side at the outside angle, every interface is taken from outside
+        // (reflectance is the same both ways along a refracted path), so no false total internal
+        // reflection blackens the shadow.
         const float cosI = std::abs(glm::dot(s.V, s.Ng));
-        const float etaRatio = s.front ? 1.0f / m.eta : m.eta;
-        through *= m.Kt * (1.0f - fresnel(cosI, etaRatio)) *
+        through *= m.Kt * (1.0f - fresnel(cosI, 1.0f / std::max(m.eta, 1e-4f))) *
                    (s.front ? glm::clamp(m.transmitColor, glm::vec3(0.0f), glm::vec3(1.0f))
                             : glm::vec3(1.0f));
       } else {
@@ -327,10 +329,10 @@ void Integrator::illuminate(const Surface& s, uint64_t seed, RenderStats* stats,
 glm::vec3 Integrator::shade(const Ray& ray, const Surface& s, int depth, uint64_t seed,
                             RenderStats* stats) const {
   const Material& m = *s.material;
-  if (m.type == SurfaceType::Constant) return s.Os * s.Cs;
 
   std::vector<LightSample> lights;
-  const bool needsLights = m.Kd != 0.0f || m.Ks != 0.0f || m.type == SurfaceType::Glass;
+  const bool needsLights = m.type != SurfaceType::Constant &&
+                           (m.Kd != 0.0f || m.Ks != 0.0f || m.type == SurfaceType::Glass);
   if (needsLights) illuminate(s, seed ^ (uint64_t(depth) << 56), stats, &lights);
   auto diffuse = [&] {
     glm::vec3 c(0.0f);
@@ -394,6 +396,7 @@ glm::vec3 Integrator::shade(const Ray& ray, const Surface& s, int depth, uint64_
       return Ci;  // glass's opacity is its transmission
     }
     case SurfaceType::Constant:
+      Ci = s.Cs;
       break;
   }
   Ci *= s.Os;
