@@ -315,9 +315,11 @@ void Integrator::illuminate(const Surface& s, uint64_t seed, RenderStats* stats,
           const float d = std::sqrt(d2);
           const glm::vec3 L = toLight / d;
           if (!(glm::dot(s.Nf, L) > 0.0f)) continue;
-          // Each sample is a point light of 1/n of the intensity, emitting on both faces with
-          // Lambert's cosine: far away, the light acts as a point light of its intensity.
-          const float cosLight = std::abs(glm::dot(normal, L));
+          // Each sample is a point light of 1/n of the intensity, emitting from the front face
+          // (edgeU x edgeV, or the disk's normal) with Lambert's cosine: seen head-on from afar,
+          // the light acts as a point light of its intensity.
+          const float cosLight = -glm::dot(normal, L);
+          if (!(cosLight > 0.0f)) continue;
           shadow(L, d, light.color * (cosLight / (float(n) * d2)));
         }
         break;
@@ -331,8 +333,7 @@ glm::vec3 Integrator::shade(const Ray& ray, const Surface& s, int depth, uint64_
   const Material& m = *s.material;
 
   std::vector<LightSample> lights;
-  const bool needsLights = m.type != SurfaceType::Constant &&
-                           (m.Kd != 0.0f || m.Ks != 0.0f || m.type == SurfaceType::Glass);
+  const bool needsLights = m.type != SurfaceType::Constant && (m.Kd != 0.0f || m.Ks != 0.0f);
   if (needsLights) illuminate(s, seed ^ (uint64_t(depth) << 56), stats, &lights);
   auto diffuse = [&] {
     glm::vec3 c(0.0f);
@@ -391,7 +392,10 @@ glm::vec3 Integrator::shade(const Ray& ray, const Surface& s, int depth, uint64_
         transmitted = trace(s.P - epsilon_ * s.Ngf, T, &stats->refractionRays);
       const glm::vec3 filter =
           s.front ? glm::clamp(m.transmitColor, glm::vec3(0.0f), glm::vec3(1.0f)) : glm::vec3(1.0f);
-      Ci = m.Ks * m.specularColor * specular() + m.Kr * kr * reflected +
+      // As the classic glass shader: a faint ambient/diffuse body (Kd defaults to 0), highlights,
+      // and Fresnel-weighted traced reflection and refraction.
+      Ci = s.Cs * (m.Ka * ambient(s) + m.Kd * diffuse()) + m.Ks * m.specularColor * specular() +
+           m.Kr * kr * reflected +
            m.Kt * (1.0f - kr) * filter * transmitted;
       return Ci;  // glass's opacity is its transmission
     }
