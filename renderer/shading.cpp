@@ -93,9 +93,11 @@ Integrator::Integrator(const Scene& scene, Accelerator& accel, const ShadingOpti
   allLights_.resize(lights_.size());
   std::iota(allLights_.begin(), allLights_.end(), 0u);
 
-  for (const Material& m : scene.materials)
+  for (const Material& m : scene.materials) {
+    anyOneSided_ = anyOneSided_ || (!m.twoSided && m.type != SurfaceType::Glass);
     throughShadows_ = throughShadows_ || m.type == SurfaceType::Glass || !m.twoSided ||
                       m.opacity != glm::vec3(1.0f);
+  }
 
   glm::vec3 lo(1e30f), hi(-1e30f);
   float bound = 0.0f;
@@ -179,6 +181,7 @@ bool Integrator::resolve(const Ray& ray, const Hit& hit, Surface* s) const {
 }
 
 std::optional<Hit> Integrator::findHit(Ray ray) const {
+  if (!anyOneSided_) return accel_.intersect(ray);
   const float dirLength = glm::length(ray.direction);
   for (int i = 0; i < kMaxSkips; ++i) {
     std::optional<Hit> hit = accel_.intersect(ray);

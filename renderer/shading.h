@@ -123,6 +123,7 @@ class Integrator {
   std::vector<uint32_t> allLights_;  // 0 .. lights_.size() - 1: for meshes without a light list
   float epsilon_;
   bool throughShadows_ = false;  // some surface lets shadow rays through (glass, Os < 1, Sides 1)
+  bool anyOneSided_ = false;     // some surface is culled from behind (Sides 1, not glass)
 };
 
 }  // namespace relief
