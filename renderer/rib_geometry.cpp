@@ -104,6 +104,23 @@ std::vector<uint32_t> triangulatePolygon(const std::vector<std::vector<glm::vec3
     loopIndices.push_back(std::move(indices));
   }
 
+  // A convex boundary without holes is its own fan (and the common case: skip the O(n^2) search).
+  auto fan = [&]() {
+    for (uint32_t k = 1; k + 1 < uint32_t(loopIndices[0].size()); ++k)
+      triangles.insert(triangles.end(), {0u, k, k + 1});
+    return triangles;
+  };
+  if (loopIndices.size() == 1) {
+    bool convex = true;
+    const std::vector<uint32_t>& loop = loopIndices[0];
+    for (size_t i = 0; i < loop.size() && convex; ++i)
+      convex = cross2(pts[loop[i]], pts[loop[(i + 1) % loop.size()]],
+                      pts[loop[(i + 2) % loop.size()]]) > 0;
+    if (convex) return fan();
+  }
+  // Ear clipping is quadratic or worse; beyond this size a fan is the bounded-time answer.
+  if (pts.size() > kMaxEarClippingPoints) return fan();
+
   std::vector<uint32_t> polygon = loopIndices[0];
   std::vector<std::vector<uint32_t>> holes;
   for (size_t i = 1; i < loopIndices.size(); ++i) {

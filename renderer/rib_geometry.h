@@ -3,6 +3,7 @@
 // tested on their own; depends only on GLM.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -18,6 +19,11 @@ namespace relief {
 // and ear clipping in the polygon's dominant projection plane. Never fails: degenerate input
 // (collinear or repeated points, self-intersections) still yields loop.size() - 2 triangles per
 // loop when possible, some of them possibly zero-area, rather than an error or an endless loop.
+//
+// Polygons of more than kMaxEarClippingPoints points in all (holes included) are fanned from their
+// first corner instead, holes ignored: ear clipping's quadratic cost would otherwise let one
+// polygon stall the load.
+constexpr size_t kMaxEarClippingPoints = 20000;
 std::vector<uint32_t> triangulatePolygon(const std::vector<std::vector<glm::vec3>>& loops);
 
 // A cubic basis as RenderMan defines it: weights of the 4 control points at parameter u are

@@ -638,6 +638,40 @@ class RibParser {
                ? (currentDir / name).lexically_normal().string()
                : name;
   }
+  // Quadrics take st, s, t and Cs as constant (1 value) or varying/vertex (4 values at the
+  // corners of the (u, v) range, interpolated bilinearly).
+  bool quadricPrimvars(const Call& call, const std::vector<Param>& params,
+                       std::vector<Primvar>* vars) {
+    if (!readPrimvars(call, params, PrimvarCounts{1, 4, 4, 4}, vars)) return false;
+    for (const Primvar& v : *vars)
+      if (v.name == "N")
+        return fail(call.line, "'" + call.name + "': \"N\" is not supported on quadrics");
+    return true;
+  }
+  static void applyQuadricPrimvars(const std::vector<Primvar>& vars, Mesh* mesh) {
+    auto value = [](const Primvar& v, glm::vec2 uv, int c) {
+      if (v.values.size() == size_t(v.components)) return v.values[size_t(c)];
+      const float* p[4] = {v.at(0), v.at(1), v.at(2), v.at(3)};
+      return (1 - uv.y) * ((1 - uv.x) * p[0][c] + uv.x * p[1][c]) +
+             uv.y * ((1 - uv.x) * p[2][c] + uv.x * p[3][c]);
+    };
+    const Primvar *st = nullptr, *s = nullptr, *t = nullptr, *Cs = nullptr;
+    for (const Primvar& v : vars) {
+      if (v.name == "st") st = &v;
+      if (v.name == "s") s = &v;
+      if (v.name == "t") t = &v;
+      if (v.name == "Cs") Cs = &v;
+    }
+    if (st || s || t) {
+      mesh->st.clear();
+      for (glm::vec2 uv : mesh->uv)
+        mesh->st.emplace_back(st ? value(*st, uv, 0) : s ? value(*s, uv, 0) : uv.x,
+                              st ? value(*st, uv, 1) : t ? value(*t, uv, 0) : uv.y);
+    }
+    if (Cs)
+      for (glm::vec2 uv : mesh->uv)
+        mesh->Cs.emplace_back(value(*Cs, uv, 0), value(*Cs, uv, 1), value(*Cs, uv, 2));
+  }
   bool buildPatchMesh(const Call& call, bool bicubic, int nu, bool uPeriodic, int nv,
                       bool vPeriodic, size_t first);
   bool doGeometry(const Call& call);
@@ -1493,7 +1527,8 @@ bool RibParser::doSphere(const Call& call) {
   if (!positionalNumbers(call, 4, &v, &next)) return false;
   std::vector<Param> params;
   if (!parseParams(call, next, &params)) return false;
-  warnUnusedParams(call, params, {});
+  std::vector<Primvar> vars;
+  if (!quadricPrimvars(call, params, &vars)) return false;
   const float radius = v[0];
   float zmin = std::clamp(std::min(v[1], v[2]), -std::fabs(radius), std::fabs(radius));
   float zmax = std::clamp(std::max(v[1], v[2]), -std::fabs(radius), std::fabs(radius));
@@ -1518,6 +1553,7 @@ bool RibParser::doSphere(const Call& call) {
   const int nv =
       std::clamp(int(std::ceil(arcV / target)), std::max(2, int(float(minV) * vFraction)), 512);
   Mesh mesh = tessellateSphere(radius, zmin, zmax, thetamax, nu, nv, attr_.ctm);
+  applyQuadricPrimvars(vars, &mesh);
   return addMesh(std::move(mesh), call.line);
 }
 
@@ -1535,7 +1571,8 @@ bool RibParser::doQuadric(const Call& call) {
   if (!positionalNumbers(call, count, &v, &next)) return false;
   std::vector<Param> params;
   if (!parseParams(call, next, &params)) return false;
-  warnUnusedParams(call, params, {});
+  std::vector<Primvar> vars;
+  if (!quadricPrimvars(call, params, &vars)) return false;
   const float thetamax = glm::radians(std::clamp(v[count - 1], -360.0f, 360.0f));
   if (thetamax == 0.0f) {
     warn(call.line, "degenerate '" + n + "' skipped");
@@ -1641,6 +1678,7 @@ bool RibParser::doQuadric(const Call& call) {
       const uint32_t a = uint32_t(j * (nu + 1) + i), b = a + 1, c = a + uint32_t(nu + 1), d = c + 1;
       mesh.indices.insert(mesh.indices.end(), {a, b, d, a, d, c});
     }
+  applyQuadricPrimvars(vars, &mesh);
   return addMesh(std::move(mesh), call.line);
 }
 

@@ -84,6 +84,16 @@ TEST(Triangulate, NonPlanarAxisAndDegenerateInputStillGiveTriangles) {
   EXPECT_TRUE(triangulatePolygon({{{0, 0, 0}, {1, 0, 0}}}).empty());
 }
 
+TEST(Triangulate, HugePolygonsFinishAsFans) {
+  // A concave comb far beyond the ear-clipping limit: bounded time, n - 2 triangles.
+  std::vector<glm::vec3> comb;
+  for (size_t i = 0; i < kMaxEarClippingPoints + 2; ++i)
+    comb.emplace_back(float(i), i % 2 ? 1.0f : 2.0f, 0.0f);
+  comb.emplace_back(float(comb.size()), 0.0f, 0.0f);
+  comb.emplace_back(0.0f, 0.0f, 0.0f);
+  EXPECT_EQ(triangulatePolygon({comb}).size(), 3 * (comb.size() - 2));
+}
+
 TEST(CubicBasis, NamedBasesInterpolateAndSumToOne) {
   for (const char* name : {"bezier", "b-spline", "catmull-rom"}) {
     CubicBasis basis;

@@ -144,6 +144,18 @@ TEST(RibOptions, CrlfAndCommentsKeepLineNumbers) {
   EXPECT_EQ(r.error.format().rfind("/scenes/test.rib:4: error: ", 0), 0u) << r.error.format();
 }
 
+TEST(RibTransforms, IdentityAndTransformReplaceTheCurrentTransform) {
+  ReadResult r = read(world("Translate 5 5 5\nIdentity\n" + std::string(kTriangle) +
+                            "Translate 5 5 5\nTransform [2 0 0 0  0 2 0 0  0 0 2 0  0 0 1 1]\n" +
+                            kTriangle));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  ASSERT_EQ(r.scene->meshes.size(), 2u);
+  expectNear(r.scene->meshes[0].P[1], glm::vec3(1, 0, 0));
+  expectNear(r.scene->meshes[1].P[1], glm::vec3(2, 0, 1));
+  EXPECT_FALSE(read(world("Transform [0 0 0 0  0 1 0 0  0 0 1 0  0 0 0 1]")).scene);  // singular
+  EXPECT_FALSE(read(world("Transform [1 0 0]")).scene);
+}
+
 // --- Frames and archives ---
 
 TEST(RibFrames, FirstFrameIsRenderedAndLaterFramesSkipped) {
@@ -438,6 +450,24 @@ TEST(RibPolygons, PrimvarClasses) {
       << bad.error.message;
   EXPECT_FALSE(read(world("PointsPolygons [3] [0 1 2] \"P\" [0 0 0  1 0 0  1 1 0]"
                           " \"Cs\" [1 0 0 1]")).scene);
+}
+
+TEST(RibPolygons, QuadricPrimvarsAreConstantOrCornerValues) {
+  ReadResult r = read(world("Sphere 1 -1 1 360 \"constant color Cs\" [1 0 0]\n"
+                            "Cylinder 1 0 1 360 \"st\" [0 0  2 0  0 3  2 3]\n"));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  ASSERT_EQ(r.scene->meshes.size(), 2u);
+  const Mesh& sphere = r.scene->meshes[0];
+  ASSERT_EQ(sphere.Cs.size(), sphere.P.size());
+  expectNear(sphere.Cs[7], glm::vec3(1, 0, 0));
+  const Mesh& cylinder = r.scene->meshes[1];
+  ASSERT_EQ(cylinder.st.size(), cylinder.P.size());
+  for (size_t i = 0; i < cylinder.P.size(); ++i) {
+    EXPECT_NEAR(cylinder.st[i].x, 2.0f * cylinder.uv[i].x, 1e-5f);
+    EXPECT_NEAR(cylinder.st[i].y, 3.0f * cylinder.uv[i].y, 1e-5f);
+  }
+  EXPECT_FALSE(read(world("Sphere 1 -1 1 360 \"Cs\" [1 0]")).scene);
+  EXPECT_FALSE(read(world("Disk 0 1 360 \"N\" [0 0 1]")).scene);
 }
 
 // --- Patches ---
