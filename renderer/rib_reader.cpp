@@ -615,7 +615,8 @@ class RibParser {
     }
     if (arg.isNumeric() && arg.numbers.size() == 1) {
       const double d = arg.numbers[0];
-      *handle = d == std::floor(d) ? std::to_string(int64_t(d)) : std::to_string(d);
+      *handle = d == std::floor(d) && std::fabs(d) < 1e15 ? std::to_string(int64_t(d))
+                                                          : std::to_string(d);
       return true;
     }
     if (arg.isStringy() && arg.strings.size() == 1) {
@@ -852,7 +853,9 @@ bool RibParser::executeCamera(const Call& call, bool* handled) {
     pixelAspect_ = v[2] > 0 ? v[2] : 1.0f;
   } else if (n == "PixelSamples") {
     if (!positionalNumbers(call, 2, &v, &next)) return false;
-    const int xs = std::max(1, int(std::lround(v[0]))), ys = std::max(1, int(std::lround(v[1])));
+    // Clamped before rounding so that absurd counts reach the check below without overflowing.
+    const int xs = int(std::lround(std::clamp(v[0], 1.0f, 4096.0f)));
+    const int ys = int(std::lround(std::clamp(v[1], 1.0f, 4096.0f)));
     if (xs * ys > 4096) return fail(call.line, "'PixelSamples' asks for too many samples");
     scene_.pixelSamples = xs * ys;
   } else if (n == "Projection") {

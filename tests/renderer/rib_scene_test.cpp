@@ -114,6 +114,13 @@ TEST(RibOptions, ReliefOptionSetsRenderSettings) {
   EXPECT_FALSE(read("Option \"relief\" \"int cachebudget\" [-5]\n" + world("")).scene);
 }
 
+TEST(RibOptions, AbsurdCountsAndHandlesAreErrorsNotOverflows) {
+  EXPECT_FALSE(read("PixelSamples 1e30 1e30\n" + world("")).scene);
+  ReadResult r = read(world("LightSource \"pointlight\" 1e30\nIlluminate 1e30 0\n"));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  EXPECT_FALSE(r.scene->lights[0].handle.empty());
+}
+
 TEST(RibOptions, TextureSearchPath) {
   ReadResult r = read(world(""));
   EXPECT_EQ(r.scene->texturePath, std::vector<std::string>{"/textures"});
