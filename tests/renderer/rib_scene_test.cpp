@@ -7,6 +7,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <set>
 #include <sstream>
 
 #include <gtest/gtest.h>
@@ -590,6 +591,57 @@ TEST(RibObjMesh, LoadsAnObjFileRelativeToTheScene) {
   const std::string wrongType =
       dir.write("wrong.rib", world("Geometry \"objmesh\" \"float filename\" [1]"));
   EXPECT_FALSE(readRibFile(wrongType, RibReadOptions{}, &error));
+}
+
+// --- The feature scene ---
+
+TEST(RibFeatureScene, LoadsWithOneOfEverything) {
+  // Stand-ins for the example shaders (only the reader is under test): float parameters by name.
+  class StandIns : public runtime::ShaderProvider {
+   public:
+    std::shared_ptr<const runtime::CompiledShader> find(std::string_view name,
+                                                        std::span<const std::string>,
+                                                        std::string* error) override {
+      std::vector<std::string> names;
+      if (name == "bumps") names = {"Km", "freq"};
+      if (name == "grooves") names = {"depth", "count"};
+      if (names.empty()) {
+        *error = "unexpected shader";
+        return nullptr;
+      }
+      std::vector<runtime::ParamInfo> params(names.size());
+      for (size_t i = 0; i < names.size(); ++i) {
+        params[i].name = names[i];
+        params[i].offset = uint32_t(4 * i);
+      }
+      return std::make_shared<runtime::CompiledShader>(std::string(name), &test::pushEntry,
+                                                       params, 4 * names.size(), nullptr);
+    }
+  } shaders;
+  RibReadOptions options;
+  options.shaders = &shaders;
+  std::ostringstream warnings;
+  options.warnings = &warnings;
+  SceneError error;
+  std::optional<Scene> scene = readRibFile(
+      std::string(RELIEF_SOURCE_DIR) + "/examples/scenes/features.rib", options, &error);
+  ASSERT_TRUE(scene) << error.format();
+  EXPECT_EQ(warnings.str().find("error"), std::string::npos);
+  EXPECT_EQ(scene->displayModes, (std::vector<std::string>{"rgb", "z"}));
+  EXPECT_EQ(scene->maxDepth, 5);
+  std::set<LightType> lightTypes;
+  std::set<AreaShape> areaShapes;
+  for (const Light& l : scene->lights) {
+    lightTypes.insert(l.type);
+    if (l.type == LightType::Area) areaShapes.insert(l.shape);
+  }
+  EXPECT_EQ(lightTypes.size(), 5u);
+  EXPECT_EQ(areaShapes.size(), 2u);
+  std::set<SurfaceType> surfaces;
+  for (const Mesh& m : scene->meshes) surfaces.insert(scene->materials[m.materialIndex].type);
+  EXPECT_EQ(surfaces.size(), 6u);  // matte plastic metal mirror glass constant
+  EXPECT_EQ(scene->displacements.size(), 2u);
+  EXPECT_EQ(scene->meshes.size(), 15u + 4u * 2u);  // 15 shapes and 4 two-part instanced posts
 }
 
 // --- Bad input ---
