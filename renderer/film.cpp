@@ -27,7 +27,68 @@ float linearToSrgb(float v) {
   return v <= 0.0031308f ? 12.92f * v : 1.055f * std::pow(v, 1.0f / 2.4f) - 0.055f;
 }
 
+bool isFloatFormat(const std::string& path) {
+  std::string extension = fs::path(path).extension().string();
+  std::transform(extension.begin(), extension.end(), extension.begin(),
+                 [](unsigned char c) { return char(std::tolower(c)); });
+  return extension == ".exr" || extension == ".hdr";
+}
+
+Film depthForDisplay(const Film& depth) {
+  float lo = 0.0f, hi = 0.0f;
+  bool any = false;
+  for (int y = 0; y < depth.height(); ++y)
+    for (int x = 0; x < depth.width(); ++x) {
+      const float z = depth.pixel(x, y).r;
+      if (!(z > 0.0f) || !std::isfinite(z)) continue;
+      lo = any ? std::min(lo, z) : z;
+      hi = any ? std::max(hi, z) : z;
+      any = true;
+    }
+  Film out(depth.width(), depth.height());
+  for (int y = 0; y < depth.height(); ++y)
+    for (int x = 0; x < depth.width(); ++x) {
+      const float z = depth.pixel(x, y).r;
+      if (!(z > 0.0f) || !std::isfinite(z)) continue;
+      const float v = hi > lo ? 1.0f - 0.8f * (z - lo) / (hi - lo) : 1.0f;
+      out.setPixel(x, y, glm::vec3(v), 1.0f);
+    }
+  return out;
+}
+
+Film normalForDisplay(const Film& normal) {
+  Film out(normal.width(), normal.height());
+  for (int y = 0; y < normal.height(); ++y)
+    for (int x = 0; x < normal.width(); ++x)
+      if (normal.alpha(x, y) > 0.0f)
+        out.setPixel(x, y, 0.5f + 0.5f * normal.pixel(x, y), 1.0f);
+  return out;
+}
+
+Film heatMapForDisplay(const Film& counts) {
+  float most = 0.0f;
+  for (int y = 0; y < counts.height(); ++y)
+    for (int x = 0; x < counts.width(); ++x) most = std::max(most, counts.pixel(x, y).r);
+  Film out(counts.width(), counts.height());
+  for (int y = 0; y < counts.height(); ++y)
+    for (int x = 0; x < counts.width(); ++x) {
+      const float t = most > 0.0f ? counts.pixel(x, y).r / most : 0.0f;
+      // Three equal ramps: black to red, red to yellow, yellow to white.
+      const glm::vec3 c(std::clamp(3.0f * t, 0.0f, 1.0f), std::clamp(3.0f * t - 1.0f, 0.0f, 1.0f),
+                        std::clamp(3.0f * t - 2.0f, 0.0f, 1.0f));
+      out.setPixel(x, y, c, 1.0f);
+    }
+  return out;
+}
+
 bool Film::write(const std::string& path, std::string* error, bool withAlpha) const {
+  ImageWriteOptions options;
+  options.alpha = withAlpha;
+  return write(path, error, options);
+}
+
+bool Film::write(const std::string& path, std::string* error, const ImageWriteOptions& options) const {
+  const bool withAlpha = options.alpha;
   std::string extension = fs::path(path).extension().string();
   std::transform(extension.begin(), extension.end(), extension.begin(),
                  [](unsigned char c) { return char(std::tolower(c)); });
@@ -41,13 +102,17 @@ bool Film::write(const std::string& path, std::string* error, bool withAlpha) co
     return false;
   }
   const bool floatOutput = extension == ".exr" || extension == ".hdr";
-  const int channels = withAlpha ? 4 : 3;
+  const int colourChannels = options.channels == 1 ? 1 : 3;
+  const int channels = colourChannels + (withAlpha ? 1 : 0);
   OIIO::ImageSpec spec(width_, height_, channels,
                        floatOutput ? OIIO::TypeDesc::FLOAT : OIIO::TypeDesc::UINT8);
-  spec.attribute("oiio:ColorSpace", floatOutput ? "linear" : "sRGB");
+  spec.attribute("oiio:ColorSpace", floatOutput || !options.srgb ? "linear" : "sRGB");
   spec.attribute("Software", "relief");
+  for (const auto& [name, value] : options.metadata) spec.attribute(name, value);
+  if (!options.channelNames.empty() && int(options.channelNames.size()) == channels)
+    spec.channelnames = options.channelNames;
   if (withAlpha) {
-    spec.alpha_channel = 3;
+    spec.alpha_channel = colourChannels;
     if (!floatOutput) spec.attribute("oiio:UnassociatedAlpha", 1);
   }
 
@@ -59,7 +124,7 @@ bool Film::write(const std::string& path, std::string* error, bool withAlpha) co
     floats.resize(numPixels * size_t(channels));
     for (size_t i = 0; i < numPixels; ++i)
       for (int c = 0; c < channels; ++c) {
-        const float v = c < 3 ? rgb_[3 * i + size_t(c)] : alpha_[i];
+        const float v = c < colourChannels ? rgb_[3 * i + size_t(c)] : alpha_[i];
         floats[i * size_t(channels) + size_t(c)] = std::isfinite(v) ? v : 0.0f;
       }
     pixels = floats.data();
@@ -69,10 +134,13 @@ bool Film::write(const std::string& path, std::string* error, bool withAlpha) co
       const float a = std::clamp(alpha_[i], 0.0f, 1.0f);
       // Colour is premultiplied; PNG wants it straight, and encoded after the division.
       const float scale = withAlpha && a > 0.0f ? 1.0f / a : 1.0f;
-      for (int c = 0; c < 3; ++c)
-        bytes[i * size_t(channels) + size_t(c)] =
-            uint8_t(std::lround(linearToSrgb(rgb_[3 * i + size_t(c)] * scale) * 255.0f));
-      if (withAlpha) bytes[i * 4 + 3] = uint8_t(std::lround(a * 255.0f));
+      for (int c = 0; c < colourChannels; ++c) {
+        const float v = rgb_[3 * i + size_t(c)] * scale;
+        const float encoded = options.srgb ? linearToSrgb(v) : (v > 0.0f ? std::min(v, 1.0f) : 0.0f);
+        bytes[i * size_t(channels) + size_t(c)] = uint8_t(std::lround(encoded * 255.0f));
+      }
+      if (withAlpha)
+        bytes[i * size_t(channels) + size_t(colourChannels)] = uint8_t(std::lround(a * 255.0f));
     }
     pixels = bytes.data();
   }

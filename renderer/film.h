@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <glm/glm.hpp>
@@ -14,6 +15,17 @@ namespace relief {
 // Largest image we accept (16 bytes a pixel: 2 GiB of film). Checked where resolutions come in
 // (Format, --resolution) so a typo fails with a message rather than an allocation failure.
 inline constexpr uint64_t kMaxPixels = uint64_t(1) << 27;
+
+// How Film::write stores the pixels.
+struct ImageWriteOptions {
+  bool alpha = false;  // a fourth channel with coverage (see Film::write)
+  int channels = 3;    // 1: only the first colour channel (depth, counts), or 3
+  std::vector<std::string> channelNames;  // empty: the format's defaults (R, G, B, A)
+  // 8-bit formats: sRGB-encode (colour images) or scale linearly (data already mapped to [0, 1]).
+  bool srgb = true;
+  // String attributes stored in the file's header where the format has one (EXR, TIFF).
+  std::vector<std::pair<std::string, std::string>> metadata;
+};
 
 class Film {
  public:
@@ -43,12 +55,23 @@ class Film {
   // With `withAlpha`, a fourth channel holds coverage (EXR: premultiplied colour, as EXR expects;
   // 8-bit formats: unpremultiplied before sRGB encoding, as PNG expects).
   bool write(const std::string& path, std::string* error, bool withAlpha = false) const;
+  bool write(const std::string& path, std::string* error, const ImageWriteOptions& options) const;
 
  private:
   int width_, height_;
   std::vector<float> rgb_;
   std::vector<float> alpha_;
 };
+
+// True for formats written as linear floats (exr, hdr), judged by the extension.
+bool isFloatFormat(const std::string& path);
+
+// Arbitrary output variables mapped for viewing in 8-bit formats (float formats keep raw values):
+// depth as grey, near white to far black over the range of hits (misses black); normals as
+// 0.5 + 0.5 N; cache misses as a black-red-yellow-white heat map scaled to the largest count.
+Film depthForDisplay(const Film& depth);
+Film normalForDisplay(const Film& normal);
+Film heatMapForDisplay(const Film& counts);
 
 // Linear to sRGB transfer for one channel, clamped to [0, 1].
 float linearToSrgb(float v);

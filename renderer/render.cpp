@@ -1,4 +1,4 @@
-// The render loop, pixel orders and the Lambert integrator (see render.h).
+// The render loop and pixel orders (see render.h); shading lives in shading.cpp.
 #include "renderer/render.h"
 
 #include <algorithm>
@@ -67,27 +67,6 @@ void hilbertRect(int x, int y, int ax, int ay, int bx, int by, int width,
   }
 }
 
-// SplitMix64 finaliser: decorrelates consecutive pixel and sample indices.
-uint64_t mix64(uint64_t z) {
-  z += 0x9e3779b97f4a7c15ull;
-  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
-  z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-  return z ^ (z >> 31);
-}
-
-float toUnitFloat(uint64_t bits) { return float(bits >> 40) * (1.0f / 16777216.0f); }
-
-// Where sample `index` of `count` falls inside pixel `pixel`: the centre for one sample, jittered
-// strata for a square count, uniform jitter otherwise. Seeded by (pixel, index) only.
-glm::vec2 sampleOffset(uint64_t pixel, int index, int count) {
-  if (count == 1) return {0.5f, 0.5f};
-  const uint64_t r = mix64(mix64(pixel) ^ uint64_t(index));
-  const float jx = toUnitFloat(r), jy = toUnitFloat(mix64(r));
-  const int side = int(std::lround(std::sqrt(double(count))));
-  if (side * side == count) return {(float(index % side) + jx) / float(side), (float(index / side) + jy) / float(side)};
-  return {jx, jy};
-}
-
 }  // namespace
 
 std::vector<uint32_t> pixelOrder(PixelOrder order, int width, int height) {
@@ -115,66 +94,40 @@ std::vector<uint32_t> pixelOrder(PixelOrder order, int width, int height) {
   return out;
 }
 
-Integrator::Integrator(const Scene& scene, Accelerator& accel) : scene_(scene), accel_(accel) {
-  glm::vec3 lo(1e30f), hi(-1e30f);
-  float bound = 0.0f;
-  for (const Mesh& mesh : scene.meshes) {
-    for (const glm::vec3& p : mesh.P) lo = glm::min(lo, p), hi = glm::max(hi, p);
-    if (mesh.displacementIndex < scene.displacements.size())
-      bound = std::max(bound, scene.displacements[mesh.displacementIndex].boundWorld);
-  }
-  const float extent = hi.x >= lo.x ? glm::length(hi - lo) + 2.0f * bound : 1.0f;
-  // Large enough to clear float error in the hit point of a scene this size, small against any
-  // feature a displacement shader can make.
-  epsilon_ = std::max(extent, 1e-3f) * 2e-5f;
+glm::vec2 pixelSampleOffset(uint64_t pixel, int index, int count) {
+  if (count <= 1) return {0.5f, 0.5f};
+  const uint64_t r = mix64(mix64(pixel) ^ uint64_t(index));
+  const glm::vec2 jitter(unitFloat(r), unitFloat(mix64(r)));
+  const int side = int(std::lround(std::sqrt(double(count))));
+  if (side * side == count)
+    return {(float(index % side) + jitter.x) / float(side),
+            (float(index / side) + jitter.y) / float(side)};
+  return stratifiedSample(index, count, jitter);
 }
 
-glm::vec3 Integrator::radiance(const Ray& ray, RenderStats* stats, bool* hitSomething) const {
-  const std::optional<Hit> hit = accel_.intersect(ray);
-  if (hitSomething) *hitSomething = hit.has_value();
-  if (!hit) return glm::vec3(0.0f);
-  ++stats->cameraHits;
-  const Material defaultMaterial;
-  const Mesh& mesh = scene_.meshes[hit->meshIndex];
-  const Material& material = mesh.materialIndex < scene_.materials.size()
-                                 ? scene_.materials[mesh.materialIndex]
-                                 : defaultMaterial;
-  glm::vec3 N = hit->Ng;
-  if (glm::dot(N, ray.direction) > 0.0f) N = -N;  // two-sided: face the viewer
-  glm::vec3 light(material.Ka * scene_.ambientColor);
-  for (const DistantLight& l : scene_.distantLights) {
-    const float cosine = glm::dot(N, l.directionToLight);
-    if (!(cosine > 0.0f)) continue;
-    Ray shadow;
-    shadow.origin = hit->P + N * epsilon_;
-    shadow.direction = l.directionToLight;
-    shadow.tMin = 0.0f;
-    shadow.tMax = 1e30f;
-    ++stats->shadowRays;
-    if (accel_.occluded(shadow)) continue;
-    light += material.Kd * cosine * l.color;
-  }
-  return light * surfaceColor(mesh, material, *hit);
-}
-
-glm::vec3 Integrator::surfaceColor(const Mesh& mesh, const Material& material, const Hit& hit) {
-  if (mesh.Cs.empty() || hit.triangleIndex >= mesh.numTriangles()) return material.color;
-  // Hit::bary is exact for displaced hits too (the point the micro-geometry was displaced from).
-  const uint32_t* idx = &mesh.indices[3 * size_t(hit.triangleIndex)];
-  const float b1 = std::clamp(hit.bary.x, 0.0f, 1.0f);
-  const float b2 = std::clamp(hit.bary.y, 0.0f, 1.0f - b1);
-  return (1.0f - b1 - b2) * mesh.Cs[idx[0]] + b1 * mesh.Cs[idx[1]] + b2 * mesh.Cs[idx[2]];
-}
-
-RenderStats render(const Scene& scene, Accelerator& accel, const RenderOptions& options, Film* film) {
+RenderStats render(const Scene& scene, Accelerator& accel, const RenderOptions& options, Film* film,
+                   const AovFilms& aovs) {
   const auto start = std::chrono::steady_clock::now();
   const int width = film->width(), height = film->height();
   const std::vector<uint32_t> order = pixelOrder(options.order, width, height);
   const CameraRays camera(scene.camera, width, height);
-  const Integrator integrator(scene, accel);
+  ShadingOptions shading;
+  shading.maxDepth = options.maxDepth >= 0 ? options.maxDepth
+                     : scene.maxDepth > 0 ? scene.maxDepth
+                                          : kDefaultMaxDepth;
+  shading.displaced = options.displaced;
+  const Integrator integrator(scene, accel, shading);
   const int spp = std::max(1, options.samplesPerPixel > 0 ? options.samplesPerPixel : scene.pixelSamples);
   int numThreads = options.threads > 0 ? options.threads : int(std::thread::hardware_concurrency());
   numThreads = std::clamp(numThreads, 1, 256);
+
+  // Pass 1 traces every sample into its own slot; pass 2 filters. Filtering in the same pass would
+  // make a pixel's sum depend on which neighbour's samples arrived first.
+  struct Sample {
+    glm::vec3 color;
+    float alpha;
+  };
+  std::vector<Sample> samples(order.size() * size_t(spp));
 
   // Threads pull chunks of the order so that each thread still walks a coherent stretch of it.
   constexpr size_t kChunk = 64;
@@ -183,7 +136,7 @@ RenderStats render(const Scene& scene, Accelerator& accel, const RenderOptions& 
   std::mutex progressMutex;
   int lastPercent = -1;  // guarded by progressMutex
   std::vector<RenderStats> perThread(static_cast<size_t>(numThreads));
-  auto worker = [&](int id) {
+  auto tracer = [&](int id) {
     RenderStats stats;  // local: neighbouring entries of perThread would share cache lines
     while (true) {
       const size_t begin = next.fetch_add(kChunk);
@@ -192,17 +145,25 @@ RenderStats render(const Scene& scene, Accelerator& accel, const RenderOptions& 
       for (size_t i = begin; i < end; ++i) {
         const uint32_t pixel = order[i];
         const int x = int(pixel % uint32_t(width)), y = int(pixel / uint32_t(width));
-        glm::vec3 sum(0.0f);
-        int covered = 0;
+        const uint64_t missesBefore = threadCacheMisses();
+        float nearest = 0.0f;
+        glm::vec3 normal(0.0f);
         for (int s = 0; s < spp; ++s) {
-          const glm::vec2 offset = sampleOffset(pixel, s, spp);
+          const glm::vec2 offset = pixelSampleOffset(pixel, s, spp);
           const Ray ray = camera.generate(float(x) + offset.x, float(y) + offset.y);
           ++stats.cameraRays;
-          bool hit = false;
-          sum += integrator.radiance(ray, &stats, &hit);
-          covered += hit ? 1 : 0;
+          const SampleResult r =
+              integrator.trace(ray, mix64(uint64_t(pixel) * 0x10001ull + uint64_t(s)), &stats);
+          samples[size_t(pixel) * size_t(spp) + size_t(s)] = {r.color, r.alpha};
+          if (r.alpha > 0.0f && (nearest == 0.0f || r.depth < nearest)) {
+            nearest = r.depth;
+            normal = r.normal;
+          }
         }
-        film->setPixel(x, y, sum / float(spp), float(covered) / float(spp));
+        if (aovs.depth) aovs.depth->setPixel(x, y, glm::vec3(nearest), nearest > 0.0f ? 1.0f : 0.0f);
+        if (aovs.normal) aovs.normal->setPixel(x, y, normal, nearest > 0.0f ? 1.0f : 0.0f);
+        if (aovs.cacheMiss)
+          aovs.cacheMiss->setPixel(x, y, glm::vec3(float(threadCacheMisses() - missesBefore)));
       }
       if (options.progress) {
         const size_t done = donePixels.fetch_add(end - begin) + (end - begin);
@@ -216,11 +177,56 @@ RenderStats render(const Scene& scene, Accelerator& accel, const RenderOptions& 
     }
     perThread[size_t(id)] = stats;
   };
+
+  // Pass 2: every output pixel gathers the samples within the filter's support in a fixed order
+  // (neighbour pixels in scanline order, samples by index), so the sum is bit-identical however
+  // rows are shared out.
+  const PixelFilter filter = PixelFilter::make(options.filter);
+  const int reach = int(std::ceil(filter.radius()));
+  std::atomic<int> nextRow{0};
+  auto gatherer = [&] {
+    for (int y = nextRow.fetch_add(1); y < height; y = nextRow.fetch_add(1)) {
+      for (int x = 0; x < width; ++x) {
+        glm::vec3 sum(0.0f);
+        float alphaSum = 0.0f, weightSum = 0.0f;
+        for (int py = std::max(0, y - reach); py <= std::min(height - 1, y + reach); ++py)
+          for (int px = std::max(0, x - reach); px <= std::min(width - 1, x + reach); ++px) {
+            const uint32_t pixel = uint32_t(py * width + px);
+            for (int s = 0; s < spp; ++s) {
+              const glm::vec2 offset = pixelSampleOffset(pixel, s, spp);
+              const float w = filter.weight(float(px - x) + offset.x - 0.5f,
+                                            float(py - y) + offset.y - 0.5f);
+              if (w == 0.0f) continue;
+              const Sample& sample = samples[size_t(pixel) * size_t(spp) + size_t(s)];
+              sum += w * sample.color;
+              alphaSum += w * sample.alpha;
+              weightSum += w;
+            }
+          }
+        if (weightSum > 0.0f) {
+          film->setPixel(x, y, sum / weightSum, alphaSum / weightSum);
+        } else {
+          // A support so narrow that it misses every sample: fall back to the pixel's own mean.
+          const uint32_t pixel = uint32_t(y * width + x);
+          for (int s = 0; s < spp; ++s) {
+            sum += samples[size_t(pixel) * size_t(spp) + size_t(s)].color;
+            alphaSum += samples[size_t(pixel) * size_t(spp) + size_t(s)].alpha;
+          }
+          film->setPixel(x, y, sum / float(spp), alphaSum / float(spp));
+        }
+      }
+    }
+  };
+
   if (numThreads == 1) {
-    worker(0);
+    tracer(0);
+    gatherer();
   } else {
     std::vector<std::thread> threads;
-    for (int t = 0; t < numThreads; ++t) threads.emplace_back(worker, t);
+    for (int t = 0; t < numThreads; ++t) threads.emplace_back(tracer, t);
+    for (std::thread& t : threads) t.join();
+    threads.clear();
+    for (int t = 0; t < numThreads; ++t) threads.emplace_back(gatherer);
     for (std::thread& t : threads) t.join();
   }
 
@@ -229,6 +235,8 @@ RenderStats render(const Scene& scene, Accelerator& accel, const RenderOptions& 
     total.cameraRays += s.cameraRays;
     total.shadowRays += s.shadowRays;
     total.cameraHits += s.cameraHits;
+    total.reflectionRays += s.reflectionRays;
+    total.refractionRays += s.refractionRays;
   }
   total.threads = numThreads;
   total.samplesPerPixel = spp;

@@ -1,6 +1,7 @@
-// The render loop: pixel orders, the Lambert integrator with shadow rays, and the thread pool that
-// fills a Film. Each pixel's value depends only on the scene and the pixel (per-pixel seeded
-// jitter, fixed sample order), never on the order or the thread count. Used by tools/relief and
+// The render loop: pixel orders, and the thread pool that traces every sample (through the
+// integrator of shading.h) into a sample buffer, then filters it into a Film in a separate gather
+// pass. Each pixel's value depends only on the scene and the pixel (per-pixel seeded jitter, fixed
+// sample and gather order), never on the order or the thread count. Used by tools/relief and
 // tests; reaches geometry only through Accelerator.
 #pragma once
 
@@ -11,7 +12,9 @@
 
 #include "renderer/accel.h"
 #include "renderer/film.h"
+#include "renderer/filter.h"
 #include "renderer/scene.h"
+#include "renderer/shading.h"
 
 namespace relief {
 
@@ -33,41 +36,28 @@ struct RenderOptions {
   PixelOrder order = PixelOrder::Hilbert;
   int threads = 0;          // 0: all hardware threads
   int samplesPerPixel = 0;  // 0: the scene's PixelSamples
+  int maxDepth = -1;        // reflection/refraction depth; -1: the scene's, else kDefaultMaxDepth
+  FilterType filter = FilterType::Gaussian;
+  bool displaced = true;    // false: the accelerator renders undisplaced surfaces (see shading.h)
   // Called with the percentage of pixels done whenever it grows; serialized by the render loop,
   // so it may print. Has no influence on the image.
   std::function<void(int percent)> progress;
 };
 
-struct RenderStats {
-  double seconds = 0;
-  int threads = 0;
-  int samplesPerPixel = 0;
-  uint64_t cameraRays = 0, shadowRays = 0, cameraHits = 0;
-};
-
-// Shades camera rays: matte (Ka * ambient + Kd * sum over distant lights of max(0, N.L), each
-// light tested with one shadow ray) times the material colour; black where nothing is hit.
-class Integrator {
- public:
-  Integrator(const Scene& scene, Accelerator& accel);
-
-  // *hit (optional) says whether the ray hit anything (for coverage / alpha).
-  glm::vec3 radiance(const Ray& ray, RenderStats* stats, bool* hit = nullptr) const;
-
-  // Distance a shadow ray starts off the surface, scaled to the scene's extent.
-  float shadowEpsilon() const { return epsilon_; }
-
-  // Cs at a hit: the per-vertex colour interpolated over the input triangle if the mesh has one,
-  // else the material's colour.
-  static glm::vec3 surfaceColor(const Mesh& mesh, const Material& material, const Hit& hit);
-
- private:
-  const Scene& scene_;
-  Accelerator& accel_;
-  float epsilon_;
+// Arbitrary output variables, each the size of the main film; null entries are not computed.
+// Not filtered: each pixel holds what its own samples saw.
+struct AovFilms {
+  Film* depth = nullptr;      // "z": nearest camera-space depth of the pixel's samples (0: none)
+  Film* normal = nullptr;     // "N": outward world normal of that nearest hit
+  Film* cacheMiss = nullptr;  // "cachemiss": geometry-cache misses while tracing the pixel
 };
 
 // Renders `scene` into `film` (whose size is the output resolution).
-RenderStats render(const Scene& scene, Accelerator& accel, const RenderOptions& options, Film* film);
+RenderStats render(const Scene& scene, Accelerator& accel, const RenderOptions& options, Film* film,
+                   const AovFilms& aovs = {});
+
+// Where sample `index` of `count` falls inside pixel `pixel`, in [0, 1)^2: the centre for one
+// sample, stratified jitter otherwise. Seeded by (pixel, index) only.
+glm::vec2 pixelSampleOffset(uint64_t pixel, int index, int count);
 
 }  // namespace relief

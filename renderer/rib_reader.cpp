@@ -19,6 +19,8 @@
 #include <glm/gtc/type_ptr.hpp>
 
 #include "renderer/film.h"
+#include "renderer/obj_mesh.h"
+#include "renderer/rib_geometry.h"
 #include "renderer/tessellate.h"
 
 namespace relief {
@@ -189,6 +191,7 @@ struct Param {
   std::string name;
   std::optional<runtime::ParamType> type;  // as declared in the call (or by Declare)
   int arraySize = 0;
+  std::string storageClass;  // "vertex", "uniform", ... as declared; empty: not given
   Arg value;
   int line = 0;
 };
@@ -231,6 +234,12 @@ std::vector<std::string> splitPath(const std::string& s) {
   return parts;
 }
 
+CubicBasis bezierBasis() {
+  CubicBasis basis;
+  namedCubicBasis("bezier", &basis);
+  return basis;
+}
+
 // Largest axis scale of an affine transform: converts a length (e.g. a displacement bound) to the
 // destination space conservatively.
 float maxScale(const glm::mat4& m) {
@@ -238,10 +247,33 @@ float maxScale(const glm::mat4& m) {
                    glm::length(glm::vec3(m[2]))});
 }
 
+// RenderMan's matte: the default surface, whose Ka and Kd are 1 (Material's own defaults are not).
+Material matteMaterial() {
+  Material m;
+  m.Ka = 1.0f;
+  m.Kd = 1.0f;
+  return m;
+}
+
+// How a primitive variable's values map onto a polygon mesh or patch mesh (RenderMan's storage
+// classes; "varying" and "vertex" coincide on polygons).
+enum class PrimvarClass { Constant, Uniform, Vertex, Varying, FaceVarying };
+
+struct Primvar {
+  std::string name;
+  int components = 0;
+  PrimvarClass storage = PrimvarClass::Vertex;
+  std::vector<float> values;
+  const float* at(size_t i) const { return values.data() + i * size_t(components); }
+};
+
 struct AttributeState {
   glm::mat4 ctm{1.0f};  // current space -> world (camera space before WorldBegin)
-  glm::vec3 color{1.0f};
-  float Ka = 1.0f, Kd = 1.0f;  // RenderMan matte defaults
+  Material material = matteMaterial();  // Color, Opacity, Surface, Sides, Orientation
+  bool orientationInside = false;        // Orientation "inside"/"rh"
+  bool reversed = false;                 // an odd number of ReverseOrientation calls
+  std::vector<uint32_t> lightsOn;        // Scene::lights indices lit by Illuminate, sorted
+  CubicBasis uBasis = bezierBasis(), vBasis = bezierBasis();
   std::shared_ptr<const runtime::ShaderInstance> displacement;
   glm::mat4 worldFromShader{1.0f};
   int displacementLine = 0;
@@ -264,6 +296,8 @@ class RibParser {
       : fileName_(fileName), options_(options), searchPath_(options.defaultShaderPath) {
     const std::filesystem::path p(fileName);
     baseDir_ = p.has_parent_path() ? p.parent_path().string() : std::string(".");
+    scene_.camera.perspective = false;  // RenderMan's default projection
+    scene_.texturePath = options.defaultTexturePath;
   }
 
   std::optional<Scene> parse(std::vector<RibToken> tokens, SceneError* error) {
@@ -280,9 +314,15 @@ class RibParser {
                         (e.attribute ? "AttributeBegin" : "TransformBegin") + "' at line " +
                         std::to_string(e.line) + " has no '" +
                         (e.attribute ? "AttributeEnd" : "TransformEnd") + "'");
+    } else if (recording_) {
+      fail(eofLine, "unexpected end of file: 'ObjectBegin' at line " +
+                        std::to_string(recordingLine_) + " has no 'ObjectEnd'");
     } else if (inWorld_) {
       fail(eofLine, "unexpected end of file: 'WorldBegin' at line " + std::to_string(worldLine_) +
                         " has no 'WorldEnd'");
+    } else if (frameDepth_ > 0 && !skipping_) {
+      fail(eofLine, "unexpected end of file: 'FrameBegin' at line " + std::to_string(frameLine_) +
+                        " has no 'FrameEnd'");
     } else if (!worldDone_) {
       fail(eofLine, "no 'WorldBegin'/'WorldEnd' block: nothing to render");
     }
@@ -290,6 +330,18 @@ class RibParser {
       *error = error_;
       return std::nullopt;
     }
+    // The older view of the lights, for readers that have not moved to Scene::lights.
+    for (const Light& light : scene_.lights) {
+      if (light.type == LightType::Distant) {
+        DistantLight d;
+        d.directionToLight = -light.direction;
+        d.color = light.color;
+        scene_.distantLights.push_back(d);
+      } else if (light.type == LightType::Ambient) {
+        scene_.ambientColor += light.color;
+      }
+    }
+    scene_.ambient = (scene_.ambientColor.r + scene_.ambientColor.g + scene_.ambientColor.b) / 3.0f;
     return std::move(scene_);
   }
 
@@ -441,12 +493,16 @@ class RibParser {
     if (words.empty()) return fail(line, "empty parameter name");
     p->name = words.back();
     words.pop_back();
-    if (!words.empty() && isClassWord(words.front())) words.erase(words.begin());
+    if (!words.empty() && isClassWord(words.front())) {
+      p->storageClass = words.front() == "facevertex" ? "facevarying" : words.front();
+      words.erase(words.begin());
+    }
     if (words.empty()) {
       const auto declared = declared_.find(p->name);
       if (declared != declared_.end()) {
         p->type = declared->second.first;
         p->arraySize = declared->second.second;
+        if (p->storageClass.empty()) p->storageClass = declaredClass_[p->name];
       }
       return true;
     }
@@ -521,7 +577,7 @@ class RibParser {
   }
 
   void warnUnusedParams(const Call& call, const std::vector<Param>& params,
-                        std::initializer_list<std::string_view> known) {
+                        const std::vector<std::string_view>& known) {
     for (const Param& p : params) {
       if (std::find(known.begin(), known.end(), p.name) == known.end())
         warnOnce(p.line, call.name + "/" + p.name,
@@ -541,21 +597,99 @@ class RibParser {
   bool executeGeometry(const Call& call, bool* handled);
   bool doDisplacement(const Call& call);
   bool doLight(const Call& call);
+  bool doReliefOption(const Call& call, const std::vector<Param>& params);
+  bool doSurface(const Call& call);
+  bool doBasis(const Call& call);
+  bool doProcedural(const Call& call);
+  bool doObjectInstance(const Call& call);
+  bool readArchive(const Call& call, const std::string& name);
+  bool buildPolygonMesh(const Call& call, const std::vector<int>& nloops,
+                        const std::vector<int>& nverts, const std::vector<int>& verts,
+                        size_t first);
+
+  // A light handle: RIB allows a number or a string; numbers are kept as their integer text.
+  static bool lightHandle(const Arg& arg, std::string* handle) {
+    if (arg.kind == Arg::Kind::String) {
+      *handle = arg.strings[0];
+      return true;
+    }
+    if (arg.isNumeric() && arg.numbers.size() == 1) {
+      const double d = arg.numbers[0];
+      *handle = d == std::floor(d) && std::fabs(d) < 1e15 ? std::to_string(int64_t(d))
+                                                          : std::to_string(d);
+      return true;
+    }
+    if (arg.isStringy() && arg.strings.size() == 1) {
+      *handle = arg.strings[0];
+      return true;
+    }
+    return false;
+  }
   bool doSphere(const Call& call);
   bool doQuadric(const Call& call);
-  bool doPolygons(const Call& call, std::vector<int> nverts, std::vector<int> verts, size_t first);
-  bool doPatch(const Call& call);
-  bool doReadArchive(const Call& call);
+  struct PrimvarCounts {
+    size_t uniform, vertex, varying, faceVarying;
+  };
+  bool readPrimvars(const Call& call, const std::vector<Param>& params,
+                    const PrimvarCounts& counts, std::vector<Primvar>* out);
+  // A path named in the file being read: relative to that file's directory.
+  std::string resolveRelative(const std::string& name) const {
+    const std::filesystem::path currentDir = std::filesystem::path(fileName_).parent_path();
+    return std::filesystem::path(name).is_relative()
+               ? (currentDir / name).lexically_normal().string()
+               : name;
+  }
+  // Quadrics take st, s, t and Cs as constant (1 value) or varying/vertex (4 values at the
+  // corners of the (u, v) range, interpolated bilinearly).
+  bool quadricPrimvars(const Call& call, const std::vector<Param>& params,
+                       std::vector<Primvar>* vars) {
+    if (!readPrimvars(call, params, PrimvarCounts{1, 4, 4, 4}, vars)) return false;
+    for (const Primvar& v : *vars)
+      if (v.name == "N")
+        return fail(call.line, "'" + call.name + "': \"N\" is not supported on quadrics");
+    return true;
+  }
+  static void applyQuadricPrimvars(const std::vector<Primvar>& vars, Mesh* mesh) {
+    auto value = [](const Primvar& v, glm::vec2 uv, int c) {
+      if (v.values.size() == size_t(v.components)) return v.values[size_t(c)];
+      const float* p[4] = {v.at(0), v.at(1), v.at(2), v.at(3)};
+      return (1 - uv.y) * ((1 - uv.x) * p[0][c] + uv.x * p[1][c]) +
+             uv.y * ((1 - uv.x) * p[2][c] + uv.x * p[3][c]);
+    };
+    const Primvar *st = nullptr, *s = nullptr, *t = nullptr, *Cs = nullptr;
+    for (const Primvar& v : vars) {
+      if (v.name == "st") st = &v;
+      if (v.name == "s") s = &v;
+      if (v.name == "t") t = &v;
+      if (v.name == "Cs") Cs = &v;
+    }
+    if (st || s || t) {
+      mesh->st.clear();
+      for (glm::vec2 uv : mesh->uv)
+        mesh->st.emplace_back(st ? value(*st, uv, 0) : s ? value(*s, uv, 0) : uv.x,
+                              st ? value(*st, uv, 1) : t ? value(*t, uv, 0) : uv.y);
+    }
+    if (Cs)
+      for (glm::vec2 uv : mesh->uv)
+        mesh->Cs.emplace_back(value(*Cs, uv, 0), value(*Cs, uv, 1), value(*Cs, uv, 2));
+  }
+  bool buildPatchMesh(const Call& call, bool bicubic, int nu, bool uPeriodic, int nv,
+                      bool vPeriodic, size_t first);
+  bool doGeometry(const Call& call);
   bool addMesh(Mesh mesh, int line);
 
   uint32_t materialIndex() {
-    Material m;
-    m.color = attr_.color;
-    m.Ka = attr_.Ka;
-    m.Kd = attr_.Kd;
+    Material m = attr_.material;
+    m.reverseOrientation = attr_.orientationInside != attr_.reversed;
+    auto same = [](const Material& a, const Material& b) {
+      return a.type == b.type && a.color == b.color && a.opacity == b.opacity && a.Ka == b.Ka &&
+             a.Kd == b.Kd && a.Ks == b.Ks && a.roughness == b.roughness &&
+             a.specularColor == b.specularColor && a.Kr == b.Kr && a.Kt == b.Kt &&
+             a.eta == b.eta && a.transmitColor == b.transmitColor && a.twoSided == b.twoSided &&
+             a.reverseOrientation == b.reverseOrientation;
+    };
     for (size_t i = 0; i < scene_.materials.size(); ++i) {
-      const Material& o = scene_.materials[i];
-      if (o.color == m.color && o.Ka == m.Ka && o.Kd == m.Kd) return uint32_t(i);
+      if (same(scene_.materials[i], m)) return uint32_t(i);
     }
     scene_.materials.push_back(m);
     return uint32_t(scene_.materials.size() - 1);
@@ -619,6 +753,22 @@ class RibParser {
   std::vector<StackEntry> stack_;
   std::vector<std::string> searchPath_;
   std::map<std::string, std::pair<runtime::ParamType, int>> declared_;
+  std::map<std::string, std::string> declaredClass_;
+  std::map<std::string, uint32_t> lightHandles_;  // handle -> Scene::lights index
+  std::vector<size_t> lightsBeforeWorld_;          // in camera space until WorldBegin
+  // ObjectBegin/End: the recorded calls of each object, replayed by ObjectInstance.
+  struct RecordedCall {
+    Call call;
+    std::string file;
+  };
+  std::map<std::string, std::vector<RecordedCall>> objects_;
+  std::vector<RecordedCall>* recording_ = nullptr;
+  std::string recordingName_;
+  int recordingLine_ = 0;
+  int instanceDepth_ = 0;
+  int frameDepth_ = 0;
+  int frameLine_ = 0;
+  bool skipping_ = false;  // after the first frame: the rest of the file is skipped
   std::set<std::string> warnedKeys_;
   bool inWorld_ = false, worldDone_ = false;
   int worldLine_ = 0;
@@ -629,15 +779,59 @@ class RibParser {
 };
 
 bool RibParser::execute(const Call& call) {
+  const std::string& name = call.name;
+  if (skipping_) return true;
+  if (recording_) {
+    if (name == "ObjectEnd") {
+      recording_ = nullptr;
+      return true;
+    }
+    if (name == "ObjectBegin" || name == "WorldBegin" || name == "WorldEnd" ||
+        name == "FrameBegin" || name == "FrameEnd")
+      return fail(call.line, "'" + name + "' inside 'ObjectBegin' (line " +
+                                 std::to_string(recordingLine_) + ")");
+    recording_->push_back(RecordedCall{call, fileName_});
+    return true;
+  }
+  if (name == "ObjectBegin") {
+    std::string handle;
+    if (call.args.size() != 1 || !lightHandle(call.args[0], &handle))
+      return fail(call.line, "'ObjectBegin' expects one handle (a number or a string)");
+    recording_ = &objects_[handle];
+    recording_->clear();
+    recordingName_ = handle;
+    recordingLine_ = call.line;
+    return true;
+  }
+  if (name == "ObjectEnd") return fail(call.line, "'ObjectEnd' without 'ObjectBegin'");
+  if (name == "ObjectInstance") return doObjectInstance(call);
+  if (name == "FrameBegin") {
+    if (worldDone_) {
+      // One image per run: the first frame is rendered, later frames are read no further.
+      warn(call.line, "only the first frame is rendered; the frames from here on are skipped");
+      skipping_ = true;
+      return true;
+    }
+    if (frameDepth_ > 0) return fail(call.line, "nested 'FrameBegin'");
+    ++frameDepth_;
+    frameLine_ = call.line;
+    return true;
+  }
+  if (name == "FrameEnd") {
+    if (frameDepth_ == 0) return fail(call.line, "'FrameEnd' without 'FrameBegin'");
+    if (inWorld_)
+      return fail(call.line, "'FrameEnd' inside the world block (line " +
+                                 std::to_string(worldLine_) + ")");
+    --frameDepth_;
+    return true;
+  }
   bool handled = false;
   if (!executeCamera(call, &handled) || handled) return !failed_;
   if (!executeTransform(call, &handled) || handled) return !failed_;
   if (!executeAttributes(call, &handled) || handled) return !failed_;
   if (!executeGeometry(call, &handled) || handled) return !failed_;
   const std::string& n = call.name;
-  if (n == "version" || n == "FrameBegin" || n == "FrameEnd" || n == "Sides" ||
-      n == "Orientation" || n == "ReverseOrientation")
-    return true;  // harmless: one frame, and shading is two-sided
+  if (n == "version") return true;
   warnOnce(call.line, "request/" + n, "unsupported request '" + n + "' ignored");
   return true;
 }
@@ -659,7 +853,9 @@ bool RibParser::executeCamera(const Call& call, bool* handled) {
     pixelAspect_ = v[2] > 0 ? v[2] : 1.0f;
   } else if (n == "PixelSamples") {
     if (!positionalNumbers(call, 2, &v, &next)) return false;
-    const int xs = std::max(1, int(std::lround(v[0]))), ys = std::max(1, int(std::lround(v[1])));
+    // Clamped before rounding so that absurd counts reach the check below without overflowing.
+    const int xs = int(std::lround(std::clamp(v[0], 1.0f, 4096.0f)));
+    const int ys = int(std::lround(std::clamp(v[1], 1.0f, 4096.0f)));
     if (xs * ys > 4096) return fail(call.line, "'PixelSamples' asks for too many samples");
     scene_.pixelSamples = xs * ys;
   } else if (n == "Projection") {
@@ -702,7 +898,8 @@ bool RibParser::executeCamera(const Call& call, bool* handled) {
     if (type != "file" && type != "framebuffer" && type != "tiff" && type != "openexr" &&
         type != "png")
       warnOnce(call.line, "display/" + type, "display type '" + type + "' treated as 'file'");
-    if (mode != "rgb" && mode != "rgba") {
+    if (mode == "Z") mode = "z";
+    if (mode != "rgb" && mode != "rgba" && mode != "z" && mode != "N" && mode != "cachemiss") {
       warnOnce(call.line, "mode/" + mode, "display mode '" + mode + "' written as 'rgb'");
       mode = "rgb";
     }
@@ -725,33 +922,36 @@ bool RibParser::executeCamera(const Call& call, bool* handled) {
     if (!positionalString(call, 0, &category)) return false;
     std::vector<Param> params;
     if (!parseParams(call, 1, &params)) return false;
+    if (category == "relief") return doReliefOption(call, params);
     if (category != "searchpath") {
       warnOnce(call.line, "option/" + category, "unsupported option '" + category + "' ignored");
       return true;
     }
     for (const Param& p : params) {
-      if (p.name != "shader") {
+      if (p.name != "shader" && p.name != "texture") {
         warnOnce(p.line, "searchpath/" + p.name,
                  "search path '" + p.name + "' is not supported; ignored");
         continue;
       }
       if ((p.type && *p.type != runtime::ParamType::String) || !p.value.isStringy() ||
           p.value.strings.size() != 1)
-        return fail(p.line, "'Option \"searchpath\"': 'shader' expects one string");
+        return fail(p.line, "'Option \"searchpath\"': '" + p.name + "' expects one string");
+      std::vector<std::string>& previous = p.name == "shader" ? searchPath_ : scene_.texturePath;
+      const std::vector<std::string>& defaults =
+          p.name == "shader" ? options_.defaultShaderPath : options_.defaultTexturePath;
       std::vector<std::string> path;
       for (const std::string& dir : splitPath(p.value.strings[0])) {
         if (dir == "&") {
-          path.insert(path.end(), searchPath_.begin(), searchPath_.end());
+          path.insert(path.end(), previous.begin(), previous.end());
         } else if (dir == "@") {
-          path.insert(path.end(), options_.defaultShaderPath.begin(),
-                      options_.defaultShaderPath.end());
+          path.insert(path.end(), defaults.begin(), defaults.end());
         } else if (std::filesystem::path(dir).is_relative()) {
           path.push_back((std::filesystem::path(baseDir_) / dir).lexically_normal().string());
         } else {
           path.push_back(dir);
         }
       }
-      searchPath_ = std::move(path);
+      previous = std::move(path);
     }
   } else if (n == "WorldBegin") {
     if (inWorld_) return fail(call.line, "nested 'WorldBegin'");
@@ -765,6 +965,17 @@ bool RibParser::executeCamera(const Call& call, bool* handled) {
     worldLine_ = call.line;
     scene_.camera.worldFromCamera = glm::inverse(attr_.ctm);
     attr_.ctm = glm::mat4(1.0f);
+    const glm::mat4& w = scene_.camera.worldFromCamera;
+    for (size_t index : lightsBeforeWorld_) {
+      Light& l = scene_.lights[index];
+      l.position = glm::vec3(w * glm::vec4(l.position, 1.0f));
+      l.corner = glm::vec3(w * glm::vec4(l.corner, 1.0f));
+      l.edgeU = glm::vec3(w * glm::vec4(l.edgeU, 0.0f));
+      l.edgeV = glm::vec3(w * glm::vec4(l.edgeV, 0.0f));
+      l.direction = glm::normalize(glm::vec3(w * glm::vec4(l.direction, 0.0f)));
+      l.radius *= maxScale(w);
+    }
+    lightsBeforeWorld_.clear();
     if (!scene_.camera.screenWindowSet && frameAspect_ > 0) {
       const float a = frameAspect_;
       const float sw[4] = {a >= 1 ? -a : -1.0f, a >= 1 ? a : 1.0f, a >= 1 ? -1.0f : -1.0f / a,
@@ -857,19 +1068,45 @@ bool RibParser::executeAttributes(const Call& call, bool* handled) {
   size_t next = 0;
   if (n == "Color") {
     if (!positionalNumbers(call, 3, &v, &next)) return false;
-    attr_.color = glm::vec3(v[0], v[1], v[2]);
+    attr_.material.color = glm::vec3(v[0], v[1], v[2]);
+  } else if (n == "Opacity") {
+    if (!positionalNumbers(call, 3, &v, &next)) return false;
+    attr_.material.opacity = glm::clamp(glm::vec3(v[0], v[1], v[2]), 0.0f, 1.0f);
   } else if (n == "Surface") {
-    std::string name;
-    if (!positionalString(call, 0, &name)) return false;
-    std::vector<Param> params;
-    if (!parseParams(call, 1, &params)) return false;
-    if (name != "matte")
-      warnOnce(call.line, "surface/" + name, "surface '" + name + "' is not supported; using 'matte'");
-    attr_.Ka = 1.0f;
-    attr_.Kd = 1.0f;
-    if (!floatParam(call, params, "Ka", &attr_.Ka) || !floatParam(call, params, "Kd", &attr_.Kd))
-      return false;
-    if (name == "matte") warnUnusedParams(call, params, {"Ka", "Kd"});
+    return doSurface(call);
+  } else if (n == "Sides") {
+    if (!positionalNumbers(call, 1, &v, &next)) return false;
+    if (v[0] != 1 && v[0] != 2) return fail(call.line, "'Sides' must be 1 or 2");
+    attr_.material.twoSided = v[0] == 2;
+  } else if (n == "Orientation") {
+    std::string o;
+    if (!positionalString(call, 0, &o)) return false;
+    if (o == "outside" || o == "lh") {
+      attr_.orientationInside = false;
+    } else if (o == "inside" || o == "rh") {
+      attr_.orientationInside = true;
+    } else {
+      return fail(call.line, "'Orientation' must be \"outside\", \"inside\", \"lh\" or \"rh\"");
+    }
+    attr_.reversed = false;
+  } else if (n == "ReverseOrientation") {
+    attr_.reversed = !attr_.reversed;
+  } else if (n == "Illuminate") {
+    if (call.args.size() != 2 || !call.args[1].isNumeric() || call.args[1].numbers.size() != 1)
+      return fail(call.line, "'Illuminate' expects a light handle and 0 or 1");
+    std::string handle;
+    if (!lightHandle(call.args[0], &handle))
+      return fail(call.line, "'Illuminate' expects a light handle (a number or a string)");
+    const auto light = lightHandles_.find(handle);
+    if (light == lightHandles_.end())
+      return fail(call.line, "'Illuminate': no light with handle '" + handle + "'");
+    std::vector<uint32_t>& on = attr_.lightsOn;
+    const auto at = std::lower_bound(on.begin(), on.end(), light->second);
+    const bool isOn = at != on.end() && *at == light->second;
+    if (call.args[1].numbers[0] != 0 && !isOn) on.insert(at, light->second);
+    if (call.args[1].numbers[0] == 0 && isOn) on.erase(at);
+  } else if (n == "Basis") {
+    return doBasis(call);
   } else if (n == "LightSource") {
     return doLight(call);
   } else if (n == "Displacement") {
@@ -881,6 +1118,7 @@ bool RibParser::executeAttributes(const Call& call, bool* handled) {
     if (!parseDeclaration(decl + " " + name, call.line, &p)) return false;
     if (!p.type) return fail(call.line, "'Declare' needs a type");
     declared_[name] = {*p.type, p.arraySize};
+    declaredClass_[name] = p.storageClass;
   } else if (n == "Attribute") {
     std::string category;
     if (!positionalString(call, 0, &category)) return false;
@@ -899,6 +1137,12 @@ bool RibParser::executeAttributes(const Call& call, bool* handled) {
       if (attr_.boundRadius < 0) return fail(call.line, "'displacementbound' must be >= 0");
       attr_.boundSpace = space;
       warnUnusedParams(call, params, {"sphere", "coordinatesystem"});
+    } else if (category == "bound") {
+      // The pre-3.2 spelling: Attribute "bound" "displacement" [r], r in object space.
+      if (!floatParam(call, params, "displacement", &attr_.boundRadius)) return false;
+      if (attr_.boundRadius < 0) return fail(call.line, "'bound' 'displacement' must be >= 0");
+      attr_.boundSpace = "object";
+      warnUnusedParams(call, params, {"displacement"});
     } else if (category == "relief") {
       if (!floatParam(call, params, "edgelength", &attr_.edgeLength) ||
           !floatParam(call, params, "flatness", &attr_.flatness))
@@ -916,45 +1160,212 @@ bool RibParser::executeAttributes(const Call& call, bool* handled) {
   return true;
 }
 
+// LightSource name [handle] params: RenderMan's standard light shaders plus "arealight". Points
+// and directions are in the space current at the call; before WorldBegin that is camera space,
+// converted to world space when the camera is known (at WorldBegin).
 bool RibParser::doLight(const Call& call) {
   std::string name;
   if (!positionalString(call, 0, &name)) return false;
   // RIB gives a light handle (number or string) after the name; parameters come in pairs, so an
   // even argument count means the handle is there.
   const size_t first = call.args.size() % 2 == 0 ? 2 : 1;
+  std::string handle;
+  if (first == 2 && !lightHandle(call.args[1], &handle))
+    return fail(call.line, "'LightSource': the light handle must be a number or a string");
   std::vector<Param> params;
   if (!parseParams(call, first, &params)) return false;
-  if (!inWorld_) {
-    warnOnce(call.line, "light-outside", "'LightSource' before 'WorldBegin' ignored");
-    return true;
-  }
   float intensity = 1.0f;
   glm::vec3 color(1.0f);
   if (!floatParam(call, params, "intensity", &intensity) ||
       !tripleParam(call, params, "lightcolor", "color", &color))
     return false;
+  Light light;
+  light.color = color * intensity;
+  light.handle = handle;
+  light.sourceFile = fileName_;
+  light.sourceLine = call.line;
+  const glm::mat4& m = attr_.ctm;
+  auto point = [&](glm::vec3 p) { return glm::vec3(m * glm::vec4(p, 1.0f)); };
+  glm::vec3 from(0.0f), to(0.0f, 0.0f, 1.0f);
+  if (!tripleParam(call, params, "from", "point", &from) ||
+      !tripleParam(call, params, "to", "point", &to))
+    return false;
+  auto direction = [&]() -> bool {
+    const glm::vec3 d = point(to) - point(from);
+    if (!(glm::length(d) > 0.0f))
+      return fail(call.line, "'" + name + "': 'from' and 'to' coincide");
+    light.direction = glm::normalize(d);
+    return true;
+  };
   if (name == "distantlight") {
-    glm::vec3 from(0.0f), to(0.0f, 0.0f, 1.0f);
-    if (!tripleParam(call, params, "from", "point", &from) ||
-        !tripleParam(call, params, "to", "point", &to))
-      return false;
-    const glm::vec3 fromW = glm::vec3(attr_.ctm * glm::vec4(from, 1.0f));
-    const glm::vec3 toW = glm::vec3(attr_.ctm * glm::vec4(to, 1.0f));
-    const glm::vec3 dir = toW - fromW;
-    if (glm::length(dir) == 0.0f)
-      return fail(call.line, "'distantlight': 'from' and 'to' coincide");
-    DistantLight light;
-    light.directionToLight = -glm::normalize(dir);
-    light.color = color * intensity;
-    scene_.distantLights.push_back(light);
+    light.type = LightType::Distant;
+    if (!direction()) return false;
     warnUnusedParams(call, params, {"intensity", "lightcolor", "from", "to"});
   } else if (name == "ambientlight") {
-    scene_.ambientColor += intensity * color;
-    scene_.ambient = (scene_.ambientColor.r + scene_.ambientColor.g + scene_.ambientColor.b) / 3.0f;
+    light.type = LightType::Ambient;
     warnUnusedParams(call, params, {"intensity", "lightcolor"});
+  } else if (name == "pointlight") {
+    light.type = LightType::Point;
+    light.position = point(from);
+    warnUnusedParams(call, params, {"intensity", "lightcolor", "from"});
+  } else if (name == "spotlight") {
+    light.type = LightType::Spot;
+    light.position = point(from);
+    if (!direction() || !floatParam(call, params, "coneangle", &light.coneAngle) ||
+        !floatParam(call, params, "conedeltaangle", &light.coneDeltaAngle) ||
+        !floatParam(call, params, "beamdistribution", &light.beamDistribution))
+      return false;
+    if (!(light.coneAngle > 0.0f && light.coneAngle <= float(M_PI)))
+      return fail(call.line, "'spotlight': 'coneangle' must be in (0, pi] radians");
+    if (!(light.coneDeltaAngle >= 0.0f && light.coneDeltaAngle <= light.coneAngle))
+      return fail(call.line, "'spotlight': 'conedeltaangle' must be in [0, coneangle]");
+    if (!(light.beamDistribution >= 0.0f))
+      return fail(call.line, "'spotlight': 'beamdistribution' must be >= 0");
+    warnUnusedParams(call, params, {"intensity", "lightcolor", "from", "to", "coneangle",
+                                    "conedeltaangle", "beamdistribution"});
+  } else if (name == "arealight") {
+    // An emitter in the z = 0 plane of the current space, centred at "from", emitting towards +z.
+    light.type = LightType::Area;
+    std::string shape = "rectangle";
+    float width = 1.0f, height = 1.0f, radius = 0.5f, samples = 16.0f;
+    if (!stringParam(call, params, "shape", &shape) ||
+        !floatParam(call, params, "width", &width) ||
+        !floatParam(call, params, "height", &height) ||
+        !floatParam(call, params, "radius", &radius) ||
+        !floatParam(call, params, "samples", &samples))
+      return false;
+    if (!(samples >= 1.0f && samples <= 4096.0f))
+      return fail(call.line, "'arealight': 'samples' must be between 1 and 4096");
+    light.samples = int(samples);
+    const glm::mat3 normalFromObject = glm::transpose(glm::inverse(glm::mat3(m)));
+    light.direction = glm::normalize(normalFromObject * glm::vec3(0, 0, 1));
+    light.position = point(from);
+    if (shape == "rectangle") {
+      if (!(width > 0.0f && height > 0.0f))
+        return fail(call.line, "'arealight': 'width' and 'height' must be positive");
+      light.shape = AreaShape::Rectangle;
+      light.corner = point(from - glm::vec3(width * 0.5f, height * 0.5f, 0.0f));
+      light.edgeU = glm::vec3(m * glm::vec4(width, 0, 0, 0));
+      light.edgeV = glm::vec3(m * glm::vec4(0, height, 0, 0));
+      // The emitting side is +z; keep edgeU x edgeV pointing there even under a mirroring
+      // transform.
+      if (glm::dot(glm::cross(light.edgeU, light.edgeV), light.direction) < 0.0f) {
+        light.corner += light.edgeU;
+        light.edgeU = -light.edgeU;
+      }
+    } else if (shape == "disk") {
+      if (!(radius > 0.0f)) return fail(call.line, "'arealight': 'radius' must be positive");
+      light.shape = AreaShape::Disk;
+      light.radius = radius * maxScale(m);
+    } else {
+      return fail(call.line, "'arealight': 'shape' must be \"rectangle\" or \"disk\"");
+    }
+    warnUnusedParams(call, params, {"intensity", "lightcolor", "from", "shape", "width", "height",
+                                    "radius", "samples"});
   } else {
     warnOnce(call.line, "light/" + name, "light source '" + name + "' is not supported; ignored");
+    return true;
   }
+  const uint32_t index = uint32_t(scene_.lights.size());
+  scene_.lights.push_back(light);
+  if (!inWorld_) lightsBeforeWorld_.push_back(index);
+  if (!handle.empty()) lightHandles_[handle] = index;
+  // A new light is on for the current attribute block (RiLightSource turns it on).
+  attr_.lightsOn.insert(std::lower_bound(attr_.lightsOn.begin(), attr_.lightsOn.end(), index),
+                        index);
+  return true;
+}
+
+// Surface name params: RenderMan's standard surfaces with their default parameters.
+bool RibParser::doSurface(const Call& call) {
+  std::string name;
+  if (!positionalString(call, 0, &name)) return false;
+  std::vector<Param> params;
+  if (!parseParams(call, 1, &params)) return false;
+  Material m = matteMaterial();
+  m.color = attr_.material.color;
+  m.opacity = attr_.material.opacity;
+  m.twoSided = attr_.material.twoSided;
+  std::vector<std::string_view> known = {"Ka", "Kd"};
+  if (name == "matte") {
+  } else if (name == "plastic") {
+    m.type = SurfaceType::Plastic;
+    m.Kd = 0.5f, m.Ks = 0.5f, m.roughness = 0.1f;
+    known = {"Ka", "Kd", "Ks", "roughness", "specularcolor"};
+  } else if (name == "metal") {
+    m.type = SurfaceType::Metal;
+    m.Kd = 0.0f, m.Ks = 1.0f, m.roughness = 0.1f;
+    known = {"Ka", "Ks", "roughness"};
+  } else if (name == "shinymetal") {
+    m.type = SurfaceType::Mirror;
+    m.Kd = 0.0f, m.Ks = 1.0f, m.Kr = 1.0f, m.roughness = 0.1f;
+    known = {"Ka", "Ks", "Kr", "roughness"};
+  } else if (name == "mirror") {
+    m.type = SurfaceType::Mirror;
+    m.Ka = 0.0f, m.Kd = 0.0f, m.Ks = 0.0f, m.Kr = 1.0f;
+    known = {"Ka", "Kd", "Ks", "Kr", "roughness"};
+  } else if (name == "glass") {
+    m.type = SurfaceType::Glass;
+    m.Ka = 0.2f, m.Kd = 0.0f, m.Ks = 0.5f, m.Kr = 1.0f, m.Kt = 1.0f, m.roughness = 0.05f;
+    m.eta = 1.5f;
+    known = {"Ka", "Kd", "Ks", "Kr", "Kt", "roughness", "eta", "specularcolor", "transmitcolor"};
+  } else if (name == "constant") {
+    m.type = SurfaceType::Constant;
+    known = {};
+  } else {
+    warnOnce(call.line, "surface/" + name, "surface '" + name + "' is not supported; using 'matte'");
+  }
+  const bool isKnown = name == "matte" || name == "plastic" || name == "metal" ||
+                       name == "shinymetal" || name == "mirror" || name == "glass" ||
+                       name == "constant";
+  auto has = [&](std::string_view p) {
+    return std::find(known.begin(), known.end(), p) != known.end();
+  };
+  const std::pair<const char*, float*> floats[] = {
+      {"Ka", &m.Ka}, {"Kd", &m.Kd}, {"Ks", &m.Ks}, {"Kr", &m.Kr},
+      {"Kt", &m.Kt}, {"roughness", &m.roughness}, {"eta", &m.eta}};
+  for (const auto& [pname, field] : floats)
+    if (has(pname) && !floatParam(call, params, pname, field)) return false;
+  if (has("specularcolor") &&
+      !tripleParam(call, params, "specularcolor", "color", &m.specularColor))
+    return false;
+  if (has("transmitcolor") &&
+      !tripleParam(call, params, "transmitcolor", "color", &m.transmitColor))
+    return false;
+  if (!(m.roughness > 0.0f)) return fail(call.line, "'" + name + "': 'roughness' must be positive");
+  if (!(m.eta > 0.0f)) return fail(call.line, "'" + name + "': 'eta' must be positive");
+  if (isKnown) warnUnusedParams(call, params, known);
+  attr_.material = m;
+  return true;
+}
+
+// Basis ubasis ustep vbasis vstep: each basis a name or 16 numbers (row-major).
+bool RibParser::doBasis(const Call& call) {
+  CubicBasis bases[2];
+  size_t arg = 0;
+  for (CubicBasis& basis : bases) {
+    if (arg >= call.args.size())
+      return fail(call.line, "'Basis' expects ubasis ustep vbasis vstep");
+    const Arg& a = call.args[arg++];
+    if (a.kind == Arg::Kind::String) {
+      if (!namedCubicBasis(a.strings[0], &basis))
+        return fail(a.line, "'Basis': unknown basis '" + a.strings[0] + "'");
+    } else if (a.isNumeric() && a.numbers.size() == 16) {
+      for (int i = 0; i < 16; ++i) basis.matrix[i / 4][i % 4] = float(a.numbers[size_t(i)]);
+    } else {
+      return fail(a.line, "'Basis': a basis is a name or 16 numbers, got " + std::string(a.describe()));
+    }
+    if (arg >= call.args.size() || !call.args[arg].isNumeric() ||
+        call.args[arg].numbers.size() != 1)
+      return fail(call.line, "'Basis' expects a step after each basis");
+    const double step = call.args[arg++].numbers[0];
+    if (step < 1 || step > 4 || step != std::floor(step))
+      return fail(call.line, "'Basis': a step must be 1, 2, 3 or 4");
+    basis.step = int(step);
+  }
+  if (arg != call.args.size()) return fail(call.line, "'Basis' has extra arguments");
+  attr_.uBasis = bases[0];
+  attr_.vBasis = bases[1];
   return true;
 }
 
@@ -1015,6 +1426,11 @@ bool RibParser::doDisplacement(const Call& call) {
 bool RibParser::executeGeometry(const Call& call, bool* handled) {
   *handled = true;
   const std::string& n = call.name;
+  auto intArray = [](const Arg& a) {
+    std::vector<int> out;
+    for (double d : a.numbers) out.push_back(int(std::clamp(d, -1e9, 1e9)));
+    return out;
+  };
   if (n == "Cylinder" || n == "Cone" || n == "Disk" || n == "Torus" || n == "Paraboloid" ||
       n == "Hyperboloid") {
     if (!requireWorld(call)) return false;
@@ -1028,31 +1444,82 @@ bool RibParser::executeGeometry(const Call& call, bool* handled) {
     if (!requireWorld(call)) return false;
     if (call.args.size() < 2 || !call.args[0].isNumeric() || !call.args[1].isNumeric())
       return fail(call.line, "'PointsPolygons' expects [nverts] [vertices] then parameters");
-    std::vector<int> nverts, verts;
-    for (double d : call.args[0].numbers) nverts.push_back(int(d));
-    for (double d : call.args[1].numbers) verts.push_back(int(d));
-    return doPolygons(call, std::move(nverts), std::move(verts), 2);
+    const std::vector<int> nverts = intArray(call.args[0]);
+    return buildPolygonMesh(call, std::vector<int>(nverts.size(), 1), nverts,
+                            intArray(call.args[1]), 2);
   }
-  if (n == "Polygon") {
+  if (n == "PointsGeneralPolygons") {
     if (!requireWorld(call)) return false;
-    return doPolygons(call, {}, {}, 0);
+    if (call.args.size() < 3 || !call.args[0].isNumeric() || !call.args[1].isNumeric() ||
+        !call.args[2].isNumeric())
+      return fail(call.line,
+                  "'PointsGeneralPolygons' expects [nloops] [nverts] [vertices] then parameters");
+    return buildPolygonMesh(call, intArray(call.args[0]), intArray(call.args[1]),
+                            intArray(call.args[2]), 3);
   }
-  if (n == "GeneralPolygon") {
+  if (n == "Polygon" || n == "GeneralPolygon") {
     if (!requireWorld(call)) return false;
-    if (call.args.empty() || !call.args[0].isNumeric())
-      return fail(call.line, "'GeneralPolygon' expects [nloops] then parameters");
-    if (call.args[0].numbers.size() != 1) {
-      warnOnce(call.line, "generalpolygon-holes",
-               "'GeneralPolygon' with holes is not supported; skipped");
-      return true;
+    const bool general = n == "GeneralPolygon";
+    if (general && (call.args.empty() || !call.args[0].isNumeric()))
+      return fail(call.line, "'GeneralPolygon' expects [nverts] then parameters");
+    const size_t first = general ? 1 : 0;
+    std::vector<int> nverts;
+    if (general) {
+      nverts = intArray(call.args[0]);
+    } else {
+      // The point count comes from "P"; the indices are the points in order.
+      std::vector<Param> params;
+      if (!parseParams(call, first, &params)) return false;
+      const Param* pParam = findParam(params, "P");
+      if (!pParam) return fail(call.line, "'" + n + "' needs a \"P\" parameter");
+      nverts = {int(pParam->value.numbers.size() / 3)};
     }
-    return doPolygons(call, {}, {}, 1);
+    int total = 0;
+    for (int c : nverts) total += std::max(c, 0);
+    std::vector<int> verts(size_t(std::max(total, 0)));
+    for (size_t i = 0; i < verts.size(); ++i) verts[i] = int(i);
+    return buildPolygonMesh(call, {int(nverts.size())}, nverts, verts, first);
   }
   if (n == "Patch") {
     if (!requireWorld(call)) return false;
-    return doPatch(call);
+    std::string type;
+    if (!positionalString(call, 0, &type)) return false;
+    if (type != "bilinear" && type != "bicubic")
+      return fail(call.line, "'Patch' type must be \"bilinear\" or \"bicubic\", got '" + type + "'");
+    const int size = type == "bilinear" ? 2 : 4;
+    return buildPatchMesh(call, type == "bicubic", size, false, size, false, 1);
   }
-  if (n == "ReadArchive") return doReadArchive(call);
+  if (n == "PatchMesh") {
+    if (!requireWorld(call)) return false;
+    std::string type, uwrap, vwrap;
+    if (!positionalString(call, 0, &type) || call.args.size() < 5 ||
+        !call.args[1].isNumeric() || call.args[1].numbers.size() != 1 ||
+        !positionalString(call, 2, &uwrap) || !call.args[3].isNumeric() ||
+        call.args[3].numbers.size() != 1 || !positionalString(call, 4, &vwrap))
+      return fail(call.line, "'PatchMesh' expects type nu uwrap nv vwrap then parameters");
+    if (type != "bilinear" && type != "bicubic")
+      return fail(call.line, "'PatchMesh' type must be \"bilinear\" or \"bicubic\", got '" + type +
+                                 "'");
+    for (const std::string* wrap : {&uwrap, &vwrap})
+      if (*wrap != "periodic" && *wrap != "nonperiodic")
+        return fail(call.line, "'PatchMesh' wrap must be \"periodic\" or \"nonperiodic\", got '" +
+                                   *wrap + "'");
+    const double nu = call.args[1].numbers[0], nv = call.args[3].numbers[0];
+    if (nu != std::floor(nu) || nv != std::floor(nv) || nu < 1 || nv < 1 || nu > 1e6 || nv > 1e6)
+      return fail(call.line, "'PatchMesh': nu and nv must be positive integers");
+    return buildPatchMesh(call, type == "bicubic", int(nu), uwrap == "periodic", int(nv),
+                          vwrap == "periodic", 5);
+  }
+  if (n == "Geometry") {
+    if (!requireWorld(call)) return false;
+    return doGeometry(call);
+  }
+  if (n == "ReadArchive") {
+    std::string name;
+    if (!positionalString(call, 0, &name)) return false;
+    return readArchive(call, name);
+  }
+  if (n == "Procedural") return doProcedural(call);
   *handled = false;
   return true;
 }
@@ -1063,7 +1530,8 @@ bool RibParser::doSphere(const Call& call) {
   if (!positionalNumbers(call, 4, &v, &next)) return false;
   std::vector<Param> params;
   if (!parseParams(call, next, &params)) return false;
-  warnUnusedParams(call, params, {});
+  std::vector<Primvar> vars;
+  if (!quadricPrimvars(call, params, &vars)) return false;
   const float radius = v[0];
   float zmin = std::clamp(std::min(v[1], v[2]), -std::fabs(radius), std::fabs(radius));
   float zmax = std::clamp(std::max(v[1], v[2]), -std::fabs(radius), std::fabs(radius));
@@ -1088,6 +1556,7 @@ bool RibParser::doSphere(const Call& call) {
   const int nv =
       std::clamp(int(std::ceil(arcV / target)), std::max(2, int(float(minV) * vFraction)), 512);
   Mesh mesh = tessellateSphere(radius, zmin, zmax, thetamax, nu, nv, attr_.ctm);
+  applyQuadricPrimvars(vars, &mesh);
   return addMesh(std::move(mesh), call.line);
 }
 
@@ -1105,7 +1574,8 @@ bool RibParser::doQuadric(const Call& call) {
   if (!positionalNumbers(call, count, &v, &next)) return false;
   std::vector<Param> params;
   if (!parseParams(call, next, &params)) return false;
-  warnUnusedParams(call, params, {});
+  std::vector<Primvar> vars;
+  if (!quadricPrimvars(call, params, &vars)) return false;
   const float thetamax = glm::radians(std::clamp(v[count - 1], -360.0f, 360.0f));
   if (thetamax == 0.0f) {
     warn(call.line, "degenerate '" + n + "' skipped");
@@ -1211,11 +1681,97 @@ bool RibParser::doQuadric(const Call& call) {
       const uint32_t a = uint32_t(j * (nu + 1) + i), b = a + 1, c = a + uint32_t(nu + 1), d = c + 1;
       mesh.indices.insert(mesh.indices.end(), {a, b, d, a, d, c});
     }
+  applyQuadricPrimvars(vars, &mesh);
   return addMesh(std::move(mesh), call.line);
 }
 
-bool RibParser::doPolygons(const Call& call, std::vector<int> nverts, std::vector<int> verts,
-                           size_t first) {
+// Reads the primitive variables N st s t Cs of a polygon or patch mesh. `counts` gives the
+// expected number of values per class; an undeclared class is inferred from the value count.
+bool RibParser::readPrimvars(const Call& call, const std::vector<Param>& params,
+                             const PrimvarCounts& counts, std::vector<Primvar>* out) {
+  struct Known {
+    const char* name;
+    int components;
+    const char* typeName;
+  };
+  static const Known known[] = {{"N", 3, "normal"}, {"st", 2, "float"}, {"s", 1, "float"},
+                                {"t", 1, "float"},  {"Cs", 3, "color"}};
+  for (const Param& p : params) {
+    if (p.name == "P") continue;
+    const Known* k = nullptr;
+    for (const Known& candidate : known)
+      if (p.name == candidate.name) k = &candidate;
+    if (!k) {
+      warnOnce(p.line, call.name + "/" + p.name,
+               "'" + call.name + "': primitive variable '" + p.name +
+                   "' is not supported; ignored");
+      continue;
+    }
+    Primvar v;
+    v.name = p.name;
+    v.components = k->components;
+    if (!numbersParam(call, p, k->typeName, 0, &v.values)) return false;
+    const size_t items = v.values.size() / size_t(k->components);
+    const std::pair<const char*, PrimvarClass> classes[] = {
+        {"vertex", PrimvarClass::Vertex},   {"varying", PrimvarClass::Varying},
+        {"facevarying", PrimvarClass::FaceVarying}, {"uniform", PrimvarClass::Uniform},
+        {"constant", PrimvarClass::Constant}};
+    auto expected = [&](PrimvarClass c) {
+      switch (c) {
+        case PrimvarClass::Constant: return size_t(1);
+        case PrimvarClass::Uniform: return counts.uniform;
+        case PrimvarClass::Vertex: return counts.vertex;
+        case PrimvarClass::Varying: return counts.varying;
+        case PrimvarClass::FaceVarying: return counts.faceVarying;
+      }
+      return size_t(0);
+    };
+    bool found = false;
+    if (!p.storageClass.empty()) {
+      for (const auto& [word, c] : classes)
+        if (p.storageClass == word) v.storage = c, found = true;
+      if (!found)
+        return fail(p.line, "'" + call.name + "': '" + p.name + "' has class '" +
+                                p.storageClass + "', which this primitive does not take");
+      if (v.values.size() != expected(v.storage) * size_t(k->components))
+        return fail(p.line, "'" + call.name + "': " + p.storageClass + " '" + p.name +
+                                "' needs " +
+                                std::to_string(expected(v.storage) * size_t(k->components)) +
+                                " numbers, got " + std::to_string(v.values.size()));
+    } else if (v.values.size() % size_t(k->components) == 0) {
+      // RenderMan's default for these variables is varying; other counts pick their class.
+      for (PrimvarClass c : {PrimvarClass::Varying, PrimvarClass::Vertex,
+                             PrimvarClass::FaceVarying, PrimvarClass::Uniform,
+                             PrimvarClass::Constant})
+        if (!found && items == expected(c)) v.storage = c, found = true;
+    }
+    if (!found)
+      return fail(p.line, "'" + call.name + "': \"" + p.name + "\" has " +
+                              std::to_string(v.values.size()) + " numbers; expected " +
+                              std::to_string(counts.varying * size_t(k->components)) + " (one " +
+                              k->typeName + " per vertex), " +
+                              std::to_string(counts.uniform * size_t(k->components)) +
+                              " (per face), " +
+                              std::to_string(counts.faceVarying * size_t(k->components)) +
+                              " (per face corner) or " + std::to_string(k->components) +
+                              " (one in all)");
+    if (v.name == "N")
+      for (size_t i = 0; i < items; ++i)
+        if (glm::length(glm::vec3(v.at(i)[0], v.at(i)[1], v.at(i)[2])) == 0.0f)
+          return fail(p.line, "'" + call.name + "': zero-length normal at index " +
+                                  std::to_string(i));
+    out->push_back(std::move(v));
+  }
+  return true;
+}
+
+// PointsPolygons, PointsGeneralPolygons, Polygon, GeneralPolygon: `nloops` loops per face (the
+// first the boundary, the rest holes), `nverts` points per loop, `verts` the point indices.
+// Faces are triangulated by ear clipping (concave faces and holes work). Vertices are shared when
+// every primitive variable is per point; uniform or facevarying ones split them per face corner.
+bool RibParser::buildPolygonMesh(const Call& call, const std::vector<int>& nloops,
+                                 const std::vector<int>& nverts, const std::vector<int>& verts,
+                                 size_t first) {
   std::vector<Param> params;
   if (!parseParams(call, first, &params)) return false;
   const Param* pParam = findParam(params, "P");
@@ -1226,10 +1782,14 @@ bool RibParser::doPolygons(const Call& call, std::vector<int> nverts, std::vecto
     return fail(pParam->line, "'" + call.name + "': \"P\" needs a multiple of 3 numbers, got " +
                                   std::to_string(P.size()));
   const size_t numPoints = P.size() / 3;
-  if (call.name == "Polygon" || call.name == "GeneralPolygon") {
-    nverts = {int(numPoints)};
-    for (size_t i = 0; i < numPoints; ++i) verts.push_back(int(i));
+  size_t loopsTotal = 0;
+  for (int l : nloops) {
+    if (l < 1) return fail(call.line, "'" + call.name + "': a polygon needs at least one loop");
+    loopsTotal += size_t(l);
   }
+  if (loopsTotal != nverts.size())
+    return fail(call.line, "'" + call.name + "': nloops sum to " + std::to_string(loopsTotal) +
+                               " but " + std::to_string(nverts.size()) + " loop sizes given");
   size_t total = 0;
   for (int c : nverts) {
     if (c < 3) return fail(call.line, "'" + call.name + "': a polygon needs at least 3 vertices");
@@ -1244,150 +1804,411 @@ bool RibParser::doPolygons(const Call& call, std::vector<int> nverts, std::vecto
                                  " out of range (\"P\" has " + std::to_string(numPoints) +
                                  " points)");
   }
+  std::vector<Primvar> vars;
+  PrimvarCounts counts{nloops.size(), numPoints, numPoints, verts.size()};
+  if (!readPrimvars(call, params, counts, &vars)) return false;
+  bool perCorner = false;
+  for (const Primvar& v : vars)
+    perCorner = perCorner || v.storage == PrimvarClass::Uniform ||
+                v.storage == PrimvarClass::FaceVarying;
+
+  const glm::mat4& m = attr_.ctm;
+  const glm::mat3 normalFromObject = glm::transpose(glm::inverse(glm::mat3(m)));
+  std::vector<glm::vec3> world(numPoints);
+  for (size_t i = 0; i < numPoints; ++i)
+    world[i] = glm::vec3(m * glm::vec4(P[3 * i], P[3 * i + 1], P[3 * i + 2], 1.0f));
 
   Mesh mesh;
-  const glm::mat3 normalFromObject = glm::transpose(glm::inverse(glm::mat3(attr_.ctm)));
-  for (size_t i = 0; i < numPoints; ++i)
-    mesh.P.push_back(glm::vec3(attr_.ctm * glm::vec4(P[3 * i], P[3 * i + 1], P[3 * i + 2], 1.0f)));
-  auto perVertex = [&](const Param& p, size_t components, const char* typeName,
-                       std::vector<float>* out) {
-    if (!numbersParam(call, p, typeName, 0, out)) return false;
-    if (out->size() != numPoints * components)
-      return fail(p.line, "'" + call.name + "': \"" + p.name + "\" needs " +
-                              std::to_string(numPoints * components) + " numbers (one " +
-                              typeName + " per vertex), got " + std::to_string(out->size()));
-    return true;
+  const Primvar *N = nullptr, *st = nullptr, *s = nullptr, *t = nullptr, *Cs = nullptr;
+  for (const Primvar& v : vars) {
+    if (v.name == "N") N = &v;
+    if (v.name == "st") st = &v;
+    if (v.name == "s") s = &v;
+    if (v.name == "t") t = &v;
+    if (v.name == "Cs") Cs = &v;
+  }
+  auto valueOf = [](const Primvar& v, size_t face, size_t point, size_t corner) {
+    switch (v.storage) {
+      case PrimvarClass::Constant: return v.at(0);
+      case PrimvarClass::Uniform: return v.at(face);
+      case PrimvarClass::FaceVarying: return v.at(corner);
+      default: return v.at(point);
+    }
   };
-  std::vector<float> s, t;
-  for (const Param& p : params) {
-    std::vector<float> values;
-    if (p.name == "P") continue;
-    if (p.name == "N") {
-      if (!perVertex(p, 3, "normal", &values)) return false;
-      for (size_t i = 0; i < numPoints; ++i) {
-        const glm::vec3 n =
-            normalFromObject * glm::vec3(values[3 * i], values[3 * i + 1], values[3 * i + 2]);
-        if (glm::length(n) == 0.0f)
-          return fail(p.line, "'" + call.name + "': zero-length normal at vertex " +
-                                  std::to_string(i));
-        mesh.N.push_back(glm::normalize(n));
-      }
-    } else if (p.name == "st") {
-      if (!perVertex(p, 2, "float pair", &values)) return false;
-      for (size_t i = 0; i < numPoints; ++i) mesh.st.emplace_back(values[2 * i], values[2 * i + 1]);
-    } else if (p.name == "Cs") {
-      if (!numbersParam(call, p, "color", 0, &values)) return false;
-      if (values.size() == 3 * numPoints) {
-        for (size_t i = 0; i < numPoints; ++i)
-          mesh.Cs.emplace_back(values[3 * i], values[3 * i + 1], values[3 * i + 2]);
-      } else if (values.size() == 3) {
-        mesh.Cs.assign(numPoints, glm::vec3(values[0], values[1], values[2]));
-      } else {
-        return fail(p.line, "'" + call.name + "': \"Cs\" needs one color per vertex (" +
-                                std::to_string(3 * numPoints) + " numbers) or one in all, got " +
-                                std::to_string(values.size()));
-      }
-    } else if (p.name == "s") {
-      if (!perVertex(p, 1, "float", &s)) return false;
-    } else if (p.name == "t") {
-      if (!perVertex(p, 1, "float", &t)) return false;
-    } else {
-      warnOnce(p.line, call.name + "/" + p.name,
-               "'" + call.name + "': primitive variable '" + p.name + "' is not supported; ignored");
+  auto addVertex = [&](size_t face, size_t point, size_t corner) {
+    mesh.P.push_back(world[point]);
+    if (N) {
+      const float* n = valueOf(*N, face, point, corner);
+      mesh.N.push_back(glm::normalize(normalFromObject * glm::vec3(n[0], n[1], n[2])));
     }
-  }
-  if (mesh.st.empty() && (!s.empty() || !t.empty())) {
-    for (size_t i = 0; i < numPoints; ++i)
-      mesh.st.emplace_back(s.empty() ? 0.0f : s[i], t.empty() ? 0.0f : t[i]);
-  }
-  size_t start = 0;
-  for (int c : nverts) {
-    for (int k = 1; k + 1 < c; ++k) {
-      mesh.indices.push_back(uint32_t(verts[start]));
-      mesh.indices.push_back(uint32_t(verts[start + k]));
-      mesh.indices.push_back(uint32_t(verts[start + k + 1]));
+    if (st) {
+      const float* v = valueOf(*st, face, point, corner);
+      mesh.st.emplace_back(v[0], v[1]);
+    } else if (s || t) {
+      mesh.st.emplace_back(s ? valueOf(*s, face, point, corner)[0] : 0.0f,
+                           t ? valueOf(*t, face, point, corner)[0] : 0.0f);
     }
-    start += size_t(c);
+    if (Cs) {
+      const float* c = valueOf(*Cs, face, point, corner);
+      mesh.Cs.emplace_back(c[0], c[1], c[2]);
+    }
+  };
+  if (!perCorner)
+    for (size_t i = 0; i < numPoints; ++i) addVertex(0, i, 0);
+
+  size_t loop = 0, corner = 0;
+  std::vector<std::vector<glm::vec3>> loops;
+  std::vector<uint32_t> faceVertices;
+  for (size_t face = 0; face < nloops.size(); ++face) {
+    loops.clear();
+    faceVertices.clear();
+    for (int l = 0; l < nloops[face]; ++l, ++loop) {
+      std::vector<glm::vec3> points;
+      for (int k = 0; k < nverts[loop]; ++k, ++corner) {
+        const size_t point = size_t(verts[corner]);
+        points.push_back(world[point]);
+        if (perCorner) {
+          faceVertices.push_back(uint32_t(mesh.P.size()));
+          addVertex(face, point, corner);
+        } else {
+          faceVertices.push_back(uint32_t(point));
+        }
+      }
+      loops.push_back(std::move(points));
+    }
+    for (uint32_t i : triangulatePolygon(loops)) mesh.indices.push_back(faceVertices[i]);
   }
   return addMesh(std::move(mesh), call.line);
 }
 
-bool RibParser::doPatch(const Call& call) {
-  std::string type;
-  if (!positionalString(call, 0, &type)) return false;
-  if (type != "bilinear") {
-    warnOnce(call.line, "patch/" + type, "'Patch \"" + type + "\"' is not supported; skipped");
-    return true;
-  }
+// Patch and PatchMesh: an nu x nv grid of control points (u fastest) cut into bilinear or bicubic
+// patches (the current Basis and its steps), periodic or not in each direction. All patches are
+// sampled on one shared grid of vertices, so neighbouring patches meet without cracks; uv spans
+// the whole mesh, and st defaults to it.
+bool RibParser::buildPatchMesh(const Call& call, bool bicubic, int nu, bool uPeriodic, int nv,
+                               bool vPeriodic, size_t first) {
   std::vector<Param> params;
-  if (!parseParams(call, 1, &params)) return false;
-  // RenderMan's corner order: P0 (u0, v0), P1 (u1, v0), P2 (u0, v1), P3 (u1, v1).
-  auto corners = [&](const char* name, size_t components, const char* typeName,
-                     std::vector<float>* out) {
-    const Param* p = findParam(params, name);
-    if (!p) return true;
-    if (!numbersParam(call, *p, typeName, 4 * components, out)) return false;
-    return true;
+  if (!parseParams(call, first, &params)) return false;
+  const Param* pParam = findParam(params, "P");
+  if (!pParam) return fail(call.line, "'" + call.name + "' needs a \"P\" parameter");
+  std::vector<float> P;
+  if (!numbersParam(call, *pParam, "point", size_t(nu) * size_t(nv) * 3, &P)) return false;
+  const CubicBasis& ub = attr_.uBasis;
+  const CubicBasis& vb = attr_.vBasis;
+  auto patchCount = [bicubic](int n, bool periodic, int step) {
+    if (!bicubic) return periodic ? n : n - 1;
+    return periodic ? n / step : (n - 4) / step + 1;
   };
-  std::vector<float> P, st, s, t, Cs;
-  if (!findParam(params, "P")) return fail(call.line, "'Patch' needs a \"P\" parameter");
-  if (!corners("P", 3, "point", &P) || !corners("st", 2, "float", &st) ||
-      !corners("s", 1, "float", &s) || !corners("t", 1, "float", &t) ||
-      !corners("Cs", 3, "color", &Cs))
-    return false;
-  warnUnusedParams(call, params, {"P", "st", "s", "t", "Cs"});
-  auto corner3 = [](const std::vector<float>& v, int i) {
-    return glm::vec3(v[3 * i], v[3 * i + 1], v[3 * i + 2]);
+  const int uSteps = bicubic ? ub.step : 1, vSteps = bicubic ? vb.step : 1;
+  const int nuPatches = patchCount(nu, uPeriodic, uSteps);
+  const int nvPatches = patchCount(nv, vPeriodic, vSteps);
+  const int minimum = bicubic ? 4 : 2;
+  if (nu < minimum || nv < minimum || nuPatches < 1 || nvPatches < 1 ||
+      (bicubic && !uPeriodic && (nu - 4) % uSteps != 0) ||
+      (bicubic && !vPeriodic && (nv - 4) % vSteps != 0) ||
+      (bicubic && uPeriodic && nu % uSteps != 0) || (bicubic && vPeriodic && nv % vSteps != 0))
+    return fail(call.line, "'" + call.name + "': " + std::to_string(nu) + " x " +
+                               std::to_string(nv) + " control points do not make whole " +
+                               (bicubic ? "bicubic" : "bilinear") + " patches with steps " +
+                               std::to_string(uSteps) + ", " + std::to_string(vSteps));
+  const size_t nuVarying = size_t(nuPatches + (uPeriodic ? 0 : 1));
+  const size_t nvVarying = size_t(nvPatches + (vPeriodic ? 0 : 1));
+  std::vector<Primvar> vars;
+  PrimvarCounts counts{size_t(nuPatches) * size_t(nvPatches), size_t(nu) * size_t(nv),
+                       nuVarying * nvVarying, size_t(nuPatches) * size_t(nvPatches) * 4};
+  if (!readPrimvars(call, params, counts, &vars)) return false;
+  auto controlPoint = [&](int i, int j) {
+    const size_t k = 3 * (size_t(j) * size_t(nu) + size_t(i));
+    return glm::vec3(P[k], P[k + 1], P[k + 2]);
   };
-  auto bilerp = [](auto a, auto b, auto c, auto d, float u, float v) {
-    return (1 - v) * ((1 - u) * a + u * b) + v * ((1 - u) * c + u * d);
+
+  // Samples per patch edge: bilinear flat patches need none inside; curved ones are cut about
+  // (displaced ? 16 : 4) edge lengths apart like the quadrics.
+  const glm::mat4& m = attr_.ctm;
+  const float scale = maxScale(m);
+  float hull = 0.0f;
+  for (int j = 0; j < nv; ++j)
+    for (int i = 0; i + 1 < nu; ++i) hull = std::max(hull, glm::length(controlPoint(i + 1, j) - controlPoint(i, j)));
+  for (int j = 0; j + 1 < nv; ++j)
+    for (int i = 0; i < nu; ++i) hull = std::max(hull, glm::length(controlPoint(i, j + 1) - controlPoint(i, j)));
+  const float target = (attr_.displacement ? 16.0f : 4.0f) * attr_.edgeLength;
+  int samples = std::clamp(int(std::ceil(hull * scale * (bicubic ? 3.0f : 1.0f) / target)),
+                           bicubic ? 8 : 16, 32);
+  if (!bicubic) {
+    bool flat = true;
+    for (int pv = 0; pv < nvPatches && flat; ++pv)
+      for (int pu = 0; pu < nuPatches && flat; ++pu) {
+        const glm::vec3 p0 = controlPoint(pu, pv), p1 = controlPoint((pu + 1) % nu, pv);
+        const glm::vec3 p2 = controlPoint(pu, (pv + 1) % nv);
+        const glm::vec3 p3 = controlPoint((pu + 1) % nu, (pv + 1) % nv);
+        const float warp = std::fabs(glm::dot(p3 - p0, glm::cross(p1 - p0, p2 - p0)));
+        const float size = std::max(glm::length(p3 - p0), glm::length(p2 - p1));
+        flat = !(warp > 1e-6f * size * size * size);
+      }
+    if (flat) samples = 1;
+  }
+  const int columns = nuPatches * samples + 1, rows = nvPatches * samples + 1;
+  if (size_t(columns) * size_t(rows) > (size_t(1) << 24))
+    return fail(call.line, "'" + call.name + "' is too large to tessellate");
+
+  // Control point indices and weights of one direction at global parameter g in [0, patches].
+  struct Span {
+    int index[4];
+    float w[4], dw[4];
+    int count;
+    int patch;
+    float local;
   };
-  const glm::vec3 p0 = corner3(P, 0), p1 = corner3(P, 1), p2 = corner3(P, 2), p3 = corner3(P, 3);
-  // A warped patch is sampled finely enough to follow its curvature; a flat one needs 2 triangles.
-  const float warp = std::fabs(glm::dot(p3 - p0, glm::cross(p1 - p0, p2 - p0)));
-  const float size = std::max(glm::length(p3 - p0), glm::length(p2 - p1));
-  const int n = warp > 1e-6f * size * size * size ? 16 : 1;
+  auto span = [&](float g, int patches, int n, bool periodic, const CubicBasis& basis) {
+    Span sp{};
+    sp.patch = std::min(int(std::floor(g)), patches - 1);
+    sp.local = g - float(sp.patch);
+    if (bicubic) {
+      sp.count = 4;
+      basis.weights(sp.local, sp.w);
+      basis.derivativeWeights(sp.local, sp.dw);
+      for (int k = 0; k < 4; ++k) sp.index[k] = (sp.patch * basis.step + k) % n;
+    } else {
+      sp.count = 2;
+      sp.w[0] = 1.0f - sp.local, sp.w[1] = sp.local;
+      sp.dw[0] = -1.0f, sp.dw[1] = 1.0f;
+      sp.index[0] = sp.patch, sp.index[1] = (sp.patch + 1) % n;
+    }
+    (void)periodic;
+    return sp;
+  };
+  auto evaluate = [&](const Span& su, const Span& sv, const float* data, int components,
+                      float* out, float* du, float* dv) {
+    for (int c = 0; c < components; ++c) out[c] = du[c] = dv[c] = 0.0f;
+    for (int j = 0; j < sv.count; ++j)
+      for (int i = 0; i < su.count; ++i) {
+        const float* value =
+            data + (size_t(sv.index[j]) * size_t(nu) + size_t(su.index[i])) * size_t(components);
+        for (int c = 0; c < components; ++c) {
+          out[c] += su.w[i] * sv.w[j] * value[c];
+          du[c] += su.dw[i] * sv.w[j] * value[c];
+          dv[c] += su.w[i] * sv.dw[j] * value[c];
+        }
+      }
+  };
+  auto varyingValue = [&](const Primvar& v, const Span& su, const Span& sv, float* out) {
+    if (v.storage == PrimvarClass::Constant) {
+      std::copy(v.at(0), v.at(0) + v.components, out);
+      return;
+    }
+    if (v.storage == PrimvarClass::Uniform) {
+      std::copy(v.at(size_t(sv.patch) * size_t(nuPatches) + size_t(su.patch)),
+                v.at(size_t(sv.patch) * size_t(nuPatches) + size_t(su.patch)) + v.components, out);
+      return;
+    }
+    if (v.storage == PrimvarClass::Vertex && bicubic) {
+      float du[4], dv[4];
+      evaluate(su, sv, v.values.data(), v.components, out, du, dv);
+      return;
+    }
+    const float u = su.local, w = sv.local;
+    const float* c[4];
+    if (v.storage == PrimvarClass::FaceVarying) {
+      const size_t base = 4 * (size_t(sv.patch) * size_t(nuPatches) + size_t(su.patch));
+      for (int k = 0; k < 4; ++k) c[k] = v.at(base + size_t(k));
+    } else {
+      // Varying (and vertex on bilinear meshes): one value per patch corner.
+      const size_t stride = v.storage == PrimvarClass::Vertex ? size_t(nu) : nuVarying;
+      const size_t wrapU = v.storage == PrimvarClass::Vertex ? size_t(nu) : nuVarying;
+      const size_t wrapV = v.storage == PrimvarClass::Vertex ? size_t(nv) : nvVarying;
+      const size_t i0 = size_t(su.patch), i1 = (i0 + 1) % wrapU;
+      const size_t j0 = size_t(sv.patch), j1 = (j0 + 1) % wrapV;
+      c[0] = v.at(j0 * stride + i0), c[1] = v.at(j0 * stride + i1);
+      c[2] = v.at(j1 * stride + i0), c[3] = v.at(j1 * stride + i1);
+    }
+    for (int k = 0; k < v.components; ++k)
+      out[k] = (1 - w) * ((1 - u) * c[0][k] + u * c[1][k]) + w * ((1 - u) * c[2][k] + u * c[3][k]);
+  };
+
   Mesh mesh;
-  for (int j = 0; j <= n; ++j)
-    for (int i = 0; i <= n; ++i) {
-      const float u = float(i) / float(n), v = float(j) / float(n);
-      const glm::vec3 pObject = bilerp(p0, p1, p2, p3, u, v);
-      mesh.P.push_back(glm::vec3(attr_.ctm * glm::vec4(pObject, 1.0f)));
-      mesh.uv.emplace_back(u, v);
-      glm::vec2 stValue(u, v);
-      if (!st.empty()) {
-        stValue = bilerp(glm::vec2(st[0], st[1]), glm::vec2(st[2], st[3]), glm::vec2(st[4], st[5]),
-                         glm::vec2(st[6], st[7]), u, v);
-      } else if (!s.empty() || !t.empty()) {
-        stValue = glm::vec2(s.empty() ? u : bilerp(s[0], s[1], s[2], s[3], u, v),
-                            t.empty() ? v : bilerp(t[0], t[1], t[2], t[3], u, v));
+  const glm::mat3 normalFromObject = glm::transpose(glm::inverse(glm::mat3(m)));
+  bool normalsOk = true;
+  const Primvar *st = nullptr, *s = nullptr, *t = nullptr, *Cs = nullptr, *N = nullptr;
+  for (const Primvar& v : vars) {
+    if (v.name == "st") st = &v;
+    if (v.name == "s") s = &v;
+    if (v.name == "t") t = &v;
+    if (v.name == "Cs") Cs = &v;
+    if (v.name == "N") N = &v;
+  }
+  for (int row = 0; row < rows; ++row)
+    for (int col = 0; col < columns; ++col) {
+      const float gu = float(col) / float(samples), gv = float(row) / float(samples);
+      const Span su = span(gu, nuPatches, nu, uPeriodic, ub);
+      const Span sv = span(gv, nvPatches, nv, vPeriodic, vb);
+      glm::vec3 p, dPdu, dPdv;
+      evaluate(su, sv, P.data(), 3, &p[0], &dPdu[0], &dPdv[0]);
+      const bool seamU = uPeriodic && col == columns - 1, seamV = vPeriodic && row == rows - 1;
+      if (seamU || seamV) {
+        // The wrap-around copy of the first column/row, bit for bit, so the seam cannot crack.
+        const size_t source = size_t(seamV ? 0 : row) * size_t(columns) + size_t(seamU ? 0 : col);
+        mesh.P.push_back(mesh.P[source]);
+        if (normalsOk) mesh.N.push_back(mesh.N[source]);
+      } else {
+        mesh.P.push_back(glm::vec3(m * glm::vec4(p, 1.0f)));
+        glm::vec3 normal = normalFromObject * glm::cross(dPdu, dPdv);
+        if (N) {
+          float value[3];
+          varyingValue(*N, su, sv, value);
+          normal = normalFromObject * glm::vec3(value[0], value[1], value[2]);
+        }
+        const float len = glm::length(normal);
+        if (len > 1e-20f && std::isfinite(len) && normalsOk) {
+          mesh.N.push_back(normal / len);
+        } else {
+          normalsOk = false;  // a degenerate point (a pole): shade with face normals instead
+        }
+      }
+      mesh.uv.emplace_back(gu / float(nuPatches), gv / float(nvPatches));
+      glm::vec2 stValue = mesh.uv.back();
+      float value[3];
+      if (st) {
+        varyingValue(*st, su, sv, value);
+        stValue = glm::vec2(value[0], value[1]);
+      } else {
+        if (s) varyingValue(*s, su, sv, value), stValue.x = value[0];
+        if (t) varyingValue(*t, su, sv, value), stValue.y = value[0];
       }
       mesh.st.push_back(stValue);
-      if (!Cs.empty())
-        mesh.Cs.push_back(bilerp(corner3(Cs, 0), corner3(Cs, 1), corner3(Cs, 2), corner3(Cs, 3), u, v));
+      if (Cs) {
+        varyingValue(*Cs, su, sv, value);
+        mesh.Cs.emplace_back(value[0], value[1], value[2]);
+      }
     }
-  for (int j = 0; j < n; ++j)
-    for (int i = 0; i < n; ++i) {
-      const uint32_t a = uint32_t(j * (n + 1) + i), b = a + 1, c = a + uint32_t(n + 1), d = c + 1;
+  if (!normalsOk) mesh.N.clear();
+  for (int j = 0; j + 1 < rows; ++j)
+    for (int i = 0; i + 1 < columns; ++i) {
+      const uint32_t a = uint32_t(j * columns + i), b = a + 1, c = a + uint32_t(columns), d = c + 1;
       mesh.indices.insert(mesh.indices.end(), {a, b, d, a, d, c});
     }
   return addMesh(std::move(mesh), call.line);
 }
 
-bool RibParser::doReadArchive(const Call& call) {
+// Geometry "objmesh" "string filename" ["file.obj"]: a Wavefront OBJ file, relative to the file
+// that names it.
+bool RibParser::doGeometry(const Call& call) {
+  std::string type;
+  if (!positionalString(call, 0, &type)) return false;
+  std::vector<Param> params;
+  if (!parseParams(call, 1, &params)) return false;
+  if (type != "objmesh") {
+    warnOnce(call.line, "geometry/" + type, "'Geometry \"" + type + "\"' is not supported; skipped");
+    return true;
+  }
+  std::string file;
+  if (!stringParam(call, params, "filename", &file)) return false;
+  if (file.empty()) return fail(call.line, "'Geometry \"objmesh\"' needs a \"filename\"");
+  warnUnusedParams(call, params, {"filename"});
+  const std::string path = resolveRelative(file);
+  Mesh object;
+  std::string error, warning;
+  if (!loadObjMesh(path, &object, &error, &warning)) return fail(call.line, error);
+  if (!warning.empty()) {
+    while (!warning.empty() && warning.back() == '\n') warning.pop_back();
+    warnOnce(call.line, "objwarning/" + path, "mesh '" + path + "': " + warning);
+  }
+  const glm::mat4& m = attr_.ctm;
+  const glm::mat3 normalFromObject = glm::transpose(glm::inverse(glm::mat3(m)));
+  for (glm::vec3& p : object.P) p = glm::vec3(m * glm::vec4(p, 1.0f));
+  for (glm::vec3& n : object.N) n = glm::normalize(normalFromObject * n);
+  return addMesh(std::move(object), call.line);
+}
+
+// Procedural "DelayedReadArchive" ["file"] [bound]: read at once, like ReadArchive (the bound
+// only serves deferred loading, which the reader does not need).
+bool RibParser::doProcedural(const Call& call) {
+  std::string type;
+  if (!positionalString(call, 0, &type)) return false;
+  if (type != "DelayedReadArchive") {
+    warnOnce(call.line, "procedural/" + type,
+             "'Procedural \"" + type + "\"' is not supported; skipped");
+    return true;
+  }
+  if (call.args.size() < 2 || !call.args[1].isStringy() || call.args[1].strings.empty())
+    return fail(call.line, "'Procedural \"DelayedReadArchive\"' expects [\"file\"] [bound]");
+  if (call.args.size() > 2 && (!call.args[2].isNumeric() || call.args[2].numbers.size() != 6))
+    return fail(call.line, "'Procedural': the bound must be 6 numbers");
+  return readArchive(call, call.args[1].strings[0]);
+}
+
+// ObjectInstance handle: replays the calls recorded between ObjectBegin and ObjectEnd inside an
+// attribute block, so the instance is placed by the transform and attributes current here.
+bool RibParser::doObjectInstance(const Call& call) {
+  constexpr int kMaxInstanceDepth = 32;  // an object that instances itself would recurse forever
+  std::string handle;
+  if (call.args.size() != 1 || !lightHandle(call.args[0], &handle))
+    return fail(call.line, "'ObjectInstance' expects one handle (a number or a string)");
+  const auto object = objects_.find(handle);
+  if (object == objects_.end() || &object->second == recording_)
+    return fail(call.line, "'ObjectInstance': no object with handle '" + handle + "'");
+  if (!requireWorld(call)) return false;
+  if (instanceDepth_ >= kMaxInstanceDepth)
+    return fail(call.line, "'ObjectInstance' nested more than " +
+                               std::to_string(kMaxInstanceDepth) +
+                               " deep (does an object instance itself?)");
+  const AttributeState saved = attr_;
+  const size_t depth = stack_.size();
+  const std::string savedFile = fileName_;
+  ++instanceDepth_;
+  bool ok = true;
+  for (const RecordedCall& recorded : object->second) {
+    fileName_ = recorded.file;
+    if (!execute(recorded.call)) {
+      ok = false;
+      break;
+    }
+  }
+  --instanceDepth_;
+  fileName_ = savedFile;
+  if (ok && stack_.size() != depth)
+    return fail(call.line, "object '" + handle + "' has unbalanced attribute or transform blocks");
+  attr_ = saved;
+  return ok;
+}
+
+// Option "relief": render settings carried by the scene (the command line overrides them).
+bool RibParser::doReliefOption(const Call& call, const std::vector<Param>& params) {
+  float budget = -1.0f, depth = -1.0f;
+  std::string order;
+  if (!floatParam(call, params, "cachebudget", &budget) ||
+      !floatParam(call, params, "maxdepth", &depth) ||
+      !stringParam(call, params, "order", &order))
+    return false;
+  if (budget != -1.0f) {
+    if (!(budget >= 1.0f && budget <= 1e15f) || budget != std::floor(budget))
+      return fail(call.line, "'Option \"relief\"': 'cachebudget' must be a positive integer");
+    scene_.cacheBudgetTriangles = uint64_t(budget);
+  }
+  if (depth != -1.0f) {
+    if (!(depth >= 1.0f && depth <= 64.0f) || depth != std::floor(depth))
+      return fail(call.line, "'Option \"relief\"': 'maxdepth' must be an integer from 1 to 64");
+    scene_.maxDepth = int(depth);
+  }
+  if (!order.empty()) {
+    if (order != "scanline" && order != "bucket" && order != "hilbert")
+      return fail(call.line, "'Option \"relief\"': 'order' must be scanline, bucket or hilbert");
+    scene_.order = order;
+  }
+  warnUnusedParams(call, params, {"cachebudget", "maxdepth", "order"});
+  return true;
+}
+
+bool RibParser::readArchive(const Call& call, const std::string& name) {
   // Nesting guard: an archive that reads itself would otherwise recurse until the stack runs out.
   constexpr int kMaxArchiveDepth = 32;
-  std::string name;
-  if (!positionalString(call, 0, &name)) return false;
   if (archiveDepth_ >= kMaxArchiveDepth)
-    return fail(call.line, "'ReadArchive' nested more than " + std::to_string(kMaxArchiveDepth) +
+    return fail(call.line, "'" + call.name + "' nested more than " +
+                               std::to_string(kMaxArchiveDepth) +
                                " deep (does an archive read itself?)");
-  const std::filesystem::path currentDir = std::filesystem::path(fileName_).parent_path();
-  const std::string path = std::filesystem::path(name).is_relative()
-                               ? (currentDir / name).lexically_normal().string()
-                               : name;
+  const std::string path = resolveRelative(name);
   std::ifstream in(path, std::ios::binary);
-  if (!in || !std::filesystem::is_regular_file(path))
+  std::error_code ec;
+  if (!in || !std::filesystem::is_regular_file(path, ec))
     return fail(call.line, "cannot open archive '" + path + "'");
   std::ostringstream buffer;
   buffer << in.rdbuf();
@@ -1419,6 +2240,7 @@ bool RibParser::addMesh(Mesh mesh, int line) {
     if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
       return fail(line, "geometry has non-finite coordinates after transformation");
   mesh.materialIndex = materialIndex();
+  mesh.lights = attr_.lightsOn;
   if (!displacementIndex(line, &mesh.displacementIndex)) return false;
   scene_.meshes.push_back(std::move(mesh));
   return true;

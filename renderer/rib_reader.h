@@ -29,6 +29,9 @@ struct RibReadOptions {
   runtime::ShaderProvider* shaders = nullptr;
   // The shader search path before any `Option "searchpath"`, and what `@` expands to there.
   std::vector<std::string> defaultShaderPath;
+  // The texture search path before any `Option "searchpath" "string texture"` (what `@` means
+  // there); it is also Scene::texturePath when the scene sets none.
+  std::vector<std::string> defaultTexturePath;
   // Receives `file:line: warning: message` lines; null drops them.
   std::ostream* warnings = nullptr;
 };

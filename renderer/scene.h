@@ -118,6 +118,9 @@ struct Scene {
   uint64_t cacheBudgetTriangles = 0;  // 0: not set
   std::string order;                  // "": not set
   int maxDepth = 0;                   // reflection/refraction depth; 0: not set
+  // Option "searchpath" "string texture": directories searched for texture files, in order
+  // (relative entries already resolved against the scene file's directory).
+  std::vector<std::string> texturePath;
 };
 
 }  // namespace relief

@@ -43,6 +43,10 @@ constexpr const char* kUsage =
     "  --spp N                   samples per pixel (overrides PixelSamples)\n"
     "  --threads N               render threads (default: all cores)\n"
     "  --order ORDER             pixel order: scanline, bucket or hilbert (default)\n"
+    "  --max-depth N             reflection/refraction depth (default 5; overrides the scene's\n"
+    "                            Option \"relief\" \"maxdepth\"; 0: no secondary rays)\n"
+    "  --filter NAME             pixel filter: gaussian (default, 2x2), blackman-harris (3x3)\n"
+    "                            or box (1x1)\n"
     "  --cache-triangles N       geometry cache budget in displaced triangles, or 'unlimited'\n"
     "  --grid-resolution N       contributor-grid voxels along the longest axis (default: automatic)\n"
     "  --no-refine               keep contributors that reached nothing in their voxels' lists\n"
@@ -53,13 +57,24 @@ constexpr const char* kUsage =
     "                            Displacement (overrides Attribute \"relief\" \"edgelength\")\n"
     "  --stats                   print cache statistics and timings\n"
     "  --stats-json FILE         write the same statistics as JSON (for benchmark scripts)\n"
-    "  --quiet                   no warnings or progress, only errors and the image path\n"
-    "  --help                    show this help\n"
+    "  -q, --quiet               no warnings or progress, only errors and the image path\n"
+    "  -h, --help                show this help\n"
     "  --version                 show the version\n"
     "\n"
+    "Command-line flags override the scene's settings (Format, PixelSamples, Option \"relief\").\n"
+    "Displays: the first Display is the image (-o replaces its file name); further displays of\n"
+    "mode \"z\" (depth), \"N\" (normal) or \"cachemiss\" (cache misses per pixel) are written\n"
+    "too. EXR files hold linear floats and render metadata; png/tif/jpg hold 8-bit sRGB.\n"
+    "Progress: a bar on a terminal, plain lines every 10% otherwise, nothing with --quiet.\n"
+    "\n"
+    "environment:\n"
+    "  RELIEF_SHADER_PATH        ':'-separated shader directories, searched after -I\n"
+    "\n"
     "The shader search path is the scene's Option \"searchpath\" \"shader\" if given ('@' in it\n"
-    "stands for the default path), otherwise the default: the -I directories, then the\n"
-    "':'-separated RELIEF_SHADER_PATH, then the scene file's directory.\n";
+    "stands for the default path, '&' for the previous value), otherwise the default: the -I directories, then the\n"
+    "RELIEF_SHADER_PATH directories, then the scene file's directory.\n"
+    "\n"
+    "exit status: 0 image written, 1 scene/shader/render/output error, 2 usage error\n";
 
 struct CommandLine {
   std::string scene;
@@ -69,7 +84,11 @@ struct CommandLine {
   int spp = 0;
   int threads = 0;
   relief::PixelOrder order = relief::PixelOrder::Hilbert;
+  bool orderSet = false;
+  int maxDepth = -1;  // -1: the scene's or the default
+  relief::FilterType filter = relief::FilterType::Gaussian;
   uint64_t cacheTriangles = UINT64_MAX;
+  bool cacheTrianglesSet = false;
   int gridResolution = 0;  // 0: automatic
   bool refine = true;
   uint64_t sideCache = 0;
@@ -143,8 +162,17 @@ int parseCommandLine(int argc, char** argv, CommandLine* cl) {
     } else if (a == "--order") {
       if (!value(&v) || !relief::parsePixelOrder(v, &cl->order))
         return usageError("'--order' needs scanline, bucket or hilbert");
+      cl->orderSet = true;
+    } else if (a == "--max-depth") {
+      if (!value(&v) || (v != "0" && !parsePositive(v, 100, &n)))
+        return usageError("'--max-depth' needs a depth between 0 and 100");
+      cl->maxDepth = v == "0" ? 0 : int(n);
+    } else if (a == "--filter") {
+      if (!value(&v) || !relief::parseFilter(v, &cl->filter))
+        return usageError("'--filter' needs gaussian, blackman-harris or box");
     } else if (a == "--cache-triangles") {
       if (!value(&v)) return usageError("'--cache-triangles' needs a count or 'unlimited'");
+      cl->cacheTrianglesSet = true;
       if (v == "unlimited") {
         cl->cacheTriangles = UINT64_MAX;
       } else if (parsePositive(v, (1LL << 62), &n)) {
@@ -365,6 +393,74 @@ bool writeStatsJson(const std::string& path, const StatList& stats) {
   return bool(out);
 }
 
+std::string clock(double seconds) {
+  const long s = long(std::max(0.0, seconds) + 0.5);
+  char text[32];
+  if (s >= 3600)
+    std::snprintf(text, sizeof text, "%ld:%02ld:%02ld", s / 3600, (s / 60) % 60, s % 60);
+  else
+    std::snprintf(text, sizeof text, "%ld:%02ld", s / 60, s % 60);
+  return text;
+}
+
+// Render progress on stderr: a bar redrawn at most 10 times a second on a terminal, a plain line
+// every 10% otherwise (logs, CI). Reads the cache statistics only to print them.
+class Progress {
+ public:
+  Progress(const relief::Accelerator& accel, bool terminal)
+      : accel_(accel), terminal_(terminal), start_(std::chrono::steady_clock::now()) {}
+
+  void update(int percent) {
+    const auto now = std::chrono::steady_clock::now();
+    if (terminal_) {
+      if (percent < 100 && drawn_ && now - lastDraw_ < std::chrono::milliseconds(100)) return;
+    } else if (percent / 10 <= lastDecile_) {
+      return;
+    }
+    lastDraw_ = now;
+    drawn_ = true;
+    lastDecile_ = percent / 10;
+    const double elapsed = secondsSince(start_);
+    const std::string eta =
+        percent > 0 ? clock(elapsed * double(100 - percent) / double(percent)) : std::string("?");
+    const relief::AccelStats a = accel_.stats();
+    char hits[32] = "-";
+    if (a.accesses) std::snprintf(hits, sizeof hits, "%.1f%%", 100.0 * double(a.hits) / double(a.accesses));
+    if (terminal_) {
+      constexpr int kWidth = 30;
+      const int filled = percent * kWidth / 100;
+      const std::string bar = std::string(size_t(filled), '#') + std::string(size_t(kWidth - filled), '.');
+      std::fprintf(stderr, "\r[%s] %3d%%  %s elapsed  ETA %s  cache hits %s   ", bar.c_str(), percent,
+                   clock(elapsed).c_str(), eta.c_str(), hits);
+    } else {
+      std::fprintf(stderr, "relief: rendering %3d%%, %s elapsed, ETA %s, cache hits %s\n", percent,
+                   clock(elapsed).c_str(), eta.c_str(), hits);
+    }
+    std::fflush(stderr);
+  }
+
+  void finish() {
+    if (terminal_ && drawn_) std::fprintf(stderr, "\r%*s\r", 100, "");
+    std::fflush(stderr);
+  }
+
+ private:
+  const relief::Accelerator& accel_;
+  bool terminal_;
+  std::chrono::steady_clock::time_point start_, lastDraw_;
+  bool drawn_ = false;
+  int lastDecile_ = -1;
+};
+
+enum class OutputKind { Colour, Depth, Normal, CacheMiss };
+
+OutputKind outputKind(const std::string& mode) {
+  if (mode == "z") return OutputKind::Depth;
+  if (mode == "N") return OutputKind::Normal;
+  if (mode == "cachemiss") return OutputKind::CacheMiss;
+  return OutputKind::Colour;
+}
+
 int run(const CommandLine& cl) {
   std::ostream* warnings = cl.quiet ? nullptr : &std::cerr;
   // The shader directories double as #include directories, so shaders can share headers.
@@ -393,17 +489,19 @@ int run(const CommandLine& cl) {
   if (cl.edgeLength > 0.0f)
     for (relief::Displacement& d : scene.displacements) d.edgeLength = cl.edgeLength;
 
+  // -o replaces the main display's file; the scene's other displays (AOVs) are still written.
   std::vector<std::string> outputs;
-  std::vector<bool> alpha;
-  if (!cl.output.empty()) {
-    outputs.push_back(cl.output);
-    alpha.push_back(!scene.displayModes.empty() && scene.displayModes[0] == "rgba");
-  } else if (!scene.displays.empty()) {
+  std::vector<std::string> modes;
+  if (!scene.displays.empty()) {
     outputs = scene.displays;
     for (size_t i = 0; i < outputs.size(); ++i)
-      alpha.push_back(i < scene.displayModes.size() && scene.displayModes[i] == "rgba");
+      modes.push_back(i < scene.displayModes.size() ? scene.displayModes[i] : "rgb");
+    if (!cl.output.empty()) outputs[0] = cl.output;
+  } else if (!cl.output.empty()) {
+    outputs.push_back(cl.output);
+    modes.push_back("rgb");
   } else {
-    alpha.push_back(false);
+    modes.push_back("rgb");
     outputs.push_back(std::filesystem::path(cl.scene).stem().string() + ".png");
     if (warnings)
       *warnings << cl.scene << ": warning: no Display in the scene; writing '" << outputs[0]
@@ -415,7 +513,9 @@ int run(const CommandLine& cl) {
 
   const auto buildStart = std::chrono::steady_clock::now();
   relief::AccelOptions accelOptions;
-  accelOptions.cacheBudgetTriangles = cl.cacheTriangles;
+  accelOptions.cacheBudgetTriangles = cl.cacheTrianglesSet || scene.cacheBudgetTriangles == 0
+                                          ? cl.cacheTriangles
+                                          : scene.cacheBudgetTriangles;
   accelOptions.displace = cl.displace;
   accelOptions.gridResolution = cl.gridResolution;
   accelOptions.refineContributors = cl.refine;
@@ -425,18 +525,56 @@ int run(const CommandLine& cl) {
 
   relief::RenderOptions renderOptions;
   renderOptions.order = cl.order;
+  if (!cl.orderSet && !scene.order.empty() && !relief::parsePixelOrder(scene.order, &renderOptions.order)) {
+    if (warnings)
+      *warnings << cl.scene << ": warning: unknown pixel order '" << scene.order
+                << "'; using hilbert\n";
+    renderOptions.order = relief::PixelOrder::Hilbert;
+  }
   renderOptions.threads = cl.threads;
   renderOptions.samplesPerPixel = cl.spp;
-  const bool showProgress = !cl.quiet && ::isatty(STDERR_FILENO);
-  if (showProgress) {
-    renderOptions.progress = [](int percent) {
-      std::fprintf(stderr, "\rrendering %3d%%", percent);
-      std::fflush(stderr);
-    };
-  }
+  renderOptions.maxDepth = cl.maxDepth;
+  renderOptions.filter = cl.filter;
+  renderOptions.displaced = cl.displace;
+  Progress progress(*accel, ::isatty(STDERR_FILENO) != 0);
+  if (!cl.quiet) renderOptions.progress = [&progress](int percent) { progress.update(percent); };
+
   relief::Film film(scene.width, scene.height);
-  const relief::RenderStats renderStats = relief::render(scene, *accel, renderOptions, &film);
-  if (showProgress) std::fprintf(stderr, "\r               \r");
+  std::optional<relief::Film> depth, normal, cacheMiss;
+  relief::AovFilms aovs;
+  for (const std::string& mode : modes) {
+    switch (outputKind(mode)) {
+      case OutputKind::Depth:
+        if (!depth) depth.emplace(scene.width, scene.height), aovs.depth = &*depth;
+        break;
+      case OutputKind::Normal:
+        if (!normal) normal.emplace(scene.width, scene.height), aovs.normal = &*normal;
+        break;
+      case OutputKind::CacheMiss:
+        if (!cacheMiss) cacheMiss.emplace(scene.width, scene.height), aovs.cacheMiss = &*cacheMiss;
+        break;
+      case OutputKind::Colour:
+        break;
+    }
+  }
+  const relief::RenderStats renderStats = relief::render(scene, *accel, renderOptions, &film, aovs);
+  if (!cl.quiet) progress.finish();
+
+  const relief::AccelStats finalStats = accel->stats();
+  std::vector<std::pair<std::string, std::string>> metadata = {
+      {"relief:version", kVersion},
+      {"relief:scene", cl.scene},
+      {"relief:renderSeconds", std::to_string(renderStats.seconds)},
+      {"relief:samplesPerPixel", std::to_string(renderStats.samplesPerPixel)},
+      {"relief:filter", std::string(relief::filterName(cl.filter))},
+      {"relief:order", std::string(relief::pixelOrderName(renderOptions.order))},
+      {"relief:cacheAccesses", std::to_string(finalStats.accesses)},
+      {"relief:cacheHits", std::to_string(finalStats.hits)},
+      {"relief:cacheCompulsoryMisses", std::to_string(finalStats.compulsoryMisses)},
+      {"relief:cacheCapacityMisses", std::to_string(finalStats.capacityMisses)},
+      {"relief:peakResidentTriangles", std::to_string(finalStats.peakResidentTriangles)},
+      {"relief:displacedTrianglesCreated", std::to_string(finalStats.displacedTrianglesCreated)},
+  };
 
   for (size_t i = 0; i < outputs.size(); ++i) {
     const std::string& path = outputs[i];
@@ -444,8 +582,50 @@ int run(const CommandLine& cl) {
     const std::filesystem::path parent = std::filesystem::path(path).parent_path();
     std::error_code ignored;
     if (!parent.empty()) std::filesystem::create_directories(parent, ignored);
+    const bool floats = relief::isFloatFormat(path);
+    relief::ImageWriteOptions writeOptions;
+    writeOptions.metadata = metadata;
+    const relief::Film* image = &film;
+    std::optional<relief::Film> mapped;  // AOVs made viewable for 8-bit formats
+    switch (outputKind(modes[i])) {
+      case OutputKind::Colour:
+        writeOptions.alpha = modes[i] == "rgba";
+        break;
+      case OutputKind::Depth:
+        writeOptions.metadata.emplace_back("relief:aov", "z");
+        if (floats) {
+          image = &*depth;
+          writeOptions.channels = 1;
+          writeOptions.channelNames = {"Z"};
+        } else {
+          image = &mapped.emplace(relief::depthForDisplay(*depth));
+          writeOptions.srgb = false;
+        }
+        break;
+      case OutputKind::Normal:
+        writeOptions.metadata.emplace_back("relief:aov", "N");
+        if (floats) {
+          image = &*normal;
+          writeOptions.channelNames = {"N.X", "N.Y", "N.Z"};
+        } else {
+          image = &mapped.emplace(relief::normalForDisplay(*normal));
+          writeOptions.srgb = false;
+        }
+        break;
+      case OutputKind::CacheMiss:
+        writeOptions.metadata.emplace_back("relief:aov", "cachemiss");
+        if (floats) {
+          image = &*cacheMiss;
+          writeOptions.channels = 1;
+          writeOptions.channelNames = {"cachemiss"};
+        } else {
+          image = &mapped.emplace(relief::heatMapForDisplay(*cacheMiss));
+          writeOptions.srgb = false;
+        }
+        break;
+    }
     std::string writeError;
-    if (!film.write(path, &writeError, alpha[i])) {
+    if (!image->write(path, &writeError, writeOptions)) {
       std::cerr << "relief: error: " << writeError << "\n";
       return 1;
     }

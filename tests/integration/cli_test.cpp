@@ -1,6 +1,7 @@
 // End-to-end tests of the executables: reliefc's exit codes and clang-style diagnostics, and relief
 // rendering the default example scene against a stored reference image, deterministically across
-// orders and thread counts, and refusing bad input without writing an image.
+// orders and thread counts, and refusing bad input without writing an image; the command-line
+// experience (help, version, progress, flags, RELIEF_SHADER_PATH precedence, AOV displays).
 #include <sys/wait.h>
 
 #include <cstdio>
@@ -10,6 +11,7 @@
 #include <sstream>
 #include <string>
 
+#include <OpenImageIO/imageio.h>
 #include <gtest/gtest.h>
 
 #include "image_compare.h"
@@ -175,6 +177,150 @@ TEST(Relief, MalformedSceneReportsFileAndLine) {
   EXPECT_NE(r.exitCode, 0);
   EXPECT_NE(r.err.find("bad.rib:3:"), std::string::npos) << r.err;
   EXPECT_FALSE(fs::exists(image));
+}
+
+TEST(Relief, HelpListsEveryOptionAndTheEnvironment) {
+  RunResult r = run(kRelief + " --help");
+  EXPECT_EQ(r.exitCode, 0);
+  for (const char* option :
+       {"-I", "-o ", "--resolution", "--spp", "--threads", "--order", "--max-depth", "--filter",
+        "blackman-harris", "--cache-triangles", "--no-displacement", "--stats", "--stats-json",
+        "--quiet", "--help", "--version", "RELIEF_SHADER_PATH", "cachemiss", "exit status"})
+    EXPECT_NE(r.out.find(option), std::string::npos) << option;
+}
+
+TEST(Relief, VersionIsPrinted) {
+  RunResult r = run(kRelief + " --version");
+  EXPECT_EQ(r.exitCode, 0);
+  EXPECT_EQ(r.out.rfind("relief ", 0), 0u) << r.out;
+}
+
+TEST(Relief, BadFlagValuesAreUsageErrors) {
+  for (const char* flags : {"--filter mitchell", "--max-depth -1", "--max-depth x", "--order zigzag",
+                            "--spp 0", "--frobnicate"}) {
+    RunResult r = run(kRelief + " " + kSphereScene + " " + flags);
+    EXPECT_EQ(r.exitCode, 2) << flags;
+    EXPECT_NE(r.err.find("relief: error:"), std::string::npos) << flags << ": " << r.err;
+  }
+}
+
+// A tiny scene with one distant light and a plane; `extra` goes inside the world.
+fs::path smallScene(const fs::path& dir, const std::string& displays, const std::string& extra = "") {
+  return writeFile(dir / "small.rib",
+                   "Format 16 12 1\n" + displays +
+                       "Projection \"perspective\" \"fov\" [40]\n"
+                       "Translate 0 0 5\n"
+                       "WorldBegin\n"
+                       "LightSource \"distantlight\" 1 \"from\" [0 0 -1] \"to\" [0 0 0]\n" +
+                       extra +
+                       "Polygon \"P\" [-1 -1 0  1 -1 0  1 1 0  -1 1 0]\n"
+                       "WorldEnd\n");
+}
+
+TEST(Relief, PlainProgressLinesWhenNotATerminalAndNoneWhenQuiet) {
+  const fs::path dir = scratchDir();
+  const fs::path scene = smallScene(dir, "");
+  RunResult r = run(kRelief + " " + scene.string() + " -o " + (dir / "a.png").string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_NE(r.err.find("rendering 100%"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find('\r'), std::string::npos);  // no terminal redraws in a log
+  EXPECT_NE(r.err.find("ETA"), std::string::npos) << r.err;
+  r = run(kRelief + " " + scene.string() + " --quiet -o " + (dir / "b.png").string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_EQ(r.err, "");
+  EXPECT_EQ(r.out, (dir / "b.png").string() + "\n");
+}
+
+TEST(Relief, FiltersAndDepthFlagsRender) {
+  const fs::path dir = scratchDir();
+  const fs::path scene = smallScene(dir, "PixelSamples 2 2\n");
+  for (const char* flags : {"--filter box", "--filter blackman-harris", "--max-depth 0"}) {
+    const fs::path image = dir / "f.exr";
+    RunResult r = run(kRelief + " " + scene.string() + " --quiet " + flags + " -o " + image.string());
+    EXPECT_EQ(r.exitCode, 0) << flags << ": " << r.err;
+    EXPECT_TRUE(fs::exists(image)) << flags;
+    fs::remove(image);
+  }
+}
+
+TEST(Relief, ExrHasRenderMetadata) {
+  const fs::path dir = scratchDir();
+  const fs::path scene = smallScene(dir, "");
+  const fs::path image = dir / "m.exr";
+  RunResult r = run(kRelief + " " + scene.string() + " --quiet -o " + image.string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  auto in = OIIO::ImageInput::open(image.string());
+  ASSERT_TRUE(in);
+  const OIIO::ImageSpec& spec = in->spec();
+  EXPECT_EQ(spec.get_string_attribute("relief:scene"), scene.string());
+  EXPECT_FALSE(spec.get_string_attribute("relief:version").empty());
+  EXPECT_FALSE(spec.get_string_attribute("relief:renderSeconds").empty());
+  EXPECT_FALSE(spec.get_string_attribute("relief:cacheAccesses").empty());
+  EXPECT_EQ(spec.format, OIIO::TypeDesc::FLOAT);
+}
+
+// -I directories come before RELIEF_SHADER_PATH, which comes before the scene's directory: a
+// broken shader of the same name later in the path is never seen.
+TEST(Relief, ShaderPathPrecedence) {
+  const fs::path dir = scratchDir();
+  fs::create_directories(dir / "good");
+  fs::create_directories(dir / "bad");
+  writeFile(dir / "good" / "bump.disp",
+            "displacement bump(float Km = 0.01)\n{\n    P += Km * normalize(N);\n}\n");
+  writeFile(dir / "bad" / "bump.disp", "displacement bump(float Km = 0.01)\n{\n    P += N * Kn;\n}\n");
+  const fs::path scene = smallScene(
+      dir, "", "Attribute \"displacementbound\" \"float sphere\" [0.01]\nDisplacement \"bump\"\n");
+  const std::string image = " --quiet -o " + (dir / "p.png").string();
+  const std::string good = (dir / "good").string(), bad = (dir / "bad").string();
+  RunResult r = run("RELIEF_SHADER_PATH=" + good + " " + kRelief + " " + scene.string() + image);
+  EXPECT_EQ(r.exitCode, 0) << r.err;  // found through the environment alone
+  r = run("RELIEF_SHADER_PATH=" + bad + " " + kRelief + " " + scene.string() + " -I " + good + image);
+  EXPECT_EQ(r.exitCode, 0) << r.err;  // -I wins
+  r = run("RELIEF_SHADER_PATH=" + good + " " + kRelief + " " + scene.string() + " -I " + bad + image);
+  EXPECT_EQ(r.exitCode, 1);
+  EXPECT_NE(r.err.find("bad/bump.disp"), std::string::npos) << r.err;
+  r = run("RELIEF_SHADER_PATH=/nonexistent:" + good + " " + kRelief + " " + scene.string() + image);
+  EXPECT_EQ(r.exitCode, 0) << r.err;  // ':'-separated, missing directories skipped
+  r = run("env -u RELIEF_SHADER_PATH " + kRelief + " " + scene.string() + image);
+  EXPECT_EQ(r.exitCode, 1);  // nowhere to be found
+}
+
+// Display modes "z", "N" and "cachemiss" add AOV images next to the main one.
+TEST(Relief, AovDisplaysAreWritten) {
+  const fs::path dir = scratchDir();
+  const std::string main = (dir / "main.png").string(), z = (dir / "z.exr").string(),
+                    n = (dir / "n.exr").string(), heat = (dir / "heat.png").string();
+  const fs::path scene = smallScene(dir, "Display \"" + main + "\" \"file\" \"rgb\"\n"
+                                    "Display \"+" + z + "\" \"file\" \"z\"\n"
+                                    "Display \"+" + n + "\" \"file\" \"N\"\n"
+                                    "Display \"+" + heat + "\" \"file\" \"cachemiss\"\n");
+  RunResult r = run(kRelief + " " + scene.string() + " --quiet");
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  for (const std::string& f : {main, z, n, heat}) EXPECT_TRUE(fs::exists(f)) << f;
+  auto in = OIIO::ImageInput::open(z);
+  ASSERT_TRUE(in);
+  ASSERT_EQ(in->spec().nchannels, 1);
+  std::vector<float> depth(16 * 12);
+  ASSERT_TRUE(in->read_image(0, 0, 0, 1, OIIO::TypeDesc::FLOAT, depth.data()));
+  EXPECT_NEAR(depth[6 * 16 + 8], 5.0f, 1e-4f);  // the plane is 5 units in front of the camera
+  EXPECT_EQ(depth[0], 0.0f);                    // a corner misses it
+}
+
+TEST(Relief, FailedOutputLeavesNoImage) {
+  const fs::path dir = scratchDir();
+  const fs::path scene = smallScene(dir, "");
+  // A file where a directory should be: the image cannot be created.
+  writeFile(dir / "blocker", "x");
+  RunResult r = run(kRelief + " " + scene.string() + " --quiet -o " + (dir / "blocker" / "a.png").string());
+  EXPECT_EQ(r.exitCode, 1);
+  EXPECT_NE(r.err.find("a.png"), std::string::npos) << r.err;
+  r = run(kRelief + " " + scene.string() + " --quiet -o " + (dir / "a.unknownformat").string());
+  EXPECT_EQ(r.exitCode, 1);
+  for (const auto& entry : fs::directory_iterator(dir)) {
+    const std::string name = entry.path().filename().string();
+    EXPECT_TRUE(name == "small.rib" || name == "blocker" || name == "stdout.txt" || name == "stderr.txt")
+        << name;
+  }
 }
 
 }  // namespace

@@ -1,5 +1,6 @@
 // Tests of image output: formats chosen by extension, sRGB encoding for 8-bit files, linear floats
-// for EXR, and atomic writes that leave nothing behind on failure.
+// for EXR with metadata and named channels, the AOV display mappings, and atomic writes that leave
+// nothing behind on failure.
 #include <unistd.h>
 
 #include <filesystem>
@@ -129,6 +130,65 @@ TEST(FilmOutput, ReplacesAnExistingFile) {
   ASSERT_TRUE(in);
   EXPECT_EQ(in->spec().width, 5);
   EXPECT_EQ(std::distance(fs::directory_iterator(path.parent_path()), fs::directory_iterator()), 1);
+}
+
+TEST(FilmOutput, ExrCarriesMetadataAndNamedSingleChannel) {
+  Film depth(2, 2);
+  depth.setPixel(1, 0, glm::vec3(3.5f), 1.0f);
+  const fs::path path = scratch() / "z.exr";
+  ImageWriteOptions options;
+  options.channels = 1;
+  options.channelNames = {"Z"};
+  options.metadata = {{"relief:scene", "scenes/x.rib"}, {"relief:cacheHits", "42"}};
+  std::string error;
+  ASSERT_TRUE(depth.write(path.string(), &error, options)) << error;
+  auto in = OIIO::ImageInput::open(path.string());
+  ASSERT_TRUE(in) << OIIO::geterror();
+  const OIIO::ImageSpec& spec = in->spec();
+  ASSERT_EQ(spec.nchannels, 1);
+  EXPECT_EQ(spec.channelnames[0], "Z");
+  EXPECT_EQ(spec.get_string_attribute("relief:scene"), "scenes/x.rib");
+  EXPECT_EQ(spec.get_string_attribute("relief:cacheHits"), "42");
+  std::vector<float> px(4);
+  ASSERT_TRUE(in->read_image(0, 0, 0, 1, OIIO::TypeDesc::FLOAT, px.data()));
+  EXPECT_EQ(px[1], 3.5f);
+  EXPECT_EQ(px[0], 0.0f);
+}
+
+TEST(FilmOutput, LinearEightBitForData) {
+  Film film(1, 1);
+  film.setPixel(0, 0, glm::vec3(0.5f));
+  const fs::path path = scratch() / "n.png";
+  ImageWriteOptions options;
+  options.srgb = false;
+  std::string error;
+  ASSERT_TRUE(film.write(path.string(), &error, options)) << error;
+  int channels = 0;
+  EXPECT_EQ(readBack(path, OIIO::TypeDesc::UINT8, &channels)[0], 128.0f);  // not 188
+}
+
+TEST(FilmOutput, AovDisplayMappings) {
+  Film counts(3, 1);
+  counts.setPixel(1, 0, glm::vec3(2.0f));
+  counts.setPixel(2, 0, glm::vec3(6.0f));
+  const Film heat = heatMapForDisplay(counts);
+  EXPECT_EQ(heat.pixel(0, 0), glm::vec3(0.0f));  // no misses: black
+  EXPECT_EQ(heat.pixel(2, 0), glm::vec3(1.0f));  // the most: white
+  EXPECT_EQ(heat.pixel(1, 0), glm::vec3(1.0f, 0.0f, 0.0f));  // a third: red
+
+  Film depth(3, 1);
+  depth.setPixel(1, 0, glm::vec3(2.0f), 1.0f);
+  depth.setPixel(2, 0, glm::vec3(4.0f), 1.0f);
+  const Film grey = depthForDisplay(depth);
+  EXPECT_EQ(grey.pixel(0, 0), glm::vec3(0.0f));  // a miss
+  EXPECT_EQ(grey.pixel(1, 0), glm::vec3(1.0f));  // nearest: white
+  EXPECT_NEAR(grey.pixel(2, 0).r, 0.2f, 1e-6f);   // farthest: dark grey, still unlike a miss
+
+  Film normal(1, 1);
+  normal.setPixel(0, 0, {0.0f, -1.0f, 1.0f}, 1.0f);
+  EXPECT_EQ(normalForDisplay(normal).pixel(0, 0), glm::vec3(0.5f, 0.0f, 1.0f));
+  EXPECT_TRUE(isFloatFormat("a/b.EXR"));
+  EXPECT_FALSE(isFloatFormat("a/b.png"));
 }
 
 TEST(FilmOutput, SrgbTransfer) {

@@ -54,6 +54,20 @@ TEST(RenderCamera, ScreenWindowOverridesTheAspectDefault) {
   EXPECT_EQ(r.direction, glm::vec3(0, 0, 1));
 }
 
+TEST(RenderCamera, OrthographicDefaultWindowFollowsTheAspect) {
+  Camera cam;  // what the RIB reader gives a scene with no Projection
+  cam.perspective = false;
+  cam.worldFromCamera = glm::inverse(glm::translate(glm::mat4(1.0f), glm::vec3(0, 0, 5)));
+  CameraRays rays(cam, 200, 100);  // landscape: [-2, 2] x [-1, 1]
+  EXPECT_FLOAT_EQ(rays.screenWindow()[0], -2.0f);
+  EXPECT_FLOAT_EQ(rays.screenWindow()[3], 1.0f);
+  const Ray topLeft = rays.generate(0, 0), centre = rays.generate(100, 50);
+  EXPECT_EQ(topLeft.origin, glm::vec3(-2, 1, -5));
+  EXPECT_EQ(centre.origin, glm::vec3(0, 0, -5));
+  EXPECT_EQ(topLeft.direction, centre.direction);  // parallel rays
+  EXPECT_EQ(centre.direction, glm::vec3(0, 0, 1));
+}
+
 TEST(RenderCamera, WorldFromCameraMovesAndTurnsRays) {
   Camera cam;
   // Camera at (0, 0, -5) looking down world +z: cameraFromWorld translates by +5.

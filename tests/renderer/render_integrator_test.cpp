@@ -32,13 +32,14 @@ std::string wallScene(const std::string& lights, const std::string& extra = "") 
 }
 
 Film renderScene(const Scene& scene, PixelOrder order = PixelOrder::Hilbert, int threads = 1,
-                 int spp = 0) {
+                 int spp = 0, FilterType filter = FilterType::Gaussian) {
   test::BruteForceAccelerator accel(scene);
   Film film(scene.width, scene.height);
   RenderOptions options;
   options.order = order;
   options.threads = threads;
   options.samplesPerPixel = spp;
+  options.filter = filter;
   render(scene, accel, options, &film);
   return film;
 }
@@ -162,14 +163,14 @@ TEST(RenderIntegrator, ProgressRisesToOneHundred) {
 
 TEST(RenderIntegrator, SamplesJitterInsideThePixel) {
   // A vertical edge through the middle of pixel column 2: one centred sample sees all or nothing,
-  // 16 jittered samples see about half.
+  // 16 jittered samples see about half (box filter: no sample of a neighbour counts).
   const std::string rib =
       "Format 4 1 1\nProjection \"orthographic\"\nScreenWindow 0 4 -0.5 0.5\nTranslate 0 0 5\n"
       "WorldBegin\nLightSource \"ambientlight\" 1\n"
       "Polygon \"P\" [2.5 -1 0  9 -1 0  9 1 0  2.5 1 0]\nWorldEnd\n";
   const Scene scene = load(rib);
   const Film one = renderScene(scene, PixelOrder::Scanline, 1, 1);
-  const Film many = renderScene(scene, PixelOrder::Scanline, 1, 16);
+  const Film many = renderScene(scene, PixelOrder::Scanline, 1, 16, FilterType::Box);
   EXPECT_EQ(one.pixel(1, 0).r, 0.0f);
   EXPECT_EQ(one.alpha(1, 0), 0.0f);
   EXPECT_EQ(one.alpha(3, 0), 1.0f);

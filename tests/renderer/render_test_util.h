@@ -1,6 +1,7 @@
 // Test doubles for the scene and render tests: a brute-force Accelerator over the undisplaced
-// input triangles (the reference the real grid accelerator must agree with) and a ShaderProvider
-// serving hand-written C++ displacement shaders through the runtime ABI.
+// input triangles (the reference the real grid accelerator must agree with), a ShaderProvider
+// serving hand-written C++ displacement shaders through the runtime ABI, and helpers that build
+// scenes in code (quads, boxes, cameras, materials, lights) for the shading tests.
 #pragma once
 
 #include <cmath>
@@ -9,7 +10,11 @@
 #include <string>
 #include <vector>
 
+#include <glm/gtc/matrix_transform.hpp>
+
 #include "renderer/accel.h"
+#include "renderer/film.h"
+#include "renderer/render.h"
 #include "renderer/scene.h"
 #include "runtime/shader.h"
 
@@ -124,5 +129,94 @@ class TestShaderProvider : public runtime::ShaderProvider {
   }
   std::vector<std::string> lastSearchPath;
 };
+
+// A parallelogram (two triangles) whose outward normal is normalize(cross(edgeU, edgeV)).
+inline Mesh quad(const glm::vec3& corner, const glm::vec3& edgeU, const glm::vec3& edgeV,
+                 uint32_t material) {
+  Mesh m;
+  m.P = {corner, corner + edgeU, corner + edgeU + edgeV, corner + edgeV};
+  m.indices = {0, 1, 2, 0, 2, 3};
+  m.materialIndex = material;
+  return m;
+}
+
+// An axis-aligned closed box with outward-facing triangles.
+inline Mesh box(const glm::vec3& lo, const glm::vec3& hi, uint32_t material) {
+  Mesh m;
+  m.materialIndex = material;
+  auto face = [&](glm::vec3 c, glm::vec3 u, glm::vec3 v) {
+    const uint32_t base = uint32_t(m.P.size());
+    m.P.insert(m.P.end(), {c, c + u, c + u + v, c + v});
+    m.indices.insert(m.indices.end(), {base, base + 1, base + 2, base, base + 2, base + 3});
+  };
+  const glm::vec3 d = hi - lo;
+  const glm::vec3 X(d.x, 0, 0), Y(0, d.y, 0), Z(0, 0, d.z);
+  face(lo, Y, X);           // z = lo: normal -z
+  face(lo + Z, X, Y);       // z = hi: normal +z
+  face(lo, X, Z);           // y = lo: normal -y
+  face(lo + Y, Z, X);       // y = hi: normal +y
+  face(lo, Z, Y);           // x = lo: normal -x
+  face(lo + X, Y, Z);       // x = hi: normal +x
+  return m;
+}
+
+// A `size` x `size` image seen by an orthographic camera at z = -5 looking down +z, whose screen
+// window spans [-half, half]^2 of the world's x and y: raster (i, j) is world
+// x = -half + (i + 0.5) * 2 half / size, y = half - (j + 0.5) * 2 half / size.
+inline Scene orthoScene(int size, float half) {
+  Scene s;
+  s.width = s.height = size;
+  s.camera.perspective = false;
+  s.camera.worldFromCamera = glm::translate(glm::mat4(1.0f), glm::vec3(0, 0, -5));
+  s.camera.screenWindowSet = true;
+  s.camera.screenWindow[0] = -half, s.camera.screenWindow[1] = half;
+  s.camera.screenWindow[2] = -half, s.camera.screenWindow[3] = half;
+  return s;
+}
+
+inline uint32_t addMaterial(Scene* s, const Material& m) {
+  s->materials.push_back(m);
+  return uint32_t(s->materials.size() - 1);
+}
+
+inline Material matte(glm::vec3 color = glm::vec3(1.0f), float Ka = 0.0f, float Kd = 1.0f) {
+  Material m;
+  m.type = SurfaceType::Matte;
+  m.color = color;
+  m.Ka = Ka;
+  m.Kd = Kd;
+  return m;
+}
+
+inline Material constant(glm::vec3 color) {
+  Material m;
+  m.type = SurfaceType::Constant;
+  m.color = color;
+  return m;
+}
+
+inline Light pointLight(glm::vec3 position, glm::vec3 color) {
+  Light l;
+  l.type = LightType::Point;
+  l.position = position;
+  l.color = color;
+  return l;
+}
+
+inline Light distantLight(glm::vec3 direction, glm::vec3 color) {
+  Light l;
+  l.type = LightType::Distant;
+  l.direction = glm::normalize(direction);
+  l.color = color;
+  return l;
+}
+
+inline Film renderWith(const Scene& scene, RenderOptions options = {}, const AovFilms& aovs = {}) {
+  BruteForceAccelerator accel(scene);
+  Film film(scene.width, scene.height);
+  if (options.threads == 0) options.threads = 1;
+  render(scene, accel, options, &film, aovs);
+  return film;
+}
 
 }  // namespace relief::test

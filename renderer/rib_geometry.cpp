@@ -1,0 +1,236 @@
+// Polygon triangulation and cubic bases for the RIB reader (see rib_geometry.h).
+#include "renderer/rib_geometry.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+namespace relief {
+
+namespace {
+
+double cross2(glm::dvec2 a, glm::dvec2 b, glm::dvec2 c) {
+  return (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
+}
+
+double signedArea(const std::vector<glm::dvec2>& pts, const std::vector<uint32_t>& loop) {
+  double area = 0;
+  for (size_t i = 0; i < loop.size(); ++i) {
+    const glm::dvec2 a = pts[loop[i]], b = pts[loop[(i + 1) % loop.size()]];
+    area += a.x * b.y - a.y * b.x;
+  }
+  return area * 0.5;
+}
+
+// True when segments pq and rs cross at a point interior to both (touching endpoints do not count).
+bool segmentsCross(glm::dvec2 p, glm::dvec2 q, glm::dvec2 r, glm::dvec2 s) {
+  const double d1 = cross2(p, q, r), d2 = cross2(p, q, s);
+  const double d3 = cross2(r, s, p), d4 = cross2(r, s, q);
+  return ((d1 > 0 && d2 < 0) || (d1 < 0 && d2 > 0)) && ((d3 > 0 && d4 < 0) || (d3 < 0 && d4 > 0));
+}
+
+bool insideOrOnTriangle(glm::dvec2 p, glm::dvec2 a, glm::dvec2 b, glm::dvec2 c) {
+  return cross2(a, b, p) >= 0 && cross2(b, c, p) >= 0 && cross2(c, a, p) >= 0;
+}
+
+// Joins `hole` into `outer` through a bridge from the hole's rightmost vertex to the nearest
+// outer vertex that sees it (a bridge crossing no edge of the outer loop or of any hole).
+void bridgeHole(const std::vector<glm::dvec2>& pts, std::vector<uint32_t>* outer,
+                const std::vector<uint32_t>& hole,
+                const std::vector<std::vector<uint32_t>>& allHoles) {
+  size_t m = 0;
+  for (size_t i = 1; i < hole.size(); ++i)
+    if (pts[hole[i]].x > pts[hole[m]].x) m = i;
+  const glm::dvec2 M = pts[hole[m]];
+  std::vector<size_t> order(outer->size());
+  std::iota(order.begin(), order.end(), size_t(0));
+  std::sort(order.begin(), order.end(), [&](size_t a, size_t b) {
+    const double da = glm::dot(pts[(*outer)[a]] - M, pts[(*outer)[a]] - M);
+    const double db = glm::dot(pts[(*outer)[b]] - M, pts[(*outer)[b]] - M);
+    return da < db || (da == db && a < b);
+  });
+  auto crossesLoop = [&](glm::dvec2 v, const std::vector<uint32_t>& loop) {
+    for (size_t i = 0; i < loop.size(); ++i) {
+      if (segmentsCross(M, v, pts[loop[i]], pts[loop[(i + 1) % loop.size()]])) return true;
+    }
+    return false;
+  };
+  size_t best = order.empty() ? 0 : order[0];
+  for (size_t candidate : order) {
+    const glm::dvec2 v = pts[(*outer)[candidate]];
+    bool blocked = crossesLoop(v, *outer);
+    for (const std::vector<uint32_t>& h : allHoles) blocked = blocked || crossesLoop(v, h);
+    if (!blocked) {
+      best = candidate;
+      break;
+    }
+  }
+  std::vector<uint32_t> joined(outer->begin(), outer->begin() + ptrdiff_t(best) + 1);
+  for (size_t k = 0; k <= hole.size(); ++k) joined.push_back(hole[(m + k) % hole.size()]);
+  joined.push_back((*outer)[best]);
+  joined.insert(joined.end(), outer->begin() + ptrdiff_t(best) + 1, outer->end());
+  *outer = std::move(joined);
+}
+
+}  // namespace
+
+std::vector<uint32_t> triangulatePolygon(const std::vector<std::vector<glm::vec3>>& loops) {
+  std::vector<uint32_t> triangles;
+  if (loops.empty() || loops[0].size() < 3) return triangles;
+  if (loops.size() == 1 && loops[0].size() == 3) return {0, 1, 2};
+
+  // Newell's normal of the outer loop picks the projection plane and keeps the loop
+  // counter-clockwise in it, so emitted triangles wind like the input.
+  const std::vector<glm::vec3>& outer3 = loops[0];
+  glm::dvec3 normal(0.0);
+  for (size_t i = 0; i < outer3.size(); ++i) {
+    const glm::dvec3 a(outer3[i]), b(outer3[(i + 1) % outer3.size()]);
+    normal += glm::dvec3((a.y - b.y) * (a.z + b.z), (a.z - b.z) * (a.x + b.x),
+                         (a.x - b.x) * (a.y + b.y));
+  }
+  const glm::dvec3 absN = glm::abs(normal);
+  const int k = absN.x >= absN.y && absN.x >= absN.z ? 0 : absN.y >= absN.z ? 1 : 2;
+  int ia = (k + 1) % 3, ib = (k + 2) % 3;
+  if (normal[k] < 0) std::swap(ia, ib);
+
+  std::vector<glm::dvec2> pts;
+  std::vector<std::vector<uint32_t>> loopIndices;
+  for (const std::vector<glm::vec3>& loop : loops) {
+    std::vector<uint32_t> indices;
+    for (const glm::vec3& p : loop) {
+      indices.push_back(uint32_t(pts.size()));
+      pts.emplace_back(double(p[ia]), double(p[ib]));
+    }
+    loopIndices.push_back(std::move(indices));
+  }
+
+  // A convex boundary without holes is its own fan (and the common case: skip the O(n^2) search).
+  auto fan = [&]() {
+    for (uint32_t k = 1; k + 1 < uint32_t(loopIndices[0].size()); ++k)
+      triangles.insert(triangles.end(), {0u, k, k + 1});
+    return triangles;
+  };
+  if (loopIndices.size() == 1) {
+    bool convex = true;
+    const std::vector<uint32_t>& loop = loopIndices[0];
+    for (size_t i = 0; i < loop.size() && convex; ++i)
+      convex = cross2(pts[loop[i]], pts[loop[(i + 1) % loop.size()]],
+                      pts[loop[(i + 2) % loop.size()]]) > 0;
+    if (convex) return fan();
+  }
+  // Ear clipping is quadratic or worse; beyond this size a fan is the bounded-time answer.
+  if (pts.size() > kMaxEarClippingPoints) return fan();
+
+  std::vector<uint32_t> polygon = loopIndices[0];
+  std::vector<std::vector<uint32_t>> holes;
+  for (size_t i = 1; i < loopIndices.size(); ++i) {
+    if (loopIndices[i].size() < 3) continue;
+    std::vector<uint32_t> hole = loopIndices[i];
+    if (signedArea(pts, hole) > 0) std::reverse(hole.begin(), hole.end());  // holes run clockwise
+    holes.push_back(std::move(hole));
+  }
+  // Rightmost hole first, so each bridge sees only holes not yet joined.
+  std::sort(holes.begin(), holes.end(), [&](const auto& a, const auto& b) {
+    double ma = -INFINITY, mb = -INFINITY;
+    for (uint32_t i : a) ma = std::max(ma, pts[i].x);
+    for (uint32_t i : b) mb = std::max(mb, pts[i].x);
+    return ma > mb;
+  });
+  for (size_t h = 0; h < holes.size(); ++h) {
+    const std::vector<std::vector<uint32_t>> rest(holes.begin() + ptrdiff_t(h) + 1, holes.end());
+    bridgeHole(pts, &polygon, holes[h], rest);
+  }
+
+  // Ear clipping over a circular doubly linked list of polygon positions.
+  const size_t n = polygon.size();
+  std::vector<size_t> prev(n), next(n);
+  for (size_t i = 0; i < n; ++i) {
+    prev[i] = (i + n - 1) % n;
+    next[i] = (i + 1) % n;
+  }
+  // Starting at the second corner makes a convex polygon come out as the fan around corner 0.
+  size_t remaining = n, current = 1;
+  auto at = [&](size_t node) { return pts[polygon[node]]; };
+  auto isEar = [&](size_t node) {
+    const glm::dvec2 a = at(prev[node]), b = at(node), c = at(next[node]);
+    if (cross2(a, b, c) <= 0) return false;
+    for (size_t other = next[next[node]]; other != prev[node]; other = next[other]) {
+      const glm::dvec2 p = at(other);
+      if (p == a || p == b || p == c) continue;  // bridge copies and repeated points
+      if (insideOrOnTriangle(p, a, b, c)) return false;
+    }
+    return true;
+  };
+  auto clip = [&](size_t node) {
+    triangles.push_back(polygon[prev[node]]);
+    triangles.push_back(polygon[node]);
+    triangles.push_back(polygon[next[node]]);
+    next[prev[node]] = next[node];
+    prev[next[node]] = prev[node];
+    current = next[node];
+    --remaining;
+  };
+  while (remaining > 3) {
+    size_t node = current;
+    bool clipped = false;
+    for (size_t tries = 0; tries < remaining; ++tries, node = next[node]) {
+      if (isEar(node)) {
+        clip(node);
+        clipped = true;
+        break;
+      }
+    }
+    if (clipped) continue;
+    // No clean ear (degenerate or self-intersecting input): clip the most convex corner so the
+    // loop always shrinks.
+    size_t best = current;
+    double bestCross = -INFINITY;
+    node = current;
+    for (size_t tries = 0; tries < remaining; ++tries, node = next[node]) {
+      const double c = cross2(at(prev[node]), at(node), at(next[node]));
+      if (c > bestCross) bestCross = c, best = node;
+    }
+    clip(best);
+  }
+  triangles.push_back(polygon[prev[current]]);
+  triangles.push_back(polygon[current]);
+  triangles.push_back(polygon[next[current]]);
+  return triangles;
+}
+
+void CubicBasis::weights(float u, float w[4]) const {
+  const float U[4] = {u * u * u, u * u, u, 1.0f};
+  for (int c = 0; c < 4; ++c)
+    w[c] = U[0] * matrix[0][c] + U[1] * matrix[1][c] + U[2] * matrix[2][c] + U[3] * matrix[3][c];
+}
+
+void CubicBasis::derivativeWeights(float u, float w[4]) const {
+  const float dU[3] = {3.0f * u * u, 2.0f * u, 1.0f};
+  for (int c = 0; c < 4; ++c)
+    w[c] = dU[0] * matrix[0][c] + dU[1] * matrix[1][c] + dU[2] * matrix[2][c];
+}
+
+bool namedCubicBasis(const std::string& name, CubicBasis* basis) {
+  auto set = [basis](std::initializer_list<float> values, float scale, int step) {
+    auto it = values.begin();
+    for (int r = 0; r < 4; ++r)
+      for (int c = 0; c < 4; ++c) basis->matrix[r][c] = *it++ * scale;
+    basis->step = step;
+  };
+  if (name == "bezier") {
+    set({-1, 3, -3, 1, 3, -6, 3, 0, -3, 3, 0, 0, 1, 0, 0, 0}, 1.0f, 3);
+  } else if (name == "b-spline" || name == "bspline") {
+    set({-1, 3, -3, 1, 3, -6, 3, 0, -3, 0, 3, 0, 1, 4, 1, 0}, 1.0f / 6.0f, 1);
+  } else if (name == "catmull-rom" || name == "catmullrom") {
+    set({-1, 3, -3, 1, 2, -5, 4, -1, -1, 0, 1, 0, 0, 2, 0, 0}, 0.5f, 1);
+  } else if (name == "hermite") {
+    set({2, 1, -2, 1, -3, -2, 3, -1, 0, 1, 0, 0, 1, 0, 0, 0}, 1.0f, 2);
+  } else if (name == "power") {
+    set({1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1}, 1.0f, 4);
+  } else {
+    return false;
+  }
+  return true;
+}
+
+}  // namespace relief
