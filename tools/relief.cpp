@@ -16,6 +16,7 @@
 
 #include "compiler/shader_library.h"
 #include "renderer/accel.h"
+#include "renderer/embree_accelerator.h"
 #include "renderer/film.h"
 #include "renderer/grid_accelerator.h"
 #include "renderer/render.h"
@@ -41,6 +42,9 @@ constexpr const char* kUsage =
     "  --order ORDER             pixel order: scanline, bucket or hilbert (default)\n"
     "  --cache-triangles N       geometry cache budget in displaced triangles, or 'unlimited'\n"
     "  --no-displacement         render the undisplaced surfaces\n"
+    "  --accel grid|embree|embree-compact\n"
+    "                            geometry cache (default), or the baseline: everything displaced\n"
+    "                            up front into one Embree BVH (compact: smaller, slower)\n"
     "  --stats                   print cache statistics and timings\n"
     "  --stats-json FILE         write the same statistics as JSON (for benchmark scripts)\n"
     "  --quiet                   no warnings or progress, only errors and the image path\n"
@@ -61,6 +65,7 @@ struct CommandLine {
   relief::PixelOrder order = relief::PixelOrder::Hilbert;
   uint64_t cacheTriangles = UINT64_MAX;
   bool displace = true;
+  std::string accel = "grid";
   bool stats = false;
   std::string statsJson;
   bool quiet = false;
@@ -140,6 +145,10 @@ int parseCommandLine(int argc, char** argv, CommandLine* cl) {
       }
     } else if (a == "--no-displacement") {
       cl->displace = false;
+    } else if (a == "--accel") {
+      if (!value(&v) || (v != "grid" && v != "embree" && v != "embree-compact"))
+        return usageError("'--accel' needs grid, embree or embree-compact");
+      cl->accel = v;
     } else if (a == "--stats-json") {
       if (!value(&v)) return usageError("'--stats-json' needs a file name");
       cl->statsJson = v;
@@ -327,7 +336,15 @@ int run(const CommandLine& cl) {
   relief::AccelOptions accelOptions;
   accelOptions.cacheBudgetTriangles = cl.cacheTriangles;
   accelOptions.displace = cl.displace;
-  std::unique_ptr<relief::Accelerator> accel = relief::makeGridAccelerator(scene, accelOptions);
+  std::unique_ptr<relief::Accelerator> accel;
+  if (cl.accel == "grid") {
+    accel = relief::makeGridAccelerator(scene, accelOptions);
+  } else {
+    relief::EmbreeOptions embree;
+    embree.compact = cl.accel == "embree-compact";
+    embree.threads = cl.threads;
+    accel = relief::makeEmbreeAccelerator(scene, accelOptions, embree);
+  }
   const double buildSeconds = secondsSince(buildStart);
 
   relief::RenderOptions renderOptions;
