@@ -16,7 +16,8 @@ WIN_X = (-1.0, 1.0)   # window opening
 WIN_Y = (2.0, 4.0)
 RECESS = 0.3          # depth of the window reveal
 JOINT = 0.03          # open joint between stones, showing the backing wall
-EDGE = 0.025          # world-space subdivision target: sets the displaced triangle count
+EDGE = 0.0215         # world-space subdivision target: sets the displaced triangle count
+FLATNESS = 0.002      # simplification tolerance (paper 3.1): flat stretches stay coarser
 
 
 class Mesh:
@@ -182,6 +183,8 @@ def main():
     ap.add_argument("--copies", type=int, default=1,
                     help="a street of N facades side by side, seen along the street")
     ap.add_argument("--edge", type=float, default=EDGE, help="subdivision edge length")
+    ap.add_argument("--flatness", type=float, default=FLATNESS,
+                    help="simplification tolerance (0: off)")
     args = ap.parse_args()
 
     parts = build_parts()
@@ -210,7 +213,7 @@ def main():
         if args.copies > 1:
             # Standing on the paving in front of the first facade, looking down the street.
             w('Projection "perspective" "fov" [40]\n')
-            w("Rotate -4 1 0 0\nRotate 62 0 1 0\nTranslate 3.0 -2.6 5.5\n")
+            w("Rotate -3 1 0 0\nRotate -69 0 1 0\nTranslate 4.0 -1.7 6.0\n")
         else:
             w('Projection "perspective" "fov" [27]\n')
             # Camera a little to the right of the facade, looking slightly left and up at it.
@@ -226,7 +229,8 @@ def main():
             w('  Surface "matte"\n')
         if args.noshadows:
             w('  Attribute "visibility" "int transmission" [0]\n')
-        w('  Attribute "relief" "float edgelength" [%g]\n' % args.edge)
+        w('  Attribute "relief" "float edgelength" [%g] "float flatness" [%g]\n'
+          % (args.edge, args.flatness))
         for k in range(args.copies):
             if args.copies > 1:
                 w("  # Facade %d of %d\n  TransformBegin\n  Translate %g 0 0\n"
