@@ -109,10 +109,18 @@ EmbreeAccelerator::EmbreeAccelerator(const Scene& scene, const AccelOptions& opt
                             " displaced triangles so far)");
   }
   try {
-    build(embree, threads);
-  } catch (const std::bad_alloc&) {
-    firstError_ = RTC_ERROR_OUT_OF_MEMORY;
-    fail("building the BVH");
+    try {
+      build(embree, threads);
+    } catch (const std::bad_alloc&) {
+      firstError_ = RTC_ERROR_OUT_OF_MEMORY;
+      fail("building the BVH");
+    }
+  } catch (...) {
+    // The destructor does not run for a half-built object: release Embree's state here.
+    if (rtcScene_) rtcReleaseScene(rtcScene_);
+    if (device_) rtcReleaseDevice(device_);
+    rtcScene_ = nullptr, device_ = nullptr;
+    throw;
   }
 }
 

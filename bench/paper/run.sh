@@ -5,10 +5,12 @@
 #
 # usage: bench/paper/run.sh [relief binary]      (default: build/bin/relief; build it first)
 #   QUICK=1            fewer budgets and copies (a smoke run of a few minutes)
+#   BUILD_NOTE="..."   a sentence about the binary, printed in the results header
 #   CACHE_THREADS=1    threads for Tables 1-2 and Figure 3 (the paper's runs were single-threaded)
 #   BASE_THREADS=2     threads for the Embree comparisons (both renderers alike)
-#   MEM_CAP=6G         address-space cap (prlimit --as) for the scaling runs: "runs out" = exceeds it
-#   COPIES="1 4 8 16 24 32"   street sizes;  STREET_BUDGET=400000  Relief's fixed cache budget there
+#   MEM_CAP=4G         address-space cap (prlimit --as) for the scaling runs: "runs out" = exceeds it
+#   COPIES="1 8 16 24"        framed-street sizes;  VIEW_COPIES="1 2 4"  down-the-street sizes
+#   STREET_BUDGET=1000000     Relief's fixed cache budget on the streets
 #   STREET_TIMEOUT_S=300      per street run;  REPEAT=3 REPEAT_UNDER_S=30  best-of-N for short runs
 # Needs GNU time (/usr/bin/time), prlimit (util-linux), python3 and gnuplot; gnuplot-nox is
 # installed with apt-get when missing (as root). Takes about 15 minutes on 2 cores.
