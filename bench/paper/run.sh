@@ -11,7 +11,7 @@
 #   MEM_CAP=4G         address-space cap (prlimit --as) for the scaling runs: "runs out" = exceeds it
 #   COPIES="1 8 16 24"        framed-street sizes;  VIEW_COPIES="1 2 4"  down-the-street sizes
 #   STREET_BUDGET=1000000     Relief's fixed cache budget on the streets
-#   STREET_TIMEOUT_S=300      per street run;  REPEAT=3 REPEAT_UNDER_S=30  best-of-N for short runs
+#   CACHE_TIMEOUT_S=240       per budgeted facade run;  STREET_TIMEOUT_S=300  per street run;  REPEAT=3 REPEAT_UNDER_S=30  best-of-N for short runs
 # Needs GNU time (/usr/bin/time), prlimit (util-linux), python3 and gnuplot; gnuplot-nox is
 # installed with apt-get when missing (as root). Takes about 15 minutes on 2 cores.
 set -euo pipefail
