@@ -95,4 +95,10 @@ inline uint64_t& threadCacheMisses() {
 // Builds the contributor grid over `scene` (which must outlive the accelerator).
 std::unique_ptr<Accelerator> makeGridAccelerator(const Scene& scene, const AccelOptions& options);
 
+// The Embree baseline (embree_accelerator.h): the whole scene displaced up front into one BVH.
+// Throws EmbreeOutOfMemory when memory runs out, std::runtime_error in a build without Embree.
+struct EmbreeOptions;
+std::unique_ptr<Accelerator> makeEmbreeAccelerator(const Scene& scene, const AccelOptions& options,
+                                                   const EmbreeOptions& embree);
+
 }  // namespace relief

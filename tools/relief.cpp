@@ -20,6 +20,7 @@
 
 #include "compiler/shader_library.h"
 #include "renderer/accel.h"
+#include "renderer/embree_accelerator.h"
 #include "renderer/film.h"
 #include "renderer/grid_accelerator.h"
 #include "renderer/render.h"
@@ -55,6 +56,9 @@ constexpr const char* kUsage =
     "  --no-displacement         render the undisplaced surfaces\n"
     "  --edge-length L           target micro-triangle edge length in world units for every\n"
     "                            Displacement (overrides Attribute \"relief\" \"edgelength\")\n"
+    "  --accel grid|embree|embree-compact\n"
+    "                            geometry cache (default), or the baseline: everything displaced\n"
+    "                            up front into one Embree BVH (compact: smaller, slower)\n"
     "  --stats                   print cache statistics and timings\n"
     "  --stats-json FILE         write the same statistics as JSON (for benchmark scripts)\n"
     "  -q, --quiet               no warnings or progress, only errors and the image path\n"
@@ -94,6 +98,7 @@ struct CommandLine {
   uint64_t sideCache = 0;
   bool displace = true;
   float edgeLength = 0.0f;  // 0: the scene's
+  std::string accel = "grid";
   bool stats = false;
   std::string statsJson;
   bool quiet = false;
@@ -199,6 +204,10 @@ int parseCommandLine(int argc, char** argv, CommandLine* cl) {
       if (v.empty() || end != v.c_str() + v.size() || !(l > 0.0f) || !std::isfinite(l))
         return usageError("'--edge-length' needs a positive length");
       cl->edgeLength = l;
+    } else if (a == "--accel") {
+      if (!value(&v) || (v != "grid" && v != "embree" && v != "embree-compact"))
+        return usageError("'--accel' needs grid, embree or embree-compact");
+      cl->accel = v;
     } else if (a == "--stats-json") {
       if (!value(&v)) return usageError("'--stats-json' needs a file name");
       cl->statsJson = v;
@@ -520,7 +529,15 @@ int run(const CommandLine& cl) {
   accelOptions.gridResolution = cl.gridResolution;
   accelOptions.refineContributors = cl.refine;
   accelOptions.sideCacheTriangles = cl.sideCache;
-  std::unique_ptr<relief::Accelerator> accel = relief::makeGridAccelerator(scene, accelOptions);
+  std::unique_ptr<relief::Accelerator> accel;
+  if (cl.accel == "grid") {
+    accel = relief::makeGridAccelerator(scene, accelOptions);
+  } else {
+    relief::EmbreeOptions embree;
+    embree.compact = cl.accel == "embree-compact";
+    embree.threads = cl.threads;
+    accel = relief::makeEmbreeAccelerator(scene, accelOptions, embree);
+  }
   const double buildSeconds = secondsSince(buildStart);
 
   relief::RenderOptions renderOptions;
