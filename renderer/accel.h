@@ -71,6 +71,9 @@ struct AccelStats {
   glm::ivec3 gridResolution{0};
   uint64_t sideCacheHits = 0, sideCacheMisses = 0;
   uint64_t sideCachePeakTriangles = 0;      // summed over threads
+  // Micro-triangles of every subdivision (refills included) before and after the paper's 3.1
+  // simplification; equal when nothing is simplified.
+  uint64_t trianglesBeforeSimplification = 0, trianglesAfterSimplification = 0;
 };
 
 class Accelerator {

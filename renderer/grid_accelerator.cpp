@@ -158,6 +158,8 @@ GridAccelerator::~GridAccelerator() = default;
 void GridAccelerator::addCounters(const SubdivideCounters& counters) {
   shaderPoints_.fetch_add(counters.shaderPoints, std::memory_order_relaxed);
   displaceNanos_.fetch_add(counters.displaceNanos, std::memory_order_relaxed);
+  simplifyBefore_.fetch_add(counters.trianglesBeforeSimplification, std::memory_order_relaxed);
+  simplifyAfter_.fetch_add(counters.trianglesAfterSimplification, std::memory_order_relaxed);
   if (counters.status.nonFinite) nonFinite_.fetch_add(counters.status.nonFinite);
   if (counters.status.loopLimit) loopLimit_.fetch_add(counters.status.loopLimit);
   if (counters.status.indexClamped) indexClamped_.fetch_add(counters.status.indexClamped);
@@ -222,6 +224,7 @@ const MicroMesh& GridAccelerator::sideCached(uint32_t id, SubdivideCounters& cou
 
 std::unique_ptr<VoxelGeometry> GridAccelerator::buildVoxel(uint32_t voxel) {
   const auto start = std::chrono::steady_clock::now();
+  ++threadCacheMisses();  // for the "cachemiss" AOV: this thread's ray caused a fill
   auto g = std::make_unique<VoxelGeometry>();
   const Bounds3 box = grid_.voxelBounds(voxel);
   const CullBox cull{box.lo, box.hi};
@@ -450,6 +453,8 @@ AccelStats GridAccelerator::stats() const {
   s.gridResolution = grid_.resolution();
   s.uniqueDisplacedTriangles = uniqueTriangles_.load(std::memory_order_relaxed);
   s.shaderPoints = shaderPoints_.load(std::memory_order_relaxed);
+  s.trianglesBeforeSimplification = simplifyBefore_.load(std::memory_order_relaxed);
+  s.trianglesAfterSimplification = simplifyAfter_.load(std::memory_order_relaxed);
   const double displace = double(displaceNanos_.load(std::memory_order_relaxed)) * 1e-9;
   s.displaceSeconds = displace;
   const double fill = double(fillNanos_.load(std::memory_order_relaxed)) * 1e-9;

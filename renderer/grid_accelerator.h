@@ -63,6 +63,7 @@ class GridAccelerator final : public Accelerator {
   std::atomic<uint64_t> uniqueTriangles_{0}, shaderPoints_{0}, fillNanos_{0}, displaceNanos_{0};
   std::atomic<uint64_t> maxVoxelTriangles_{0};
   std::atomic<uint64_t> droppedContributors_{0};
+  std::atomic<uint64_t> simplifyBefore_{0}, simplifyAfter_{0};
   const uint64_t serial_;  // tells this accelerator's side-cache entries from an earlier one's
   std::atomic<uint64_t> sideHits_{0}, sideMisses_{0}, sideTriangles_{0}, sidePeak_{0};
   // Traversal time per ray, fills included (they are subtracted in stats()), summed per thread

@@ -686,7 +686,7 @@ class RibParser {
              a.Kd == b.Kd && a.Ks == b.Ks && a.roughness == b.roughness &&
              a.specularColor == b.specularColor && a.Kr == b.Kr && a.Kt == b.Kt &&
              a.eta == b.eta && a.transmitColor == b.transmitColor && a.twoSided == b.twoSided &&
-             a.reverseOrientation == b.reverseOrientation;
+             a.reverseOrientation == b.reverseOrientation && a.castsShadows == b.castsShadows;
     };
     for (size_t i = 0; i < scene_.materials.size(); ++i) {
       if (same(scene_.materials[i], m)) return uint32_t(i);
@@ -1150,6 +1150,28 @@ bool RibParser::executeAttributes(const Call& call, bool* handled) {
       if (!(attr_.edgeLength > 0)) return fail(call.line, "'edgelength' must be positive");
       if (!(attr_.flatness >= 0)) return fail(call.line, "'flatness' must be >= 0");
       warnUnusedParams(call, params, {"edgelength", "flatness"});
+    } else if (category == "visibility") {
+      // Shadow casting. PRMan 11+ says "int transmission" [0|1]; older RIB says "string
+      // transmission" ["transparent"|"opaque"|"Os"|"shader"]. Other ray kinds are all visible.
+      if (const Param* t = findParam(params, "transmission")) {
+        if (t->value.isStringy()) {
+          std::string mode;
+          if (!stringParam(call, params, "transmission", &mode)) return false;
+          if (mode != "transparent" && mode != "opaque" && mode != "Os" && mode != "shader")
+            return fail(call.line, "'visibility': unknown transmission '" + mode +
+                                       "' (expected transparent, opaque, Os or shader)");
+          attr_.material.castsShadows = mode != "transparent";
+        } else {
+          float on = 1.0f;
+          if (!floatParam(call, params, "transmission", &on)) return false;
+          attr_.material.castsShadows = on != 0.0f;
+        }
+      }
+      for (const Param& q : params)
+        if (q.name != "transmission")
+          warnOnce(call.line, "visibility/" + q.name,
+                   "'visibility' '" + q.name + "' ignored: surfaces are visible to every ray "
+                   "but, with \"transmission\" 0, to shadow rays");
     } else {
       warnOnce(call.line, "attribute/" + category,
                "unsupported attribute '" + category + "' ignored");

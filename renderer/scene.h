@@ -68,6 +68,7 @@ struct Material {
   glm::vec3 transmitColor{1, 1, 1};  // glass: colour filter of transmitted light
   bool twoSided = true;             // Sides 2 (default) or 1
   bool reverseOrientation = false;  // Orientation "inside"/"rh" relative to the default
+  bool castsShadows = true;  // Attribute "visibility" "transmission": false lets shadow rays pass
 };
 
 // Everything needed to displace one mesh: the bound shader instance and the subdivision settings.

@@ -96,7 +96,7 @@ Integrator::Integrator(const Scene& scene, Accelerator& accel, const ShadingOpti
   for (const Material& m : scene.materials) {
     anyOneSided_ = anyOneSided_ || (!m.twoSided && m.type != SurfaceType::Glass);
     throughShadows_ = throughShadows_ || m.type == SurfaceType::Glass || !m.twoSided ||
-                      m.opacity != glm::vec3(1.0f);
+                      m.opacity != glm::vec3(1.0f) || !m.castsShadows;
   }
 
   glm::vec3 lo(1e30f), hi(-1e30f);
@@ -205,7 +205,9 @@ glm::vec3 Integrator::transmittance(const Ray& ray, RenderStats* stats) const {
     Surface s;
     if (resolve(r, *hit, &s)) {
       const Material& m = *s.material;
-      if (m.type == SurfaceType::Glass) {
+      if (!m.castsShadows) {
+        // invisible to shadow rays: Attribute "visibility" "int transmission" [0]
+      } else if (m.type == SurfaceType::Glass) {
         // Light crossing the interface: what Fresnel lets through, tinted once per object (on the
         // way in), as a camera ray refracted through it would be. The bending is ignored, as in
         // every Whitted renderer: shadows of glass are coloured, not focused. Since the unbent

@@ -99,6 +99,13 @@ extern "C" int32_t rlf_texture(const RlfHostServices* services, const char* file
 
 namespace relief::runtime {
 
+void setTextureSearchPath(const std::vector<std::string>& dirs) {
+  std::string joined;
+  for (const std::string& d : dirs) joined += (joined.empty() ? "" : ":") + d;
+  // OIIO tries a relative name against the working directory first, then these directories.
+  textureSystem()->attribute("searchpath", joined);
+}
+
 std::vector<std::string> takeTextureFailures() {
   FailureLog& log = failureLog();
   std::lock_guard lock(log.mutex);

@@ -26,6 +26,7 @@
 #include "renderer/render.h"
 #include "renderer/rib_reader.h"
 #include "runtime/abi.h"
+#include "runtime/builtins_texture.h"
 
 namespace {
 
@@ -76,7 +77,9 @@ constexpr const char* kUsage =
     "\n"
     "The shader search path is the scene's Option \"searchpath\" \"shader\" if given ('@' in it\n"
     "stands for the default path, '&' for the previous value), otherwise the default: the -I directories, then the\n"
-    "RELIEF_SHADER_PATH directories, then the scene file's directory.\n"
+    "RELIEF_SHADER_PATH directories, then the scene file's directory. Texture names are looked up\n"
+    "from the working directory, then along Option \"searchpath\" \"texture\" (default: the\n"
+    "scene file's directory).\n"
     "\n"
     "exit status: 0 image written, 1 scene/shader/render/output error, 2 usage error\n";
 
@@ -291,9 +294,10 @@ StatList collectStats(const CommandLine& cl, const relief::Scene& scene,
   const double subdivide = a.subdivideSeconds / threads, displace = a.displaceSeconds / threads;
   const double intersect = a.intersectSeconds / threads;
   const double shade = std::max(0.0, r.seconds - subdivide - displace - intersect);
-  // Simplification savings are not reported by the subdivider yet: exact (0) only when off.
-  bool simplifies = false;
-  for (const relief::Displacement& d : scene.displacements) simplifies |= d.flatness > 0.0f;
+  const double simplificationSaved =
+      a.trianglesBeforeSimplification > 0
+          ? 1.0 - double(a.trianglesAfterSimplification) / double(a.trianglesBeforeSimplification)
+          : 0.0;
   StatList s = {
       {"scene.file", jsonString(cl.scene)},
       {"scene.input_triangles", u(inputTriangles)},
@@ -306,6 +310,8 @@ StatList collectStats(const CommandLine& cl, const relief::Scene& scene,
       {"rays.camera", u(r.cameraRays)},
       {"rays.camera_hits", u(r.cameraHits)},
       {"rays.shadow", u(r.shadowRays)},
+      {"rays.reflection", u(r.reflectionRays)},
+      {"rays.refraction", u(r.refractionRays)},
       {"grid.resolution_x", u(uint64_t(a.gridResolution.x))},
       {"grid.resolution_y", u(uint64_t(a.gridResolution.y))},
       {"grid.resolution_z", u(uint64_t(a.gridResolution.z))},
@@ -332,7 +338,9 @@ StatList collectStats(const CommandLine& cl, const relief::Scene& scene,
        ratio(double(a.displacedTrianglesCreated), double(a.uniqueDisplacedTriangles))},
       {"cache.created_bytes", u(a.createdBytes)},
       {"cache.bytes_per_triangle", ratio(double(a.createdBytes), double(a.displacedTrianglesCreated))},
-      {"cache.simplification_saved_fraction", simplifies ? std::string("null") : "0"},
+      {"cache.simplification_saved_fraction", f(simplificationSaved)},
+      {"cache.triangles_before_simplification", u(a.trianglesBeforeSimplification)},
+      {"cache.triangles_after_simplification", u(a.trianglesAfterSimplification)},
       {"cache.shader_points", u(a.shaderPoints)},
       {"cache.side_cache_hits", u(a.sideCacheHits)},
       {"cache.side_cache_misses", u(a.sideCacheMisses)},
@@ -482,6 +490,10 @@ int run(const CommandLine& cl) {
   relief::RibReadOptions readOptions;
   readOptions.shaders = &shaders;
   readOptions.defaultShaderPath = defaultShaderPath(cl);
+  {
+    const std::filesystem::path sceneDir = std::filesystem::path(cl.scene).parent_path();
+    readOptions.defaultTexturePath = {sceneDir.empty() ? std::string(".") : sceneDir.string()};
+  }
   readOptions.warnings = warnings;
   relief::SceneError error;
   std::optional<relief::Scene> loaded = relief::readRibFile(cl.scene, readOptions, &error);
@@ -491,6 +503,7 @@ int run(const CommandLine& cl) {
   }
   const double loadSeconds = secondsSince(loadStart);
   relief::Scene& scene = *loaded;
+  relief::runtime::setTextureSearchPath(scene.texturePath);
   if (cl.width > 0) {
     scene.width = cl.width;
     scene.height = cl.height;

@@ -128,3 +128,40 @@ TEST(CacheImage, BudgetCheckAllowsPinnedOvershootOnly) {
 
 }  // namespace
 }  // namespace relief
+
+namespace relief {
+namespace {
+
+// The "cachemiss" AOV through the real geometry cache: every fill is charged to the pixel whose
+// ray caused it, so the map sums to the cache's misses, and a tight budget adds capacity misses.
+TEST(CacheImage, CacheMissAovSumsToTheCacheMisses) {
+  const Scene scene = bumpyScene();
+  ASSERT_FALSE(scene.meshes.empty());
+  for (uint64_t budget : {UINT64_MAX, uint64_t(3000)}) {
+    AccelOptions accelOptions;
+    accelOptions.cacheBudgetTriangles = budget;
+    accelOptions.gridResolution = 12;
+    GridAccelerator accel(scene, accelOptions);
+    Film film(scene.width, scene.height), misses(scene.width, scene.height);
+    AovFilms aovs;
+    aovs.cacheMiss = &misses;
+    RenderOptions renderOptions;
+    renderOptions.threads = 2;
+    render(scene, accel, renderOptions, &film, aovs);
+    double total = 0;
+    for (int y = 0; y < scene.height; ++y)
+      for (int x = 0; x < scene.width; ++x) total += misses.pixel(x, y).r;
+    const AccelStats s = accel.stats();
+    EXPECT_GT(s.compulsoryMisses, 10u);
+    EXPECT_EQ(total, double(s.compulsoryMisses + s.capacityMisses)) << budget;
+    if (budget != UINT64_MAX) {
+      EXPECT_GT(s.capacityMisses, 0u);
+    }
+    // No flatness in this scene: nothing simplified, every micro-triangle counted on both sides.
+    EXPECT_GT(s.trianglesBeforeSimplification, 0u);
+    EXPECT_EQ(s.trianglesAfterSimplification, s.trianglesBeforeSimplification);
+  }
+}
+
+}  // namespace
+}  // namespace relief

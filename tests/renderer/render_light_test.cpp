@@ -56,6 +56,22 @@ TEST(RenderLight, PointLightShadow) {
   EXPECT_GT(film.pixel(pixelAt(1.3f), 19).r, 0.1f);
 }
 
+// Attribute "visibility" "int transmission" [0]: the blocker stays visible to the camera but no
+// longer shadows the wall; restoring it brings the shadow back.
+TEST(RenderLight, SurfaceThatCastsNoShadowsLetsShadowRaysThrough) {
+  Scene scene = wallScene();
+  scene.lights.push_back(test::pointLight({0, 0, -2}, glm::vec3(8.0f)));
+  addBlocker(&scene);
+  scene.materials[scene.meshes.back().materialIndex].castsShadows = false;
+  const Film lit = test::renderWith(scene);
+  EXPECT_GT(lit.pixel(pixelAt(0.7f), 19).r, 0.1f);
+  EXPECT_GT(lit.pixel(pixelAt(-0.9f), 19).r, 0.1f);
+  EXPECT_GT(lit.pixel(pixelAt(0.0f), 19).r, 0.0f);  // the blocker itself, lit from the front
+  scene.materials[scene.meshes.back().materialIndex].castsShadows = true;
+  const Film shadowed = test::renderWith(scene);
+  EXPECT_EQ(shadowed.pixel(pixelAt(0.7f), 19).r, 0.0f);
+}
+
 float smoothstep(float lo, float hi, float x) {
   const float t = std::clamp((x - lo) / (hi - lo), 0.0f, 1.0f);
   return t * t * (3 - 2 * t);

@@ -260,6 +260,26 @@ TEST(RibSurfaces, SidesAndOrientation) {
   EXPECT_FALSE(read(world("Orientation \"up\"")).scene);
 }
 
+TEST(RibSurfaces, VisibilityTransmissionControlsShadowCasting) {
+  ReadResult r = read(world(std::string(kTriangle) + "AttributeBegin\n" +
+                            "Attribute \"visibility\" \"int transmission\" [0]\n" + kTriangle +
+                            "Attribute \"visibility\" \"string transmission\" [\"opaque\"]\n" +
+                            kTriangle + "Attribute \"visibility\" \"transmission\" [\"transparent\"]\n" +
+                            kTriangle + "AttributeEnd\n" + kTriangle +
+                            "Attribute \"visibility\" \"int camera\" [1]\n"));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  EXPECT_TRUE(materialOf(*r.scene, 0).castsShadows);
+  EXPECT_FALSE(materialOf(*r.scene, 1).castsShadows);
+  EXPECT_TRUE(materialOf(*r.scene, 2).castsShadows);
+  EXPECT_FALSE(materialOf(*r.scene, 3).castsShadows);
+  EXPECT_TRUE(materialOf(*r.scene, 4).castsShadows);  // restored by AttributeEnd
+  EXPECT_NE(r.warnings.find("'visibility' 'camera' ignored"), std::string::npos) << r.warnings;
+  ReadResult bad = read(world("Attribute \"visibility\" \"string transmission\" [\"glassy\"]"));
+  EXPECT_FALSE(bad.scene);
+  EXPECT_NE(bad.error.format().find("unknown transmission 'glassy'"), std::string::npos)
+      << bad.error.format();
+}
+
 TEST(RibSurfaces, OlderDisplacementBoundSpelling) {
   test::TestShaderProvider shaders;
   ReadResult r = read(world("Scale 2 2 2\nAttribute \"bound\" \"displacement\" [0.25]\n"
