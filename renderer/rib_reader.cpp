@@ -19,6 +19,7 @@
 #include <glm/gtc/type_ptr.hpp>
 
 #include "renderer/film.h"
+#include "renderer/filter.h"
 #include "renderer/obj_mesh.h"
 #include "renderer/rib_geometry.h"
 #include "renderer/tessellate.h"
@@ -858,6 +859,27 @@ bool RibParser::executeCamera(const Call& call, bool* handled) {
     const int ys = int(std::lround(std::clamp(v[1], 1.0f, 4096.0f)));
     if (xs * ys > 4096) return fail(call.line, "'PixelSamples' asks for too many samples");
     scene_.pixelSamples = xs * ys;
+  } else if (n == "PixelFilter") {
+    // RenderMan's filters that Relief has keep their fixed support; the rest fall back to the
+    // default with a warning, as any call outside the subset does.
+    std::string name;
+    if (!positionalString(call, 0, &name)) return false;
+    std::vector<float> widths;
+    for (size_t i = 1; i < call.args.size() && call.args[i].isNumeric(); ++i)
+      for (double d : call.args[i].numbers) widths.push_back(float(d));
+    FilterType type = FilterType::Gaussian;
+    if (parseFilter(name, &type)) {
+      scene_.pixelFilter = name;
+      const float support = PixelFilter::make(type).width;
+      if (widths.size() >= 2 && (widths[0] != support || widths[1] != support))
+        warnOnce(call.line, "PixelFilter/width",
+                 "'PixelFilter': widths ignored, '" + name + "' uses " + std::to_string(int(support)) +
+                     " x " + std::to_string(int(support)) + " pixels");
+    } else {
+      warnOnce(call.line, "PixelFilter/" + name,
+               "unsupported pixel filter '" + name + "'; using gaussian (supported: gaussian, "
+               "blackman-harris, box)");
+    }
   } else if (n == "Projection") {
     std::string type;
     if (!positionalString(call, 0, &type)) return false;

@@ -119,6 +119,7 @@ struct Scene {
   uint64_t cacheBudgetTriangles = 0;  // 0: not set
   std::string order;                  // "": not set
   int maxDepth = 0;                   // reflection/refraction depth; 0: not set
+  std::string pixelFilter;            // PixelFilter "gaussian"|"blackman-harris"|"box"; "": not set
   // Option "searchpath" "string texture": directories searched for texture files, in order
   // (relative entries already resolved against the scene file's directory).
   std::vector<std::string> texturePath;

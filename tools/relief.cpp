@@ -40,6 +40,7 @@ constexpr const char* kUsage =
     "options:\n"
     "  -I, --shader-path DIR     search DIR for shaders (repeatable; before RELIEF_SHADER_PATH)\n"
     "  -o FILE                   write the image to FILE instead of the scene's Display\n"
+    "                            (the scene's further displays go to FILE's directory)\n"
     "                            (format from the extension: png, exr, tif, ...)\n"
     "  --resolution WxH          override the scene's Format\n"
     "  --spp N                   samples per pixel (overrides PixelSamples)\n"
@@ -94,6 +95,7 @@ struct CommandLine {
   bool orderSet = false;
   int maxDepth = -1;  // -1: the scene's or the default
   relief::FilterType filter = relief::FilterType::Gaussian;
+  bool filterSet = false;
   uint64_t cacheTriangles = UINT64_MAX;
   bool cacheTrianglesSet = false;
   int gridResolution = 0;  // 0: automatic
@@ -178,6 +180,7 @@ int parseCommandLine(int argc, char** argv, CommandLine* cl) {
     } else if (a == "--filter") {
       if (!value(&v) || !relief::parseFilter(v, &cl->filter))
         return usageError("'--filter' needs gaussian, blackman-harris or box");
+      cl->filterSet = true;
     } else if (a == "--cache-triangles") {
       if (!value(&v)) return usageError("'--cache-triangles' needs a count or 'unlimited'");
       cl->cacheTrianglesSet = true;
@@ -518,7 +521,15 @@ int run(const CommandLine& cl) {
     outputs = scene.displays;
     for (size_t i = 0; i < outputs.size(); ++i)
       modes.push_back(i < scene.displayModes.size() ? scene.displayModes[i] : "rgb");
-    if (!cl.output.empty()) outputs[0] = cl.output;
+    if (!cl.output.empty()) {
+      // The AOVs follow the image: relative names land beside the -o file, so that
+      // `-o out/x.png` never scatters outputs into the working directory.
+      const std::filesystem::path dir = std::filesystem::path(cl.output).parent_path();
+      for (size_t i = 1; i < outputs.size(); ++i)
+        if (!dir.empty() && std::filesystem::path(outputs[i]).is_relative())
+          outputs[i] = (dir / outputs[i]).string();
+      outputs[0] = cl.output;
+    }
   } else if (!cl.output.empty()) {
     outputs.push_back(cl.output);
     modes.push_back("rgb");
@@ -565,6 +576,8 @@ int run(const CommandLine& cl) {
   renderOptions.samplesPerPixel = cl.spp;
   renderOptions.maxDepth = cl.maxDepth;
   renderOptions.filter = cl.filter;
+  if (!cl.filterSet && !scene.pixelFilter.empty())
+    relief::parseFilter(scene.pixelFilter, &renderOptions.filter);
   renderOptions.displaced = cl.displace;
   Progress progress(*accel, ::isatty(STDERR_FILENO) != 0);
   if (!cl.quiet) renderOptions.progress = [&progress](int percent) { progress.update(percent); };
@@ -596,7 +609,7 @@ int run(const CommandLine& cl) {
       {"relief:scene", cl.scene},
       {"relief:renderSeconds", std::to_string(renderStats.seconds)},
       {"relief:samplesPerPixel", std::to_string(renderStats.samplesPerPixel)},
-      {"relief:filter", std::string(relief::filterName(cl.filter))},
+      {"relief:filter", std::string(relief::filterName(renderOptions.filter))},
       {"relief:order", std::string(relief::pixelOrderName(renderOptions.order))},
       {"relief:cacheAccesses", std::to_string(finalStats.accesses)},
       {"relief:cacheHits", std::to_string(finalStats.hits)},

@@ -4,12 +4,14 @@
 // experience (help, version, progress, flags, RELIEF_SHADER_PATH precedence, AOV displays).
 #include <sys/wait.h>
 
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include <OpenImageIO/imageio.h>
 #include <gtest/gtest.h>
@@ -304,6 +306,67 @@ TEST(Relief, AovDisplaysAreWritten) {
   ASSERT_TRUE(in->read_image(0, 0, 0, 1, OIIO::TypeDesc::FLOAT, depth.data()));
   EXPECT_NEAR(depth[6 * 16 + 8], 5.0f, 1e-4f);  // the plane is 5 units in front of the camera
   EXPECT_EQ(depth[0], 0.0f);                    // a corner misses it
+}
+
+// With -o, relative AOV names follow the image into its directory.
+TEST(Relief, RelativeAovsFollowTheOutputDirectory) {
+  const fs::path dir = scratchDir();
+  const fs::path scene = smallScene(dir, "Display \"main.png\" \"file\" \"rgb\"\n"
+                                         "Display \"+depth.exr\" \"file\" \"z\"\n");
+  fs::create_directories(dir / "out");
+  RunResult r = run(kRelief + " " + scene.string() + " --quiet -o " + (dir / "out" / "x.png").string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_TRUE(fs::exists(dir / "out" / "x.png"));
+  EXPECT_TRUE(fs::exists(dir / "out" / "depth.exr"));
+  EXPECT_NE(r.out.find((dir / "out" / "depth.exr").string()), std::string::npos) << r.out;
+}
+
+// Texture names resolve along Option "searchpath" "texture" (relative to the scene); an unreadable
+// texture is one runtime error naming the file, and the render goes on with the fill value.
+TEST(Relief, TexturesFollowTheSearchPathAndAMissingOneIsOneError) {
+  const fs::path dir = scratchDir();
+  fs::create_directories(dir / "maps");
+  {
+    std::vector<float> white(8 * 8, 1.0f);
+    auto out = OIIO::ImageOutput::create("bump.tif");
+    ASSERT_TRUE(out);
+    ASSERT_TRUE(out->open((dir / "maps" / "bump.tif").string(), OIIO::ImageSpec(8, 8, 1, OIIO::TypeDesc::FLOAT)));
+    ASSERT_TRUE(out->write_image(OIIO::TypeDesc::FLOAT, white.data()));
+    out->close();
+  }
+  writeFile(dir / "lift.disp",
+            "displacement lift(string texname = \"\") {\n"
+            "  P += 0.25 * float texture(texname, s, t) * normalize(N);\n"
+            "  N = normalize(calculatenormal(P));\n}\n");
+  auto sceneWith = [&](const std::string& name, const std::string& file) {
+    return smallScene(dir, "Option \"searchpath\" \"string texture\" [\"maps\"]\n"
+                           "Display \"" + name + ".png\" \"file\" \"rgb\"\n"
+                           "Display \"+" + name + ".exr\" \"file\" \"z\"\n",
+                      "Attribute \"displacementbound\" \"float sphere\" [0.25]\n"
+                      "Attribute \"relief\" \"float edgelength\" [0.2]\n"
+                      "Displacement \"lift\" \"string texname\" [\"" + file + "\"]\n");
+  };
+  auto centreDepth = [&](const fs::path& exr) {
+    auto in = OIIO::ImageInput::open(exr.string());
+    std::vector<float> depth(16 * 12, -1.0f);
+    if (in) in->read_image(0, 0, 0, 1, OIIO::TypeDesc::FLOAT, depth.data());
+    return depth[6 * 16 + 8];
+  };
+  RunResult r = run(kRelief + " " + sceneWith("found", "bump.tif").string() + " --quiet -o " +
+                    (dir / "found.png").string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_EQ(r.err.find("texture"), std::string::npos) << r.err;
+  EXPECT_NEAR(std::abs(centreDepth(dir / "found.exr") - 5.0f), 0.25f, 0.01f);  // lifted by 0.25
+
+  r = run(kRelief + " " + sceneWith("missing", "nothere.tif").string() + " --quiet -o " +
+          (dir / "missing.png").string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_TRUE(fs::exists(dir / "missing.png"));
+  const std::string message = "cannot read texture 'nothere.tif'";
+  const size_t first = r.err.find(message);
+  EXPECT_NE(first, std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find(message, first + 1), std::string::npos) << r.err;  // once per file
+  EXPECT_NEAR(centreDepth(dir / "missing.exr"), 5.0f, 1e-3f);  // fill value 0: not lifted
 }
 
 TEST(Relief, FailedOutputLeavesNoImage) {

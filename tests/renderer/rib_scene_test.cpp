@@ -115,6 +115,21 @@ TEST(RibOptions, ReliefOptionSetsRenderSettings) {
   EXPECT_FALSE(read("Option \"relief\" \"int cachebudget\" [-5]\n" + world("")).scene);
 }
 
+TEST(RibOptions, PixelFilterChoosesTheReconstructionFilter) {
+  ReadResult r = read("PixelFilter \"blackman-harris\" 3 3\n" + world(""));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  EXPECT_EQ(r.scene->pixelFilter, "blackman-harris");
+  EXPECT_EQ(r.warnings, "");
+  r = read("PixelFilter \"box\" 2 2\n" + world(""));
+  EXPECT_EQ(r.scene->pixelFilter, "box");
+  EXPECT_NE(r.warnings.find("widths ignored, 'box' uses 1 x 1"), std::string::npos) << r.warnings;
+  r = read("PixelFilter \"catmull-rom\" 4 4\n" + world(""));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  EXPECT_EQ(r.scene->pixelFilter, "");
+  EXPECT_NE(r.warnings.find("unsupported pixel filter 'catmull-rom'"), std::string::npos);
+  EXPECT_EQ(read(world("")).scene->pixelFilter, "");
+}
+
 TEST(RibOptions, AbsurdCountsAndHandlesAreErrorsNotOverflows) {
   EXPECT_FALSE(read("PixelSamples 1e30 1e30\n" + world("")).scene);
   ReadResult r = read(world("LightSource \"pointlight\" 1e30\nIlluminate 1e30 0\n"));
@@ -134,7 +149,7 @@ TEST(RibOptions, TextureSearchPath) {
 }
 
 TEST(RibOptions, UnsupportedCallsWarnOnceEach) {
-  ReadResult r = read("PixelFilter \"gaussian\" 2 2\nPixelFilter \"box\" 1 1\nHider \"hidden\"\n"
+  ReadResult r = read("PixelFilter \"sinc\" 4 4\nPixelFilter \"sinc\" 6 6\nHider \"hidden\"\n"
                       "Shutter 0 1\nOption \"limits\" \"bucketsize\" [16 16]\n" +
                       world("ShadingRate 1\nAttribute \"identifier\" \"name\" [\"x\"]\n"
                             "Attribute \"identifier\" \"name\" [\"y\"]\n") );
@@ -142,7 +157,7 @@ TEST(RibOptions, UnsupportedCallsWarnOnceEach) {
   std::istringstream lines(r.warnings);
   int count = 0;
   for (std::string line; std::getline(lines, line);) ++count;
-  EXPECT_EQ(count, 6) << r.warnings;  // PixelFilter Hider Shutter limits ShadingRate identifier
+  EXPECT_EQ(count, 6) << r.warnings;  // sinc Hider Shutter limits ShadingRate identifier
 }
 
 TEST(RibOptions, CrlfAndCommentsKeepLineNumbers) {
