@@ -3,6 +3,7 @@
 // contributor grid, the cache, the integrator) reads it. Parts refer to each other by index.
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -71,6 +72,14 @@ struct Material {
   bool castsShadows = true;  // Attribute "visibility" "transmission": false lets shadow rays pass
 };
 
+// Runtime problems of one Displacement's shader (abi.h's RlfStatus), counted by whatever
+// evaluates it (cache fills, the Embree baseline) so the renderer can warn naming the shader and
+// the RIB line that bound it. Shared by copies of the Displacement.
+struct ShaderProblemCounts {
+  std::atomic<uint64_t> nonFinite{0}, loopLimit{0}, indexClamped{0}, unknownSpace{0},
+      textureErrors{0};
+};
+
 // Everything needed to displace one mesh: the bound shader instance and the subdivision settings.
 struct Displacement {
   std::shared_ptr<const runtime::ShaderInstance> shader;  // null: undisplaced
@@ -81,6 +90,7 @@ struct Displacement {
   RlfSpaces spaces{};          // object/shader/camera transforms for the shader
   std::string sourceFile;      // where the Displacement call was (for warnings)
   int sourceLine = 0;
+  std::shared_ptr<ShaderProblemCounts> problems = std::make_shared<ShaderProblemCounts>();
 };
 
 // Input triangles in world space. Per-vertex attributes; seams (e.g. a sphere's u = 0 / 1) are

@@ -265,6 +265,14 @@ void displace(const Displacement& disp, const TriangleFrame& frame, Vertices& vs
   // The shader may count the points it knows are non-finite and the host counts what it had to
   // replace; they are the same points, so take the larger rather than the sum.
   counters.status.nonFinite += std::max(status.nonFinite, replaced);
+  if (ShaderProblemCounts* pc = disp.problems.get()) {
+    auto add = [](std::atomic<uint64_t>& to, uint32_t n) {
+      if (n) to.fetch_add(n, std::memory_order_relaxed);
+    };
+    add(pc->nonFinite, std::max(status.nonFinite, replaced));
+    add(pc->loopLimit, status.loopLimit), add(pc->indexClamped, status.indexClamped);
+    add(pc->unknownSpace, status.unknownSpace), add(pc->textureErrors, status.textureErrors);
+  }
 }
 
 // Appends the midpoint of edge (a, b). Every attribute is 0.5 * (x_a + x_b): addition commutes

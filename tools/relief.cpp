@@ -369,19 +369,25 @@ void printStats(const StatList& stats) {
     std::printf("%-*s  %s\n", int(width), key.c_str(), value.c_str());
 }
 
-// Runtime problems inside displacement shaders are counted, not thrown (abi.h); say so once.
-void reportShaderProblems(const relief::Accelerator& accel, std::ostream& out) {
-  const auto* grid = dynamic_cast<const relief::GridAccelerator*>(&accel);
-  if (!grid) return;
-  const RlfStatus s = grid->shaderStatus();
-  auto report = [&](uint32_t count, const char* what) {
-    if (count) out << "relief: warning: displacement shaders: " << count << " " << what << "\n";
-  };
-  report(s.nonFinite, "points produced NaN or infinity (left undisplaced)");
-  report(s.loopLimit, "invocations hit the loop-iteration limit");
-  report(s.indexClamped, "array or component indices were clamped into range");
-  report(s.unknownSpace, "unknown coordinate space names were treated as 'current'");
-  report(s.textureErrors, "texture lookups failed");
+// Runtime problems inside displacement shaders are counted, not thrown (abi.h); say so once per
+// Displacement call, naming the shader and where the scene bound it.
+void reportShaderProblems(const relief::Scene& scene, std::ostream& out) {
+  std::vector<const relief::ShaderProblemCounts*> seen;
+  for (const relief::Displacement& d : scene.displacements) {
+    const relief::ShaderProblemCounts* p = d.problems.get();
+    if (!p || !d.shader || std::find(seen.begin(), seen.end(), p) != seen.end()) continue;
+    seen.push_back(p);
+    auto report = [&](const std::atomic<uint64_t>& count, const char* what) {
+      if (const uint64_t n = count.load())
+        out << d.sourceFile << ":" << d.sourceLine << ": warning: displacement shader '"
+            << d.shader->name() << "': " << n << " " << what << "\n";
+    };
+    report(p->nonFinite, "points produced NaN or infinity (left undisplaced)");
+    report(p->loopLimit, "invocations hit the loop-iteration limit");
+    report(p->indexClamped, "array or component indices were clamped into range");
+    report(p->unknownSpace, "unknown coordinate space names were treated as 'current'");
+    report(p->textureErrors, "texture lookups failed");
+  }
 }
 
 std::string jsonString(const std::string& text) {
@@ -673,7 +679,7 @@ int run(const CommandLine& cl) {
       return 1;
     }
   }
-  if (warnings) reportShaderProblems(*accel, *warnings);
+  if (warnings) reportShaderProblems(scene, *warnings);
   const StatList stats =
       collectStats(cl, scene, accel->stats(), renderStats, loadSeconds, buildSeconds, inputTriangles);
   if (!cl.statsJson.empty() && !writeStatsJson(cl.statsJson, stats)) {

@@ -369,6 +369,31 @@ TEST(Relief, TexturesFollowTheSearchPathAndAMissingOneIsOneError) {
   EXPECT_NEAR(centreDepth(dir / "missing.exr"), 5.0f, 1e-3f);  // fill value 0: not lifted
 }
 
+// A shader overflowing to infinity: the points stay undisplaced, the render finishes, and one warning names
+// the shader and the RIB line of its Displacement call.
+TEST(Relief, NanFromAShaderIsAWarningNamingIt) {
+  const fs::path dir = scratchDir();
+  writeFile(dir / "broken.disp",
+            "displacement broken(float Km = 1) {\n"
+            "  float big = 1e30 + u;\n"
+            "  P += Km * big * big * normalize(N);\n"
+            "}\n");
+  const fs::path scene = smallScene(dir, "",
+                                    "Attribute \"displacementbound\" \"float sphere\" [0.1]\n"
+                                    "Attribute \"relief\" \"float edgelength\" [0.5]\n"
+                                    "Displacement \"broken\"\n");
+  RunResult r = run(kRelief + " " + scene.string() + " -o " + (dir / "nan.png").string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_TRUE(fs::exists(dir / "nan.png"));
+  const std::string expected = scene.string() + ":8: warning: displacement shader 'broken': ";
+  const size_t at = r.err.find(expected);
+  ASSERT_NE(at, std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("NaN or infinity (left undisplaced)", at), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find(expected, at + 1), std::string::npos) << r.err;  // once
+  r = run(kRelief + " " + scene.string() + " --quiet -o " + (dir / "nan2.png").string());
+  EXPECT_EQ(r.err, "");
+}
+
 TEST(Relief, FailedOutputLeavesNoImage) {
   const fs::path dir = scratchDir();
   const fs::path scene = smallScene(dir, "");
