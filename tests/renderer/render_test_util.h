@@ -8,6 +8,7 @@
 #include <map>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <glm/gtc/matrix_transform.hpp>
@@ -217,6 +218,35 @@ inline Film renderWith(const Scene& scene, RenderOptions options = {}, const Aov
   if (options.threads == 0) options.threads = 1;
   render(scene, accel, options, &film, aovs);
   return film;
+}
+
+// Fuzzes a parser with `iterations` seeded mutations of `base` (1-4 deletions, insertions of
+// `alphabet` characters, or replacements each) and calls `accepts(text)` on each, which returns
+// whether the text was accepted (and checks the error otherwise). Returns {accepted, rejected}.
+template <typename Accepts>
+std::pair<int, int> mutationFuzz(const std::string& base, const std::string& alphabet, uint64_t seed,
+                                 int iterations, Accepts accepts) {
+  uint64_t state = seed;
+  auto next = [&] {
+    state = state * 6364136223846793005ull + 1442695040888963407ull;
+    return uint32_t(state >> 33);
+  };
+  int accepted = 0, rejected = 0;
+  for (int iteration = 0; iteration < iterations; ++iteration) {
+    std::string text = base;
+    const int edits = 1 + int(next() % 4);
+    for (int e = 0; e < edits; ++e) {
+      const size_t at = next() % text.size();
+      switch (next() % 3) {
+        case 0: text.erase(at, 1 + next() % 8); break;
+        case 1: text.insert(at, 1, alphabet[next() % alphabet.size()]); break;
+        default: text[at] = alphabet[next() % alphabet.size()]; break;
+      }
+      if (text.empty()) text.push_back('x');
+    }
+    (accepts(text) ? accepted : rejected)++;
+  }
+  return {accepted, rejected};
 }
 
 }  // namespace relief::test

@@ -624,33 +624,14 @@ TEST(RibReader, SurvivesMutatedInput) {
       "WorldEnd\n";
   const std::string alphabet = "[]\"#\\ \n\r0123456789.-+eE AttributeEnd WorldBegin xyz";
   test::TestShaderProvider shaders;
-  uint64_t state = 12345;
-  auto next = [&] {
-    state = state * 6364136223846793005ull + 1442695040888963407ull;
-    return uint32_t(state >> 33);
-  };
-  int parsed = 0, rejected = 0;
-  for (int iteration = 0; iteration < 1500; ++iteration) {
-    std::string text = base;
-    const int edits = 1 + int(next() % 4);
-    for (int e = 0; e < edits; ++e) {
-      const size_t at = next() % text.size();
-      switch (next() % 3) {
-        case 0: text.erase(at, 1 + next() % 8); break;
-        case 1: text.insert(at, 1, alphabet[next() % alphabet.size()]); break;
-        default: text[at] = alphabet[next() % alphabet.size()]; break;
-      }
-      if (text.empty()) text.push_back('x');
-    }
+  const auto [parsed, rejected] = test::mutationFuzz(base, alphabet, 12345, 1500, [&](const std::string& text) {
     ReadResult r = read(text, &shaders);
-    if (r.scene) {
-      ++parsed;
-    } else {
-      ++rejected;
+    if (!r.scene) {
       EXPECT_GT(r.error.line, 0) << r.error.format() << "\n" << text;
       EXPECT_FALSE(r.error.message.empty());
     }
-  }
+    return r.scene.has_value();
+  });
   EXPECT_GT(parsed, 0);
   EXPECT_GT(rejected, 0);
 }

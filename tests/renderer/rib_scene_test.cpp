@@ -724,34 +724,15 @@ TEST(RibErrors, SurvivesMutatedFeatureScene) {
       "1 2 0] \"facevarying float[2] st\" [0 0 1 0 1 1 0 1 0 0 1 0 0 1]\n"
       "Torus 1 0.2 0 360 270\nWorldEnd\nFrameEnd\nFrameBegin 2\nWorldBegin\nWorldEnd\nFrameEnd\n";
   const std::string alphabet = "[]\"#\\ \n\r0123456789.-+eE AttributeEnd ObjectEnd xyz";
-  uint64_t state = 977;
-  auto next = [&] {
-    state = state * 6364136223846793005ull + 1442695040888963407ull;
-    return uint32_t(state >> 33);
-  };
   ASSERT_TRUE(read(base).scene) << read(base).error.format();
-  int parsed = 0, rejected = 0;
-  for (int iteration = 0; iteration < 800; ++iteration) {
-    std::string text = base;
-    const int edits = 1 + int(next() % 4);
-    for (int e = 0; e < edits; ++e) {
-      const size_t at = next() % text.size();
-      switch (next() % 3) {
-        case 0: text.erase(at, 1 + next() % 8); break;
-        case 1: text.insert(at, 1, alphabet[next() % alphabet.size()]); break;
-        default: text[at] = alphabet[next() % alphabet.size()]; break;
-      }
-      if (text.empty()) text.push_back('x');
-    }
+  const auto [parsed, rejected] = test::mutationFuzz(base, alphabet, 977, 800, [&](const std::string& text) {
     ReadResult r = read(text);
-    if (r.scene) {
-      ++parsed;
-    } else {
-      ++rejected;
+    if (!r.scene) {
       EXPECT_GT(r.error.line, 0) << r.error.format() << "\n" << text;
       EXPECT_FALSE(r.error.message.empty());
     }
-  }
+    return r.scene.has_value();
+  });
   EXPECT_GT(parsed, 0);
   EXPECT_GT(rejected, 0);
 }
