@@ -129,19 +129,59 @@ RenderStats render(const Scene& scene, Accelerator& accel, const RenderOptions& 
   };
   std::vector<Sample> samples(order.size() * size_t(spp));
 
-  // Threads pull chunks of the order so that each thread still walks a coherent stretch of it.
-  constexpr size_t kChunk = 64;
-  std::atomic<size_t> next{0};
+  // Each thread owns one contiguous stretch of the order and walks it from the front, so threads
+  // work in different parts of the image and rarely wait on each other's voxel fills (interleaved
+  // chunks had both threads fill the same voxels at once: 1.26x on 2 threads). A thread that
+  // finishes its stretch steals chunks from the back of the stretch with most work left, far from
+  // where its owner is. A stretch is one 64-bit word, front in the high half and back in the low,
+  // so a claim from either end is one compare-and-swap.
+  constexpr uint64_t kChunk = 64;
+  struct alignas(64) Stretch {
+    std::atomic<uint64_t> range{0};
+  };
+  std::vector<Stretch> stretches(static_cast<size_t>(numThreads));
+  for (int t = 0; t < numThreads; ++t) {
+    const uint64_t front = order.size() * uint64_t(t) / uint64_t(numThreads);
+    const uint64_t back = order.size() * uint64_t(t + 1) / uint64_t(numThreads);
+    stretches[size_t(t)].range.store(front << 32 | back, std::memory_order_relaxed);
+  }
+  // Claims up to kChunk pixels of stretch `s`, from its front or its back; false once it is empty.
+  auto claim = [&](size_t s, bool fromFront, size_t& begin, size_t& end) {
+    uint64_t range = stretches[s].range.load(std::memory_order_relaxed);
+    while (true) {
+      const uint64_t front = range >> 32, back = range & 0xffffffffull;
+      if (front >= back) return false;
+      const uint64_t take = std::min(kChunk, back - front);
+      const uint64_t next = fromFront ? (front + take) << 32 | back : front << 32 | (back - take);
+      if (stretches[s].range.compare_exchange_weak(range, next, std::memory_order_relaxed)) {
+        begin = size_t(fromFront ? front : back - take);
+        end = size_t(fromFront ? front + take : back);
+        return true;
+      }
+    }
+  };
+  auto claimAny = [&](int id, size_t& begin, size_t& end) {
+    if (claim(size_t(id), true, begin, end)) return true;
+    while (true) {
+      size_t victim = stretches.size();
+      uint64_t most = 0;
+      for (size_t s = 0; s < stretches.size(); ++s) {
+        const uint64_t range = stretches[s].range.load(std::memory_order_relaxed);
+        const uint64_t front = range >> 32, back = range & 0xffffffffull;
+        if (back > front && back - front > most) most = back - front, victim = s;
+      }
+      if (victim == stretches.size()) return false;
+      if (claim(victim, false, begin, end)) return true;
+    }
+  };
   std::atomic<size_t> donePixels{0};
   std::mutex progressMutex;
   int lastPercent = -1;  // guarded by progressMutex
   std::vector<RenderStats> perThread(static_cast<size_t>(numThreads));
   auto tracer = [&](int id) {
     RenderStats stats;  // local: neighbouring entries of perThread would share cache lines
-    while (true) {
-      const size_t begin = next.fetch_add(kChunk);
-      if (begin >= order.size()) break;
-      const size_t end = std::min(begin + kChunk, order.size());
+    size_t begin = 0, end = 0;
+    while (claimAny(id, begin, end)) {
       for (size_t i = begin; i < end; ++i) {
         const uint32_t pixel = order[i];
         const int x = int(pixel % uint32_t(width)), y = int(pixel / uint32_t(width));
