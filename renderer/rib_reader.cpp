@@ -2285,6 +2285,7 @@ bool RibParser::addMesh(Mesh mesh, int line) {
       return fail(line, "geometry has non-finite coordinates after transformation");
   mesh.materialIndex = materialIndex();
   mesh.lights = attr_.lightsOn;
+  mesh.lightsSet = true;
   if (!displacementIndex(line, &mesh.displacementIndex)) return false;
   scene_.meshes.push_back(std::move(mesh));
   return true;

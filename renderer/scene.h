@@ -106,6 +106,10 @@ struct Mesh {
   // Indices into Scene::lights of the lights that illuminate this mesh (Illuminate state at the
   // time the geometry was declared); ambient lights are listed too.
   std::vector<uint32_t> lights;
+  // True when `lights` is the whole truth even if empty (the RIB reader sets it: geometry declared
+  // before any light, or after Illuminate turned its lights off, is unlit). False with an empty
+  // list: every light, for meshes built in code.
+  bool lightsSet = false;
   uint32_t displacementIndex = UINT32_MAX;  // into Scene::displacements; UINT32_MAX: none
   uint32_t numTriangles() const { return uint32_t(indices.size() / 3); }
 };

@@ -230,8 +230,7 @@ glm::vec3 Integrator::transmittance(const Ray& ray, RenderStats* stats) const {
 }
 
 glm::vec3 Integrator::ambient(const Surface& s) const {
-  const std::vector<uint32_t>& ids =
-      !scene_.lights.empty() && !s.mesh->lights.empty() ? s.mesh->lights : allLights_;
+  const std::vector<uint32_t>& ids = lightsOf(*s.mesh);
   glm::vec3 sum(0.0f);
   for (uint32_t id : ids)
     if (id < lights_.size() && lights_[id].type == LightType::Ambient) sum += lights_[id].color;
@@ -241,8 +240,7 @@ glm::vec3 Integrator::ambient(const Surface& s) const {
 void Integrator::illuminate(const Surface& s, uint64_t seed, RenderStats* stats,
                             std::vector<LightSample>* out) const {
   out->clear();
-  const std::vector<uint32_t>& ids =
-      !scene_.lights.empty() && !s.mesh->lights.empty() ? s.mesh->lights : allLights_;
+  const std::vector<uint32_t>& ids = lightsOf(*s.mesh);
   // Shadow rays start off the side of the surface the light is on (the geometric side: a smooth
   // shading normal may lean over the horizon of the true surface).
   auto shadow = [&](const glm::vec3& L, float distance, const glm::vec3& Cl) {

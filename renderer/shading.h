@@ -113,6 +113,12 @@ class Integrator {
   // Ambient light reaching the surface (unshadowed) and shadowed samples of every other light
   // whose direction lies in the hemisphere around Nf.
   glm::vec3 ambient(const Surface& s) const;
+  // The lights that reach a mesh: its own list when the reader set one (even empty), every light
+  // for meshes built without one, and for scenes that only fill the older light fields.
+  const std::vector<uint32_t>& lightsOf(const Mesh& mesh) const {
+    if (scene_.lights.empty()) return allLights_;
+    return mesh.lightsSet || !mesh.lights.empty() ? mesh.lights : allLights_;
+  }
   void illuminate(const Surface& s, uint64_t seed, RenderStats* stats,
                   std::vector<LightSample>* out) const;
 

@@ -1,13 +1,15 @@
 // Tests of the light sources: point and spot inverse-square falloff, the spot cone and its
 // smoothstep edge, shadows of a blocker for point, spot and distant lights, an area light's
 // penumbra, coloured shadows through glass, Illuminate lists and the fallback to the older
-// Scene::distantLights. Scenes are built in code: an orthographic camera over a matte wall at z = 0.
+// Scene::distantLights. Scenes are built in code: an orthographic camera over a matte wall at z = 0
+// (the Illuminate render reads its scene from RIB, since the reader decides each mesh's lights).
 #include <algorithm>
 #include <cmath>
 
 #include <gtest/gtest.h>
 
 #include "render_test_util.h"
+#include "renderer/rib_reader.h"
 
 namespace relief {
 namespace {
@@ -217,6 +219,27 @@ TEST(RenderLight, IlluminateListsRestrictLights) {
   EXPECT_EQ(test::renderWith(scene).pixel(20, 20), glm::vec3(1, 1, 0));
   scene.meshes[0].lights = {1};
   EXPECT_EQ(test::renderWith(scene).pixel(20, 20), glm::vec3(0, 1, 0));
+}
+
+// RenderMan's rule: a light reaches only geometry declared after it while it is on. A sphere with
+// every light but the ambient one switched off shows only ambient light; one declared before any
+// light is black; both would have taken every light if an empty list meant "all".
+TEST(RenderLight, IlluminateCanLeaveASurfaceUnlit) {
+  auto centre = [](const std::string& world) {
+    SceneError error;
+    std::optional<Scene> scene = readRibString(
+        "Format 9 9 1\nWorldBegin\n" + world + "WorldEnd\n", "light.rib", RibReadOptions{}, &error);
+    EXPECT_TRUE(scene) << error.format();
+    return scene ? test::renderWith(*scene).pixel(4, 4) : glm::vec3(-1.0f);
+  };
+  const std::string sphere = "AttributeBegin\nTranslate 0 0 5\nSphere 0.8 -0.8 0.8 360\nAttributeEnd\n";
+  const std::string lights =
+      "LightSource \"ambientlight\" \"fill\" \"intensity\" [0.25]\n"
+      "LightSource \"distantlight\" \"key\" \"from\" [0 0 0] \"to\" [0 0 1]\n";
+  EXPECT_NEAR(centre(lights + sphere).r, 1.25f, 1e-3f);
+  EXPECT_NEAR(centre(lights + "Illuminate \"key\" 0\n" + sphere).r, 0.25f, 1e-3f);
+  EXPECT_EQ(centre(lights + "Illuminate \"key\" 0\nIlluminate \"fill\" 0\n" + sphere), glm::vec3(0.0f));
+  EXPECT_EQ(centre(sphere + lights), glm::vec3(0.0f));
 }
 
 TEST(RenderLight, AmbientLightsAddUnshadowed) {
