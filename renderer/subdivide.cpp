@@ -5,6 +5,7 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <tuple>
 
 namespace relief {
@@ -252,14 +253,33 @@ void displace(const Displacement& disp, const TriangleFrame& frame, Vertices& vs
   counters.status.indexClamped += status.indexClamped;
   counters.status.unknownSpace += status.unknownSpace;
   counters.status.textureErrors += status.textureErrors;
-  uint32_t replaced = 0;
+  uint32_t replaced = 0, outOfBound = 0;
+  // Squared, with a relative slack so that rounding on a point displaced exactly by the bound
+  // does not count.
+  const float bound2 = disp.boundWorld * disp.boundWorld * (1.0f + 1e-5f);
+  float maxMove2 = 0.0f;
   for (uint32_t i = 0; i < n; ++i) {
     glm::vec3 p = batch.Pout.get(i);
     if (finite(p)) {
       vs.displaced[first + i] = p;
+      const glm::vec3 d = p - vs.P[first + i];
+      const float move2 = glm::dot(d, d);
+      if (move2 > bound2) ++outOfBound, maxMove2 = std::max(maxMove2, move2);
     } else {
       vs.displaced[first + i] = vs.P[first + i];
       ++replaced;
+    }
+  }
+  if (outOfBound) {
+    if (ShaderProblemCounts* pc = disp.problems.get()) {
+      pc->outOfBound.fetch_add(outOfBound, std::memory_order_relaxed);
+      const float excess = std::sqrt(maxMove2) - disp.boundWorld;
+      uint32_t bits;
+      std::memcpy(&bits, &excess, 4);
+      uint32_t seen = pc->maxExcessBits.load(std::memory_order_relaxed);
+      while (bits > seen &&
+             !pc->maxExcessBits.compare_exchange_weak(seen, bits, std::memory_order_relaxed)) {
+      }
     }
   }
   // The shader may count the points it knows are non-finite and the host counts what it had to

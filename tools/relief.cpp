@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <exception>
 #include <filesystem>
 #include <fstream>
@@ -387,6 +388,15 @@ void reportShaderProblems(const relief::Scene& scene, std::ostream& out) {
     report(p->indexClamped, "array or component indices were clamped into range");
     report(p->unknownSpace, "unknown coordinate space names were treated as 'current'");
     report(p->textureErrors, "texture lookups failed");
+    if (const uint64_t n = p->outOfBound.load()) {
+      float excess;
+      const uint32_t bits = p->maxExcessBits.load();
+      std::memcpy(&excess, &bits, 4);
+      out << d.sourceFile << ":" << d.sourceLine << ": warning: displacement shader '"
+          << d.shader->name() << "' moved " << n << " points beyond the displacement bound "
+          << d.boundWorld << " (world units), by up to " << excess
+          << "; rays may miss those parts: raise Attribute \"displacementbound\"\n";
+    }
   }
 }
 

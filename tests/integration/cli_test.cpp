@@ -394,6 +394,35 @@ TEST(Relief, NanFromAShaderIsAWarningNamingIt) {
   EXPECT_EQ(r.err, "");
 }
 
+// language.md §7: a shader that moves points farther than the declared bound is not clamped, and the
+// host warns once per Displacement with the largest excess; one within its bound gets no warning.
+TEST(Relief, DisplacementBeyondTheBoundIsOneWarningWithTheLargestExcess) {
+  const fs::path dir = scratchDir();
+  writeFile(dir / "push.disp",
+            "displacement push(float amount = 0.2) { P += amount * normalize(N); }\n");
+  const fs::path scene = smallScene(dir, "",
+                                    "Attribute \"displacementbound\" \"float sphere\" [0.05]\n"
+                                    "Attribute \"relief\" \"float edgelength\" [0.5]\n"
+                                    "Displacement \"push\" \"float amount\" [0.2]\n");
+  RunResult r = run(kRelief + " " + scene.string() + " -o " + (dir / "far.png").string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  const std::string expected = scene.string() + ":8: warning: displacement shader 'push' moved ";
+  const size_t at = r.err.find(expected);
+  ASSERT_NE(at, std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("beyond the displacement bound 0.05 (world units), by up to 0.15", at),
+            std::string::npos)
+      << r.err;
+  EXPECT_EQ(r.err.find(expected, at + 1), std::string::npos) << r.err;  // once
+
+  const fs::path within = smallScene(dir, "",
+                                     "Attribute \"displacementbound\" \"float sphere\" [0.25]\n"
+                                     "Attribute \"relief\" \"float edgelength\" [0.5]\n"
+                                     "Displacement \"push\" \"float amount\" [0.2]\n");
+  r = run(kRelief + " " + within.string() + " -o " + (dir / "near.png").string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_EQ(r.err.find("beyond the displacement bound"), std::string::npos) << r.err;
+}
+
 TEST(Relief, FailedOutputLeavesNoImage) {
   const fs::path dir = scratchDir();
   const fs::path scene = smallScene(dir, "");
