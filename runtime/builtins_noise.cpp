@@ -9,7 +9,7 @@
 
 namespace {
 
-uint32_t mix32(uint32_t h) {
+[[gnu::always_inline]] inline uint32_t mix32(uint32_t h) {
   // Murmur3 finalizer: every input bit affects every output bit.
   h ^= h >> 16;
   h *= 0x85ebca6bu;
@@ -21,17 +21,36 @@ uint32_t mix32(uint32_t h) {
 
 // Lattice coordinate of a finite float; far-away inputs wrap, which only matters past 2^31.
 int32_t cellOf(float x) {
+  // Inside int32 range the wrap below is the identity; skipping its double fmod saves a few
+  // percent of a whole noise-heavy render.
+  if (std::fabs(x) < 2147483648.0f) return int32_t(std::floor(x));
   const double f = std::floor(double(x));
   const double wrapped = std::fmod(f, 4294967296.0);
   return int32_t(uint32_t(int64_t(wrapped)));
 }
 
+constexpr uint32_t kHashPrimes[4] = {0x8da6b343u, 0xd8163841u, 0xcb1ab31fu, 0x9e3779b1u};
+constexpr uint32_t kHashSeed = 0x27d4eb2du;
+
+// The hash of a lattice corner is a chain over the axes, h = mix(...mix(seed ^ c0 P0) ^ c1 P1...),
+// so the 2^D corners of a cell share prefixes: computed level by level, a cell costs 2 + 4 + ... +
+// 2^D finalizers instead of D 2^D (14 instead of 24 in 3D). Corner k's bit i selects cell[i][1].
+// Always inlined: out of line, the call and the copies out of `level` cost a third of the noise.
 template <int D>
-uint32_t hashCorner(const int32_t* cell) {
-  static constexpr uint32_t kPrimes[4] = {0x8da6b343u, 0xd8163841u, 0xcb1ab31fu, 0x9e3779b1u};
-  uint32_t h = 0x27d4eb2du;
-  for (int i = 0; i < D; ++i) h = mix32(h ^ (uint32_t(cell[i]) * kPrimes[i]));
-  return h;
+[[gnu::always_inline]] inline void hashCorners(const int32_t (*cell)[2], uint32_t* out) {
+  uint32_t level[1 << D];
+  level[0] = kHashSeed;
+  int count = 1;
+  for (int i = 0; i < D; ++i) {
+    // Corners with bit i clear keep their slot; their bit-i twins go `count` slots up.
+    for (int k = count - 1; k >= 0; --k) {
+      const uint32_t prefix = level[k];
+      level[k] = mix32(prefix ^ (uint32_t(cell[i][0]) * kHashPrimes[i]));
+      level[k + count] = mix32(prefix ^ (uint32_t(cell[i][1]) * kHashPrimes[i]));
+    }
+    count *= 2;
+  }
+  for (int k = 0; k < (1 << D); ++k) out[k] = level[k];
 }
 
 // Gradient vectors of the improved-noise family: unit-ish, evenly spread.
@@ -85,21 +104,27 @@ float noise(const float* p, float* grad, const int32_t* period = nullptr) {
     s[i] = fade(f[i]);
     ds[i] = fadeDeriv(f[i]);
   }
+  int32_t cells[D][2];
+  for (int i = 0; i < D; ++i)
+    for (int c = 0; c < 2; ++c) {
+      int32_t cell = int32_t(uint32_t(base[i]) + uint32_t(c));
+      if (period) cell = int32_t(((int64_t(cell) % period[i]) + period[i]) % period[i]);
+      cells[i][c] = cell;
+    }
+  uint32_t hashes[1 << D];
+  hashCorners<D>(cells, hashes);
   float value = 0;
   float dvalue[D] = {};
   for (int corner = 0; corner < (1 << D); ++corner) {
-    int32_t cell[D];
     float d[D], w[D], dw[D];
     for (int i = 0; i < D; ++i) {
       const int c = (corner >> i) & 1;
-      cell[i] = int32_t(uint32_t(base[i]) + uint32_t(c));
-      if (period) cell[i] = int32_t(((int64_t(cell[i]) % period[i]) + period[i]) % period[i]);
       d[i] = f[i] - float(c);
       w[i] = c ? s[i] : 1 - s[i];
       dw[i] = c ? ds[i] : -ds[i];
     }
     float g[D];
-    gradient<D>(hashCorner<D>(cell), g);
+    gradient<D>(hashes[corner], g);
     float dot = 0, weight = 1;
     for (int i = 0; i < D; ++i) {
       dot += g[i] * d[i];
@@ -122,6 +147,61 @@ float noise(const float* p, float* grad, const int32_t* period = nullptr) {
   return 0.5f + 0.5f * signedValue;
 }
 
+// The 3D case, which fBm and every spatial noise use, written out: eight corner dot products, then
+// three rounds of lerps for the value, with the weights' derivatives giving the analytic gradient.
+// The generic loop above spent about 1,100 instructions a call on index bookkeeping; this is the
+// same function (same lattice, gradients and fade), rounded differently in the last bits.
+float noise3(const float* p, float* grad) {
+  if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2])) {
+    grad[0] = grad[1] = grad[2] = 0;
+    return 0.5f;
+  }
+  static constexpr float kDirs[12][3] = {{1, 1, 0},  {-1, 1, 0}, {1, -1, 0}, {-1, -1, 0},
+                                         {1, 0, 1},  {-1, 0, 1}, {1, 0, -1}, {-1, 0, -1},
+                                         {0, 1, 1},  {0, -1, 1}, {0, 1, -1}, {0, -1, -1}};
+  int32_t cells[3][2];
+  float f[3], s[3], ds[3];
+  for (int i = 0; i < 3; ++i) {
+    const int32_t base = cellOf(p[i]);
+    cells[i][0] = base;
+    cells[i][1] = int32_t(uint32_t(base) + 1u);
+    f[i] = p[i] - std::floor(p[i]);
+    s[i] = fade(f[i]);
+    ds[i] = fadeDeriv(f[i]);
+  }
+  uint32_t hashes[8];
+  hashCorners<3>(cells, hashes);
+  float n[8], gx[8], gy[8], gz[8];
+  for (int k = 0; k < 8; ++k) {
+    const float* g = kDirs[(hashes[k] >> 8) % 12];
+    const float dx = f[0] - float(k & 1), dy = f[1] - float((k >> 1) & 1), dz = f[2] - float(k >> 2);
+    gx[k] = g[0];
+    gy[k] = g[1];
+    gz[k] = g[2];
+    n[k] = g[0] * dx + g[1] * dy + g[2] * dz;
+  }
+  auto lerp = [](float a, float b, float t) { return a + t * (b - a); };
+  // Trilinear interpolation of eight corner values, x first (corner bit 0), then y, then z.
+  auto tri = [&](const float* v) {
+    return lerp(lerp(lerp(v[0], v[1], s[0]), lerp(v[2], v[3], s[0]), s[1]),
+                lerp(lerp(v[4], v[5], s[0]), lerp(v[6], v[7], s[0]), s[1]), s[2]);
+  };
+  const float y0 = lerp(n[0], n[1], s[0]), y1 = lerp(n[2], n[3], s[0]);
+  const float y2 = lerp(n[4], n[5], s[0]), y3 = lerp(n[6], n[7], s[0]);
+  const float z0 = lerp(y0, y1, s[1]), z1 = lerp(y2, y3, s[1]);
+  const float value = lerp(z0, z1, s[2]);
+  const float ddx = lerp(lerp(n[1] - n[0], n[3] - n[2], s[1]), lerp(n[5] - n[4], n[7] - n[6], s[1]), s[2]);
+  const float ddy = lerp(y1 - y0, y3 - y2, s[2]);
+  const float ddz = z1 - z0;
+  const float dvalue[3] = {tri(gx) + ds[0] * ddx, tri(gy) + ds[1] * ddy, tri(gz) + ds[2] * ddz};
+  if (value <= -1 || value >= 1) {  // rare overshoot: flat at the clamp
+    grad[0] = grad[1] = grad[2] = 0;
+    return value <= -1 ? 0.0f : 1.0f;
+  }
+  for (int k = 0; k < 3; ++k) grad[k] = 0.5f * dvalue[k];
+  return 0.5f + 0.5f * value;
+}
+
 }  // namespace
 
 extern "C" {
@@ -135,7 +215,7 @@ float rlf_noise2(float x, float y, float* grad2) {
 
 float rlf_noise3(float x, float y, float z, float* grad3) {
   const float p[3] = {x, y, z};
-  return noise<3>(p, grad3);
+  return noise3(p, grad3);
 }
 
 float rlf_noise4(float x, float y, float z, float w, float* grad4) {
