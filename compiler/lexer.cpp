@@ -58,8 +58,9 @@ bool isIdentChar(char c) { return isIdentStart(c) || isDigit(c); }
 }  // namespace
 
 Lexer::Lexer(const SourceManager& sm, SourceManager::FileId file, DiagnosticsEngine& diags)
-    : diags_(diags) {
-  const std::string_view text = sm.text(file);
+    : sm_(sm), file_(file), diags_(diags) {
+  const std::string_view text = sm.splicedText(file);
+  spliced_ = text.data() != sm.text(file).data();
   begin_ = text.data();
   cur_ = begin_;
   end_ = begin_ + text.size();
@@ -96,7 +97,7 @@ Token Lexer::make(Tok kind, const char* start) {
   Token t;
   t.kind = kind;
   t.loc = locOf(start);
-  t.length = uint32_t(cur_ - start);
+  t.length = locOf(cur_).offset - t.loc.offset;
   t.text = std::string_view(start, cur_ - start);
   t.atLineStart = atLineStart_;
   atLineStart_ = false;
@@ -109,12 +110,12 @@ Token Lexer::lexNumber(const char* start) {
     cur_ += 2;
     while (cur_ < end_ && std::isxdigit(static_cast<unsigned char>(*cur_))) ++cur_;
     Token t = make(Tok::IntLiteral, start);
-    if (t.length == 2) {
+    if (t.text.size() == 2) {
       sink().report(DiagId::ErrBadNumber, t.loc).arg(t.text).range(t.range());
       return t;
     }
     const unsigned long long v = std::strtoull(std::string(t.text.substr(2)).c_str(), nullptr, 16);
-    if (t.length > 10 || v > 0xffffffffULL)
+    if (t.text.size() > 10 || v > 0xffffffffULL)
       sink().report(DiagId::ErrIntegerTooLarge, t.loc).range(t.range());
     else
       t.intValue = int32_t(uint32_t(v));

@@ -27,8 +27,15 @@ class Lexer {
   Token make(Tok kind, const char* start);
   Token lexNumber(const char* start);
   Token lexString(const char* start);
-  SourceLoc locOf(const char* p) const { return base_.advanced(uint32_t(p - begin_)); }
+  // Locations are physical: past a backslash-newline the lexer's text runs ahead of the file's.
+  SourceLoc locOf(const char* p) const {
+    const uint32_t offset = uint32_t(p - begin_);
+    return base_.advanced(spliced_ ? sm_.physicalOffset(file_, offset) : offset);
+  }
 
+  const SourceManager& sm_;
+  SourceManager::FileId file_;
+  bool spliced_ = false;  // the text had backslash-newlines, removed before lexing (§1.1)
   DiagnosticsEngine& diags_;
   const char* begin_;
   const char* cur_;

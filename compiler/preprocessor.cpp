@@ -10,6 +10,19 @@ namespace {
 
 std::string tokenText(const Token& t) { return std::string(t.text); }
 
+// Source text between two physical locations, with its backslash-newlines removed (§1.1).
+std::string withoutSplices(const char* begin, const char* end) {
+  std::string out;
+  for (const char* p = begin; p < end; ++p) {
+    if (*p == '\\' && p + 1 < end && (p[1] == '\n' || p[1] == '\r')) {
+      p += (p[1] == '\r' && p + 2 < end && p[2] == '\n') ? 2 : 1;
+      continue;
+    }
+    out += *p;
+  }
+  return out;
+}
+
 bool isIdentifierLike(const Token& t) {
   // Keywords can be directive names (#if, #else) and macro names.
   return t.is(Tok::Identifier) || (t.kind >= Tok::KwBreak);
@@ -255,7 +268,7 @@ void Preprocessor::directive(const Token& hash) {
     if (line.size() > 1) {
       const char* b = sm_.character(line[1].loc);
       const char* e = sm_.character(line.back().end());
-      text.assign(b, e);
+      text = withoutSplices(b, e);
     }
     diags_.report(DiagId::ErrUserError, hash.loc).arg(text.empty() ? "#error" : text);
   } else if (n == "pragma") {
@@ -278,7 +291,7 @@ void Preprocessor::include(const Token& name, const std::vector<Token>& line) {
     while (close < line.size() && !line[close].is(Tok::Greater)) ++close;
     if (close < line.size()) {
       angled = true;
-      file.assign(sm_.character(nameTok->end()), sm_.character(line[close].loc));
+      file = withoutSplices(sm_.character(nameTok->end()), sm_.character(line[close].loc));
     }
   }
   if (file.empty()) {

@@ -71,6 +71,42 @@ void SourceManager::computeLines(const File& f) const {
   }
 }
 
+void SourceManager::computeSplices(const File& f) const {
+  if (f.splicedReady) return;
+  f.splicedReady = true;
+  const std::string& t = f.text;
+  if (t.find('\\') == std::string::npos) return;
+  std::string out;
+  out.reserve(t.size());
+  uint32_t removedSoFar = 0;
+  for (size_t i = 0; i < t.size(); ++i) {
+    if (t[i] == '\\' && i + 1 < t.size() && (t[i + 1] == '\n' || t[i + 1] == '\r')) {
+      const size_t n = t[i + 1] == '\r' && i + 2 < t.size() && t[i + 2] == '\n' ? 3 : 2;
+      removedSoFar += uint32_t(n);
+      f.spliceAt.push_back(uint32_t(out.size()));
+      f.removed.push_back(removedSoFar);
+      i += n - 1;
+      continue;
+    }
+    out += t[i];
+  }
+  if (!f.spliceAt.empty()) f.spliced = std::move(out);
+}
+
+std::string_view SourceManager::splicedText(FileId id) const {
+  const File& f = *files_[id];
+  computeSplices(f);
+  return f.spliceAt.empty() ? std::string_view(f.text) : std::string_view(f.spliced);
+}
+
+uint32_t SourceManager::physicalOffset(FileId id, uint32_t splicedOffset) const {
+  const File& f = *files_[id];
+  computeSplices(f);
+  // A character right after a splice sits after the removed bytes.
+  auto it = std::upper_bound(f.spliceAt.begin(), f.spliceAt.end(), splicedOffset);
+  return it == f.spliceAt.begin() ? splicedOffset : splicedOffset + f.removed[size_t(it - f.spliceAt.begin()) - 1];
+}
+
 PresumedLoc SourceManager::presumed(SourceLoc loc) const {
   if (!loc.isValid() || files_.empty()) return {};
   const File& f = file(loc);

@@ -49,6 +49,10 @@ class SourceManager {
   std::vector<uint32_t> sortKey(SourceLoc loc) const;
 
   std::string_view text(FileId id) const { return files_[id]->text; }
+  // The text the lexer reads: text(id) with every backslash-newline removed (C's phase 2, §1.1).
+  // `physicalOffset` maps an offset in it back into text(id), so locations stay those of the file.
+  std::string_view splicedText(FileId id) const;
+  uint32_t physicalOffset(FileId id, uint32_t splicedOffset) const;
   const std::string& name(FileId id) const { return files_[id]->name; }
   SourceLoc startOf(FileId id) const { return {files_[id]->base}; }
   FileId fileOf(SourceLoc loc) const;
@@ -66,7 +70,13 @@ class SourceManager {
     uint32_t base = 0;                      // SourceLoc offset of text[0]
     SourceLoc includedFrom;
     mutable std::vector<uint32_t> lineStarts;  // filled on first query
+    // Splicing, done on first query; `spliced` stays empty when the text has no backslash-newline.
+    mutable bool splicedReady = false;
+    mutable std::string spliced;
+    mutable std::vector<uint32_t> spliceAt;  // spliced offset of each removal, ascending
+    mutable std::vector<uint32_t> removed;   // bytes removed up to and including that removal
   };
+  void computeSplices(const File& f) const;
   const File& file(SourceLoc loc) const { return *files_[fileOf(loc)]; }
   void computeLines(const File& f) const;
 

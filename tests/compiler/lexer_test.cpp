@@ -133,5 +133,26 @@ TEST(LexerTest, CrLfAndCrLineEndings) {
   EXPECT_EQ(l->sm.presumed(l->tokens[2].loc).column, 1u);
 }
 
+TEST(LexerTest, BackslashNewlineSplicesLines) {
+  // A splice joins lines before tokenizing (§1.1), even inside a token; locations stay physical.
+  auto l = lex("fo\\\no = \\\r\n\"a\\\nb\" +\n  @ x");
+  ASSERT_EQ(l->messages.size(), 1u);
+  EXPECT_EQ(l->messages[0], "5:3: invalid character '@' in source");
+  EXPECT_EQ(l->tokens[0].kind, Tok::Identifier);
+  EXPECT_EQ(l->tokens[0].text, "foo");
+  EXPECT_EQ(l->sm.presumed(l->tokens[1].loc).line, 2u);
+  EXPECT_EQ(l->sm.presumed(l->tokens[1].loc).column, 3u);
+  EXPECT_EQ(Lexer::stringValue(l->tokens[2]), "ab");
+  EXPECT_FALSE(l->tokens[2].atLineStart);  // still the logical line of `fo\`
+  EXPECT_EQ(l->sm.presumed(l->tokens[3].loc).line, 4u);
+  EXPECT_TRUE(l->tokens[4].atLineStart);
+  EXPECT_EQ(l->tokens[5].text, "x");
+  EXPECT_EQ(l->sm.presumed(l->tokens[5].loc).column, 5u);
+  // A backslash not followed by a line end is still an invalid character.
+  auto bad = lex("a \\ b");
+  ASSERT_EQ(bad->messages.size(), 1u);
+  EXPECT_EQ(bad->messages[0], "1:3: invalid character '\\' in source");
+}
+
 }  // namespace
 }  // namespace relief::compiler

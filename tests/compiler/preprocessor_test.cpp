@@ -105,5 +105,15 @@ TEST(PreprocessorTest, CommandLineDefines) {
   EXPECT_EQ(r->text, "yes 3.14159265358979323846");
 }
 
+TEST(PreprocessorTest, MultiLineDefinesSpliceBackslashNewlines) {
+  // RSL headers spread macros over lines (§1.1); what follows keeps its own line numbers.
+  auto r = preprocess(
+      "#define BUMP(a, f) \\\n    ((a) * \\\r\n     sin(f))\n#error split \\\n message\nBUMP(1, u) $\n");
+  EXPECT_EQ(r->text, "( ( 1 ) * sin ( u ) ) $");
+  EXPECT_EQ(r->errors,
+            "4:1: split  message\n"
+            "6:12: invalid character '$' in source\n");
+}
+
 }  // namespace
 }  // namespace relief::compiler
