@@ -545,8 +545,9 @@ void Preprocessor::expand(std::vector<Token> input, std::vector<Token>& out, con
     } else {
       bool invoked = pos < input.size() && input[pos].is(Tok::LParen);
       if (!invoked && pos >= input.size() && fromSource) {
+        // As in C, white space including line breaks may separate the name from its '('.
         const Token peek = nextRaw();
-        if (peek.is(Tok::LParen) && !peek.atLineStart) {
+        if (peek.is(Tok::LParen)) {
           input.push_back(peek);
           invoked = true;
         } else {
@@ -623,7 +624,7 @@ void Preprocessor::expand(std::vector<Token> input, std::vector<Token>& out, con
           while (depth > 0 && pos < input.size());
         } else if (pos >= input.size() && fromSource) {
           Token peek = nextRaw();
-          if (peek.is(Tok::LParen) && !peek.atLineStart) {
+          if (peek.is(Tok::LParen)) {
             take(peek);
             while (depth > 0) {
               peek = nextRaw();

@@ -105,6 +105,13 @@ TEST(PreprocessorTest, CommandLineDefines) {
   EXPECT_EQ(r->text, "yes 3.14159265358979323846");
 }
 
+TEST(PreprocessorTest, FunctionLikeMacroArgumentsMayStartOnTheNextLine) {
+  // C allows any white space, line breaks included, between the name and its '('.
+  auto r = preprocess("#define F(x) (x + 1)\n#define G F\nF\n  (2) F\nz G\n\n(3)\nF\n#define Q 1\nF $\n");
+  EXPECT_EQ(r->text, "( 2 + 1 ) F z ( 3 + 1 ) F F $");
+  EXPECT_EQ(r->errors, "10:3: invalid character '$' in source\n");
+}
+
 TEST(PreprocessorTest, MultiLineDefinesSpliceBackslashNewlines) {
   // RSL headers spread macros over lines (§1.1); what follows keeps its own line numbers.
   auto r = preprocess(
