@@ -1835,6 +1835,9 @@ class ShaderCodegen {
     return r;
   }
 
+  // A comp/setcomp index: int, or a float truncated toward zero (§2.1).
+  Value* intIndex(const Val& a) { return convert(a, Type(TypeKind::Int)).c[0].v; }
+
   Val genCall(const Expr& e) {
     if (e.function) return genUserCall(e);
     std::vector<Val> args;
@@ -1947,20 +1950,21 @@ class ShaderCodegen {
         return makeFloat(dsqrtSafe(dot3(d, d)));
       }
       case BuiltinShape::Comp:
-        if (args[0].type.kind == TypeKind::Matrix) return makeFloat(matrixElementAt(args[0], args[1].c[0].v, args[2].c[0].v));
-        return makeFloat(component(args[0], args[1].c[0].v));
+        if (args[0].type.kind == TypeKind::Matrix)
+          return makeFloat(matrixElementAt(args[0], intIndex(args[1]), intIndex(args[2])));
+        return makeFloat(component(args[0], intIndex(args[1])));
       case BuiltinShape::Setcomp:
       case BuiltinShape::SetXyz: {
         const Expr& target = *e.operands[0];
         Val base = args[0];
         if (base.type.kind == TypeKind::Matrix) {
-          setMatrixElement(base, args[1].c[0].v, args[2].c[0].v, toFloatScalar(args[3]).c[0]);
+          setMatrixElement(base, intIndex(args[1]), intIndex(args[2]), toFloatScalar(args[3]).c[0]);
           assignTo(target, base);
           Val r;
           r.type = Type(TypeKind::Void);
           return r;
         }
-        Value* index = e.builtin->shape == BuiltinShape::Setcomp ? args[1].c[0].v
+        Value* index = e.builtin->shape == BuiltinShape::Setcomp ? intIndex(args[1])
                        : id == BuiltinId::Setxcomp              ? ci(0)
                        : id == BuiltinId::Setycomp              ? ci(1)
                                                                 : ci(2);

@@ -1176,6 +1176,7 @@ class Checker {
         const bool m = args[0]->type.kind == TypeKind::Matrix;
         if (badConstantIndex(*args[1], m ? 4 : 3, args[0]->type) || (m && badConstantIndex(*args[2], 4, args[0]->type)))
           return set(e, kError);
+        warnNarrowIndices(args, m ? 3 : 2);
         break;
       }
       case BuiltinShape::Setcomp:
@@ -1184,6 +1185,7 @@ class Checker {
           const bool m = args[0]->type.kind == TypeKind::Matrix;
           if (badConstantIndex(*args[1], m ? 4 : 3, args[0]->type) || (m && badConstantIndex(*args[2], 4, args[0]->type)))
             return set(e, kError);
+          warnNarrowIndices(args, m ? 3 : 2);
         }
         // The first argument is an output: it must be a writable variable or component.
         if (!checkAssignable(*args[0], args[0]->range.begin, args[0]->range)) return set(e, kError);
@@ -1202,6 +1204,13 @@ class Checker {
       }
     }
     return set(e, r);
+  }
+
+  // comp/setcomp: arguments 1..end-1 are int indices; a float one truncates (§2.1).
+  void warnNarrowIndices(const std::vector<ExprPtr>& args, size_t end) {
+    for (size_t i = 1; i < end; ++i)
+      if (args[i]->type.kind == TypeKind::Float)
+        report(DiagId::WarnNarrowing, args[i]->range.begin).range(args[i]->range);
   }
 
   // -Wformat: a literal printf format against its arguments (§6.8).
@@ -1451,19 +1460,16 @@ class Checker {
         if (n == 3) return allSpatial(args) ? kFloat : kError;  // distance(a, b, q) = ptlined
         return n == 2 && args[0]->type.isSpatial() && args[1]->type.isSpatial() ? kFloat : kError;
       case BuiltinShape::Ptlined: return n == 3 && allSpatial(args) ? kFloat : kError;
+      // Indices are `int`; a float converts as §2.1 says (truncated, -Wnarrowing at the call).
       case BuiltinShape::Comp:
-        if (matrixFirst)
-          return n == 3 && args[1]->type.kind == TypeKind::Int && args[2]->type.kind == TypeKind::Int ? kFloat : kError;
-        return n == 2 && args[0]->type.isTriple() && args[1]->type.kind == TypeKind::Int ? kFloat : kError;
+        if (matrixFirst) return n == 3 && args[1]->type.isScalar() && args[2]->type.isScalar() ? kFloat : kError;
+        return n == 2 && args[0]->type.isTriple() && args[1]->type.isScalar() ? kFloat : kError;
       case BuiltinShape::Setcomp:
         if (matrixFirst)
-          return n == 4 && args[1]->type.kind == TypeKind::Int && args[2]->type.kind == TypeKind::Int &&
-                         args[3]->type.isScalar()
-                     ? kVoid
-                     : kError;
-        return n == 3 && args[0]->type.isTriple() && args[1]->type.kind == TypeKind::Int && args[2]->type.isScalar()
-                   ? kVoid
-                   : kError;
+          return n == 4 && args[1]->type.isScalar() && args[2]->type.isScalar() && args[3]->type.isScalar() ? kVoid
+                                                                                                             : kError;
+        return n == 3 && args[0]->type.isTriple() && args[1]->type.isScalar() && args[2]->type.isScalar() ? kVoid
+                                                                                                          : kError;
       case BuiltinShape::SetXyz: return n == 2 && args[0]->type.isSpatial() && args[1]->type.isScalar() ? kVoid : kError;
       case BuiltinShape::DerivRatio:
         if (n != 2 || !args[1]->type.isScalar()) return kError;

@@ -276,5 +276,23 @@ displacement stripes(string tex = "")
   EXPECT_GT(b.Pout[1][1], 0.6f);
 }
 
+TEST(ComponentTest, CompAndSetcompTakeFloatIndices) {
+  // Classic RSL indexes with floats: `float i; setcomp(c, i, x)` truncates i (§2.1, §6.3).
+  TestBatch b(1);
+  const std::string printed = evaluate(R"(
+displacement d()
+{
+    color c = color(1, 2, 3);
+    float i = 1.7;
+    setcomp(c, i, 9);
+    matrix m = 1;
+    float r = 2;
+    setcomp(m, r, 0.5, 5);
+    printf("%g %g %g %g %g\n", c[1], comp(c, i), comp(c, 2.9), comp(m, r, 0.0), comp(m, 1.0, 1));
+})",
+                                       b);
+  EXPECT_EQ(printed, "9 9 3 5 1\n");
+}
+
 }  // namespace
 }  // namespace relief::compiler
