@@ -248,6 +248,16 @@ float maxScale(const glm::mat4& m) {
                    glm::length(glm::vec3(m[2]))});
 }
 
+// A transform that flattens space (Scale 0 0 0, which exporters use to hide objects, or any
+// rank-deficient matrix): it has no inverse, so normals under it are undefined. Judged by the
+// volume of the unit cube's image against the product of its edge lengths, so uniformly tiny but
+// well-shaped scales are not singular.
+bool singular(const glm::mat4& m) {
+  const glm::dvec3 a{glm::vec3(m[0])}, b{glm::vec3(m[1])}, c{glm::vec3(m[2])};
+  const double edges = glm::length(a) * glm::length(b) * glm::length(c);
+  return !(edges > 0.0) || !(std::fabs(glm::dot(a, glm::cross(b, c))) > 1e-7 * edges);
+}
+
 // RenderMan's matte: the default surface, whose Ka and Kd are 1 (Material's own defaults are not).
 Material matteMaterial() {
   Material m;
@@ -983,6 +993,7 @@ bool RibParser::executeCamera(const Call& call, bool* handled) {
                                  std::string(stack_.back().attribute ? "AttributeBegin"
                                                                      : "TransformBegin") +
                                  "' (line " + std::to_string(stack_.back().line) + ")");
+    if (singular(attr_.ctm)) return fail(call.line, "the camera transform is singular");
     inWorld_ = true;
     worldLine_ = call.line;
     scene_.camera.worldFromCamera = glm::inverse(attr_.ctm);
@@ -1029,9 +1040,8 @@ bool RibParser::executeTransform(const Call& call, bool* handled) {
     attr_.ctm = glm::mat4(1.0f);
   } else if (n == "Transform" || n == "ConcatTransform") {
     if (!positionalNumbers(call, 16, &v, &next)) return false;
+    // A singular matrix is kept: geometry under it is skipped (see executeGeometry).
     const glm::mat4 m = glm::make_mat4(v.data());
-    if (std::fabs(glm::determinant(m)) < 1e-12f)
-      return fail(call.line, "'" + n + "' matrix is singular");
     attr_.ctm = n == "Transform" ? m : attr_.ctm * m;
   } else if (n == "Translate") {
     if (!positionalNumbers(call, 3, &v, &next)) return false;
@@ -1043,7 +1053,6 @@ bool RibParser::executeTransform(const Call& call, bool* handled) {
     attr_.ctm = glm::rotate(attr_.ctm, glm::radians(v[0]), glm::normalize(axis));
   } else if (n == "Scale") {
     if (!positionalNumbers(call, 3, &v, &next)) return false;
-    if (v[0] == 0 || v[1] == 0 || v[2] == 0) return fail(call.line, "'Scale' by zero");
     attr_.ctm = glm::scale(attr_.ctm, glm::vec3(v[0], v[1], v[2]));
   } else if (n == "CoordinateSystem" || n == "ScopedCoordinateSystem") {
     std::string name;
@@ -1475,6 +1484,19 @@ bool RibParser::executeGeometry(const Call& call, bool* handled) {
     for (double d : a.numbers) out.push_back(int(std::clamp(d, -1e9, 1e9)));
     return out;
   };
+  static const std::set<std::string> kShapes = {
+      "Sphere",         "Cylinder",       "Cone",     "Disk",     "Torus",
+      "Paraboloid",     "Hyperboloid",    "Polygon",  "GeneralPolygon",
+      "PointsPolygons", "PointsGeneralPolygons",    "Patch",    "PatchMesh",
+      "Geometry"};
+  if (kShapes.count(n)) {
+    if (!requireWorld(call)) return false;
+    if (singular(attr_.ctm)) {
+      warnOnce(call.line, "singular/" + n,
+               "'" + n + "' under a singular transform (such as Scale 0 0 0) skipped");
+      return true;
+    }
+  }
   if (n == "Cylinder" || n == "Cone" || n == "Disk" || n == "Torus" || n == "Paraboloid" ||
       n == "Hyperboloid") {
     if (!requireWorld(call)) return false;

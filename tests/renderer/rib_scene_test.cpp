@@ -175,8 +175,23 @@ TEST(RibTransforms, IdentityAndTransformReplaceTheCurrentTransform) {
   ASSERT_EQ(r.scene->meshes.size(), 2u);
   expectNear(r.scene->meshes[0].P[1], glm::vec3(1, 0, 0));
   expectNear(r.scene->meshes[1].P[1], glm::vec3(2, 0, 1));
-  EXPECT_FALSE(read(world("Transform [0 0 0 0  0 1 0 0  0 0 1 0  0 0 0 1]")).scene);  // singular
   EXPECT_FALSE(read(world("Transform [1 0 0]")).scene);
+}
+
+// Exporters hide objects with Scale 0 0 0; any transform without an inverse skips the geometry
+// under it with one warning instead of stopping the load.
+TEST(RibTransforms, SingularTransformsSkipTheirGeometry) {
+  ReadResult r = read(world("AttributeBegin\nScale 0 0 0\n" + std::string(kTriangle) +
+                            "Sphere 1 -1 1 360\nAttributeEnd\n" +
+                            "AttributeBegin\nTransform [0 0 0 0  0 1 0 0  0 0 1 0  0 0 0 1]\n" +
+                            kTriangle + "AttributeEnd\n" + kTriangle));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  EXPECT_EQ(r.scene->meshes.size(), 1u);
+  EXPECT_NE(r.warnings.find(":4: warning: 'Polygon' under a singular transform"), std::string::npos)
+      << r.warnings;
+  EXPECT_NE(r.warnings.find(":5: warning: 'Sphere' under a singular transform"), std::string::npos)
+      << r.warnings;
+  EXPECT_FALSE(read("Scale 0 1 1\n" + world("")).scene);  // but the camera needs an inverse
 }
 
 // --- Frames and archives ---
