@@ -766,6 +766,7 @@ class RibParser {
   std::map<std::string, std::pair<runtime::ParamType, int>> declared_;
   std::map<std::string, std::string> declaredClass_;
   std::map<std::string, uint32_t> lightHandles_;  // handle -> Scene::lights index
+  std::set<std::string> skippedLightHandles_;      // of lights the reader skipped
   std::vector<size_t> lightsBeforeWorld_;          // in camera space until WorldBegin
   // ObjectBegin/End: the recorded calls of each object, replayed by ObjectInstance.
   struct RecordedCall {
@@ -1129,6 +1130,11 @@ bool RibParser::executeAttributes(const Call& call, bool* handled) {
     if (!lightHandle(call.args[0], &handle))
       return fail(call.line, "'Illuminate' expects a light handle (a number or a string)");
     const auto light = lightHandles_.find(handle);
+    if (light == lightHandles_.end() && skippedLightHandles_.count(handle)) {
+      warnOnce(call.line, "illuminate/" + handle,
+               "'Illuminate': light '" + handle + "' was skipped; ignored");
+      return true;
+    }
     if (light == lightHandles_.end())
       return fail(call.line, "'Illuminate': no light with handle '" + handle + "'");
     std::vector<uint32_t>& on = attr_.lightsOn;
@@ -1138,7 +1144,7 @@ bool RibParser::executeAttributes(const Call& call, bool* handled) {
     if (call.args[1].numbers[0] == 0 && isOn) on.erase(at);
   } else if (n == "Basis") {
     return doBasis(call);
-  } else if (n == "LightSource") {
+  } else if (n == "LightSource" || n == "AreaLightSource") {
     return doLight(call);
   } else if (n == "Displacement") {
     return doDisplacement(call);
@@ -1225,6 +1231,27 @@ bool RibParser::doLight(const Call& call) {
   std::string handle;
   if (first == 2 && !lightHandle(call.args[1], &handle))
     return fail(call.line, "'LightSource': the light handle must be a number or a string");
+  const bool known = call.name == "LightSource" &&
+                     (name == "distantlight" || name == "ambientlight" || name == "pointlight" ||
+                      name == "spotlight" || name == "arealight");
+  if (!known || singular(attr_.ctm)) {
+    // Skipped before its parameters are read (they belong to a shader Relief does not have). The
+    // handle is remembered so that an Illuminate of it is a no-op rather than an error.
+    if (call.name == "AreaLightSource")
+      warnOnce(call.line, "AreaLightSource",
+               "'AreaLightSource' is not supported (use LightSource \"arealight\"); skipped");
+    else if (!known)
+      warnOnce(call.line, "light/" + name,
+               "light source '" + name + "' is not supported; ignored");
+    else
+      warnOnce(call.line, "singularlight",
+               "light source '" + name + "' under a singular transform; skipped");
+    if (!handle.empty()) {
+      lightHandles_.erase(handle);
+      skippedLightHandles_.insert(handle);
+    }
+    return true;
+  }
   std::vector<Param> params;
   if (!parseParams(call, first, &params)) return false;
   float intensity = 1.0f;
@@ -1315,14 +1342,14 @@ bool RibParser::doLight(const Call& call) {
     }
     warnUnusedParams(call, params, {"intensity", "lightcolor", "from", "shape", "width", "height",
                                     "radius", "samples"});
-  } else {
-    warnOnce(call.line, "light/" + name, "light source '" + name + "' is not supported; ignored");
-    return true;
   }
   const uint32_t index = uint32_t(scene_.lights.size());
   scene_.lights.push_back(light);
   if (!inWorld_) lightsBeforeWorld_.push_back(index);
-  if (!handle.empty()) lightHandles_[handle] = index;
+  if (!handle.empty()) {
+    lightHandles_[handle] = index;
+    skippedLightHandles_.erase(handle);
+  }
   // A new light is on for the current attribute block (RiLightSource turns it on).
   attr_.lightsOn.insert(std::lower_bound(attr_.lightsOn.begin(), attr_.lightsOn.end(), index),
                         index);

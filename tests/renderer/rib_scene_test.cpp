@@ -1,7 +1,8 @@
 // Tests of the RIB calls added for the full scene format (docs/scene-format.md): options, displays,
 // frames, surfaces, lights and Illuminate, orientation, object instancing, procedurals, OBJ
-// meshes, patches and patch meshes, general polygons and primitive variable classes, and the
-// errors bad input gets. Each test checks the call's effect on the Scene.
+// meshes, patches and patch meshes, general polygons and primitive variable classes, the errors
+// bad input gets, and the warnings (not errors) for input written for other renderers. Each test
+// checks the call's effect on the Scene.
 #include <unistd.h>
 
 #include <cmath>
@@ -641,6 +642,41 @@ TEST(RibObjMesh, LoadsAnObjFileRelativeToTheScene) {
   const std::string wrongType =
       dir.write("wrong.rib", world("Geometry \"objmesh\" \"float filename\" [1]"));
   EXPECT_FALSE(readRibFile(wrongType, RibReadOptions{}, &error));
+}
+
+// --- Input written for other renderers ---
+
+// Lights Relief does not have (another renderer's shaders, area light sources) are skipped with one
+// warning each, and their handles stay known: Illuminate of them changes nothing. A handle never
+// declared is still an error.
+TEST(RibForeign, IlluminateOfASkippedLightIsANoOp) {
+  ReadResult r = read(world(
+      "LightSource \"distantlight\" \"key\"\n"
+      "LightSource \"shadowspot\" \"shadow\" \"float intensity\" [3] \"string shadowname\" [\"a.shd\"]\n"
+      "LightSource \"PxrDomeLight\" 7 \"bool enableTemperature\" [1]\n"
+      "AreaLightSource \"arealight\" \"panel\" \"float intensity\" [2]\n"
+      "Illuminate \"shadow\" 0\nIlluminate 7 1\nIlluminate \"panel\" 0\nIlluminate \"shadow\" 1\n" +
+      std::string(kTriangle)));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  ASSERT_EQ(r.scene->lights.size(), 1u);
+  EXPECT_EQ(r.scene->meshes.at(0).lights, std::vector<uint32_t>{0});
+  EXPECT_NE(r.warnings.find(":3: warning: light source 'shadowspot' is not supported"),
+            std::string::npos)
+      << r.warnings;
+  EXPECT_NE(r.warnings.find(":5: warning: 'AreaLightSource' is not supported"), std::string::npos)
+      << r.warnings;
+  const std::string skipped = "'Illuminate': light 'shadow' was skipped";
+  EXPECT_EQ(r.warnings.find(skipped, r.warnings.find(skipped) + 1), std::string::npos)
+      << r.warnings;  // once
+  ReadResult bad = read(world("LightSource \"shadowspot\" 1\nIlluminate 2 1"));
+  ASSERT_FALSE(bad.scene);
+  EXPECT_EQ(bad.error.message, "'Illuminate': no light with handle '2'");
+  // A handle reused by a supported light is that light again.
+  r = read(world("LightSource \"shadowspot\" 1\nLightSource \"pointlight\" 1\nIlluminate 1 0\n" +
+                 std::string(kTriangle)));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  EXPECT_TRUE(r.scene->meshes.at(0).lights.empty());
+  EXPECT_TRUE(r.scene->meshes.at(0).lightsSet);
 }
 
 // --- The feature scene ---
