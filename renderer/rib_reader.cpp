@@ -193,14 +193,22 @@ struct Param {
   std::optional<runtime::ParamType> type;  // as declared in the call (or by Declare)
   int arraySize = 0;
   std::string storageClass;  // "vertex", "uniform", ... as declared; empty: not given
+  bool homogeneous = false;  // declared "hpoint": four numbers per point (x y z w)
   Arg value;
   int line = 0;
 };
 
-std::optional<runtime::ParamType> parseTypeWord(std::string_view word) {
+// A type word of a declaration. "hpoint" is a point with a fourth, homogeneous coordinate
+// (*homogeneous is set); "bool" is stored as an int, as RenderMan's bool parameters are 0 or 1.
+std::optional<runtime::ParamType> parseTypeWord(std::string_view word, bool* homogeneous) {
   using runtime::ParamType;
+  *homogeneous = false;
   if (word == "float") return ParamType::Float;
-  if (word == "int" || word == "integer") return ParamType::Int;
+  if (word == "int" || word == "integer" || word == "bool") return ParamType::Int;
+  if (word == "hpoint") {
+    *homogeneous = true;
+    return ParamType::Point;
+  }
   if (word == "point") return ParamType::Point;
   if (word == "vector") return ParamType::Vector;
   if (word == "normal") return ParamType::Normal;
@@ -479,7 +487,11 @@ class RibParser {
     return true;
   }
 
-  bool parseParams(const Call& call, size_t first, std::vector<Param>* params) {
+  // Reads the `"decl" value` pairs from argument `first` on. A parameter whose type word is unknown
+  // is left out, with a warning unless `quiet` (the parameters of shaders Relief does not have are
+  // not its business).
+  bool parseParams(const Call& call, size_t first, std::vector<Param>* params,
+                   bool quiet = false) {
     params->clear();
     for (size_t i = first; i < call.args.size(); i += 2) {
       const Arg& nameArg = call.args[i];
@@ -492,14 +504,24 @@ class RibParser {
       Param p;
       p.value = call.args[i + 1];
       p.line = nameArg.line;
-      if (!parseDeclaration(nameArg.strings[0], nameArg.line, &p)) return false;
+      std::string unknownType;
+      if (!parseDeclaration(nameArg.strings[0], nameArg.line, &p, &unknownType)) return false;
+      if (!unknownType.empty()) {
+        if (!quiet)
+          warnOnce(nameArg.line, "type/" + unknownType,
+                   "'" + call.name + "': unknown type '" + unknownType + "' in '" +
+                       nameArg.strings[0] + "'; parameter ignored");
+        continue;
+      }
       params->push_back(std::move(p));
     }
     return true;
   }
 
   // decl -> [class] type ['[' n ']'] name  |  name
-  bool parseDeclaration(const std::string& text, int line, Param* p) {
+  // A type word outside the known set is returned in *unknownType (p->type stays empty).
+  bool parseDeclaration(const std::string& text, int line, Param* p, std::string* unknownType) {
+    unknownType->clear();
     std::vector<std::string> words = splitWords(text);
     if (words.empty()) return fail(line, "empty parameter name");
     p->name = words.back();
@@ -511,9 +533,10 @@ class RibParser {
     if (words.empty()) {
       const auto declared = declared_.find(p->name);
       if (declared != declared_.end()) {
-        p->type = declared->second.first;
-        p->arraySize = declared->second.second;
-        if (p->storageClass.empty()) p->storageClass = declaredClass_[p->name];
+        p->type = declared->second.type;
+        p->arraySize = declared->second.arraySize;
+        p->homogeneous = declared->second.homogeneous;
+        if (p->storageClass.empty()) p->storageClass = declared->second.storageClass;
       }
       return true;
     }
@@ -527,8 +550,8 @@ class RibParser {
       p->arraySize = std::atoi(typeWord.substr(bracket + 1, close - bracket - 1).c_str());
       typeWord = typeWord.substr(0, bracket);
     }
-    p->type = parseTypeWord(typeWord);
-    if (!p->type) return fail(line, "unknown type '" + typeWord + "' in '" + text + "'");
+    p->type = parseTypeWord(typeWord, &p->homogeneous);
+    if (!p->type) *unknownType = typeWord;
     return true;
   }
 
@@ -553,6 +576,35 @@ class RibParser {
                               std::to_string(count) + " value" + (count == 1 ? "" : "s") +
                               ", got " + std::to_string(p.value.numbers.size()));
     out->assign(p.value.numbers.begin(), p.value.numbers.end());
+    return true;
+  }
+
+  // The control points of a geometry call, 3 numbers each: "P", or else "Pw" (x y z w, RenderMan's
+  // homogeneous points, taken as (x/w, y/w, z/w)). `count` points are expected (0: any number).
+  bool positions(const Call& call, const std::vector<Param>& params, size_t count,
+                 std::vector<float>* P) {
+    if (const Param* p = findParam(params, "P")) {
+      if (!numbersParam(call, *p, "point", count * 3, P)) return false;
+      if (P->empty() || P->size() % 3 != 0)
+        return fail(p->line, "'" + call.name + "': \"P\" needs a multiple of 3 numbers, got " +
+                                 std::to_string(P->size()));
+      return true;
+    }
+    const Param* pw = findParam(params, "Pw");
+    if (!pw) return fail(call.line, "'" + call.name + "' needs a \"P\" (or \"Pw\") parameter");
+    std::vector<float> h;
+    if (!numbersParam(call, *pw, "hpoint", count * 4, &h)) return false;
+    if (h.empty() || h.size() % 4 != 0)
+      return fail(pw->line, "'" + call.name + "': \"Pw\" needs 4 numbers (x y z w) per point, got " +
+                                std::to_string(h.size()));
+    P->clear();
+    for (size_t i = 0; i < h.size(); i += 4) {
+      const float w = h[i + 3];
+      if (w == 0.0f)
+        return fail(pw->line, "'" + call.name + "': \"Pw\" point " + std::to_string(i / 4) +
+                                  " has w = 0");
+      P->insert(P->end(), {h[i] / w, h[i + 1] / w, h[i + 2] / w});
+    }
     return true;
   }
 
@@ -763,8 +815,13 @@ class RibParser {
   AttributeState attr_;
   std::vector<StackEntry> stack_;
   std::vector<std::string> searchPath_;
-  std::map<std::string, std::pair<runtime::ParamType, int>> declared_;
-  std::map<std::string, std::string> declaredClass_;
+  struct Declared {
+    runtime::ParamType type;
+    int arraySize = 0;
+    bool homogeneous = false;
+    std::string storageClass;
+  };
+  std::map<std::string, Declared> declared_;  // Declare "name" "[class] type"
   std::map<std::string, uint32_t> lightHandles_;  // handle -> Scene::lights index
   std::set<std::string> skippedLightHandles_;      // of lights the reader skipped
   std::vector<size_t> lightsBeforeWorld_;          // in camera space until WorldBegin
@@ -894,6 +951,12 @@ bool RibParser::executeCamera(const Call& call, bool* handled) {
   } else if (n == "Projection") {
     std::string type;
     if (!positionalString(call, 0, &type)) return false;
+    if (type != "perspective" && type != "orthographic") {
+      warnOnce(call.line, "projection/" + type,
+               "unsupported projection '" + type + "'; using orthographic");
+      scene_.camera.perspective = false;
+      return true;
+    }
     std::vector<Param> params;
     if (!parseParams(call, 1, &params)) return false;
     if (type == "perspective") {
@@ -902,11 +965,9 @@ bool RibParser::executeCamera(const Call& call, bool* handled) {
       if (!(scene_.camera.fovDegrees > 0 && scene_.camera.fovDegrees < 180))
         return fail(call.line, "'Projection': 'fov' must be in (0, 180) degrees");
       warnUnusedParams(call, params, {"fov"});
-    } else if (type == "orthographic") {
+    } else {
       scene_.camera.perspective = false;
       warnUnusedParams(call, params, {});
-    } else {
-      return fail(call.line, "unsupported projection '" + type + "'");
     }
   } else if (n == "Clipping") {
     if (!positionalNumbers(call, 2, &v, &next)) return false;
@@ -953,13 +1014,15 @@ bool RibParser::executeCamera(const Call& call, bool* handled) {
   } else if (n == "Option") {
     std::string category;
     if (!positionalString(call, 0, &category)) return false;
-    std::vector<Param> params;
-    if (!parseParams(call, 1, &params)) return false;
-    if (category == "relief") return doReliefOption(call, params);
-    if (category != "searchpath") {
+    // Checked before the parameters are read: another renderer's options may use types and
+    // values Relief has no reason to understand.
+    if (category != "relief" && category != "searchpath") {
       warnOnce(call.line, "option/" + category, "unsupported option '" + category + "' ignored");
       return true;
     }
+    std::vector<Param> params;
+    if (!parseParams(call, 1, &params)) return false;
+    if (category == "relief") return doReliefOption(call, params);
     for (const Param& p : params) {
       if (p.name != "shader" && p.name != "texture") {
         warnOnce(p.line, "searchpath/" + p.name,
@@ -1152,13 +1215,25 @@ bool RibParser::executeAttributes(const Call& call, bool* handled) {
     std::string name, decl;
     if (!positionalString(call, 0, &name) || !positionalString(call, 1, &decl)) return false;
     Param p;
-    if (!parseDeclaration(decl + " " + name, call.line, &p)) return false;
+    std::string unknownType;
+    if (!parseDeclaration(decl + " " + name, call.line, &p, &unknownType)) return false;
+    if (!unknownType.empty()) {
+      warnOnce(call.line, "type/" + unknownType,
+               "'Declare': unknown type '" + unknownType + "'; '" + name + "' left undeclared");
+      return true;
+    }
     if (!p.type) return fail(call.line, "'Declare' needs a type");
-    declared_[name] = {*p.type, p.arraySize};
-    declaredClass_[name] = p.storageClass;
+    declared_[name] = Declared{*p.type, p.arraySize, p.homogeneous, p.storageClass};
   } else if (n == "Attribute") {
     std::string category;
     if (!positionalString(call, 0, &category)) return false;
+    if (category != "displacementbound" && category != "bound" && category != "relief" &&
+        category != "visibility") {
+      // Before reading the parameters, as for Option.
+      warnOnce(call.line, "attribute/" + category,
+               "unsupported attribute '" + category + "' ignored");
+      return true;
+    }
     std::vector<Param> params;
     if (!parseParams(call, 1, &params)) return false;
     if (category == "displacementbound") {
@@ -1209,9 +1284,6 @@ bool RibParser::executeAttributes(const Call& call, bool* handled) {
           warnOnce(call.line, "visibility/" + q.name,
                    "'visibility' '" + q.name + "' ignored: surfaces are visible to every ray "
                    "but, with \"transmission\" 0, to shadow rays");
-    } else {
-      warnOnce(call.line, "attribute/" + category,
-               "unsupported attribute '" + category + "' ignored");
     }
   } else {
     *handled = false;
@@ -1356,12 +1428,17 @@ bool RibParser::doLight(const Call& call) {
   return true;
 }
 
-// Surface name params: RenderMan's standard surfaces with their default parameters.
+// Surface name params: RenderMan's standard surfaces with their default parameters. Any other
+// surface is matte, keeping only a Ka and Kd that are single floats: its parameters belong to a
+// shader Relief does not have, so their types are not checked.
 bool RibParser::doSurface(const Call& call) {
   std::string name;
   if (!positionalString(call, 0, &name)) return false;
+  const bool isKnown = name == "matte" || name == "plastic" || name == "metal" ||
+                       name == "shinymetal" || name == "mirror" || name == "glass" ||
+                       name == "constant";
   std::vector<Param> params;
-  if (!parseParams(call, 1, &params)) return false;
+  if (!parseParams(call, 1, &params, !isKnown)) return false;
   Material m = matteMaterial();
   m.color = attr_.material.color;
   m.opacity = attr_.material.opacity;
@@ -1394,10 +1471,15 @@ bool RibParser::doSurface(const Call& call) {
     known = {};
   } else {
     warnOnce(call.line, "surface/" + name, "surface '" + name + "' is not supported; using 'matte'");
+    for (const auto& [pname, field] : {std::pair{"Ka", &m.Ka}, std::pair{"Kd", &m.Kd}}) {
+      const Param* p = findParam(params, pname);
+      if (p && (!p->type || *p->type == runtime::ParamType::Float) && p->value.isNumeric() &&
+          p->value.numbers.size() == 1)
+        *field = float(p->value.numbers[0]);
+    }
+    attr_.material = m;
+    return true;
   }
-  const bool isKnown = name == "matte" || name == "plastic" || name == "metal" ||
-                       name == "shinymetal" || name == "mirror" || name == "glass" ||
-                       name == "constant";
   auto has = [&](std::string_view p) {
     return std::find(known.begin(), known.end(), p) != known.end();
   };
@@ -1562,10 +1644,9 @@ bool RibParser::executeGeometry(const Call& call, bool* handled) {
     } else {
       // The point count comes from "P"; the indices are the points in order.
       std::vector<Param> params;
-      if (!parseParams(call, first, &params)) return false;
-      const Param* pParam = findParam(params, "P");
-      if (!pParam) return fail(call.line, "'" + n + "' needs a \"P\" parameter");
-      nverts = {int(pParam->value.numbers.size() / 3)};
+      std::vector<float> P;
+      if (!parseParams(call, first, &params) || !positions(call, params, 0, &P)) return false;
+      nverts = {int(P.size() / 3)};
     }
     int total = 0;
     for (int c : nverts) total += std::max(c, 0);
@@ -1790,7 +1871,7 @@ bool RibParser::readPrimvars(const Call& call, const std::vector<Param>& params,
   static const Known known[] = {{"N", 3, "normal"}, {"st", 2, "float"}, {"s", 1, "float"},
                                 {"t", 1, "float"},  {"Cs", 3, "color"}};
   for (const Param& p : params) {
-    if (p.name == "P") continue;
+    if (p.name == "P" || p.name == "Pw") continue;
     const Known* k = nullptr;
     for (const Known& candidate : known)
       if (p.name == candidate.name) k = &candidate;
@@ -1866,14 +1947,8 @@ bool RibParser::buildPolygonMesh(const Call& call, const std::vector<int>& nloop
                                  const std::vector<int>& nverts, const std::vector<int>& verts,
                                  size_t first) {
   std::vector<Param> params;
-  if (!parseParams(call, first, &params)) return false;
-  const Param* pParam = findParam(params, "P");
-  if (!pParam) return fail(call.line, "'" + call.name + "' needs a \"P\" parameter");
   std::vector<float> P;
-  if (!numbersParam(call, *pParam, "point", 0, &P)) return false;
-  if (P.empty() || P.size() % 3 != 0)
-    return fail(pParam->line, "'" + call.name + "': \"P\" needs a multiple of 3 numbers, got " +
-                                  std::to_string(P.size()));
+  if (!parseParams(call, first, &params) || !positions(call, params, 0, &P)) return false;
   const size_t numPoints = P.size() / 3;
   size_t loopsTotal = 0;
   for (int l : nloops) {
@@ -1981,11 +2056,10 @@ bool RibParser::buildPolygonMesh(const Call& call, const std::vector<int>& nloop
 bool RibParser::buildPatchMesh(const Call& call, bool bicubic, int nu, bool uPeriodic, int nv,
                                bool vPeriodic, size_t first) {
   std::vector<Param> params;
-  if (!parseParams(call, first, &params)) return false;
-  const Param* pParam = findParam(params, "P");
-  if (!pParam) return fail(call.line, "'" + call.name + "' needs a \"P\" parameter");
   std::vector<float> P;
-  if (!numbersParam(call, *pParam, "point", size_t(nu) * size_t(nv) * 3, &P)) return false;
+  if (!parseParams(call, first, &params) ||
+      !positions(call, params, size_t(nu) * size_t(nv), &P))
+    return false;
   const CubicBasis& ub = attr_.uBasis;
   const CubicBasis& vb = attr_.vBasis;
   auto patchCount = [bicubic](int n, bool periodic, int step) {
@@ -2187,12 +2261,12 @@ bool RibParser::buildPatchMesh(const Call& call, bool bicubic, int nu, bool uPer
 bool RibParser::doGeometry(const Call& call) {
   std::string type;
   if (!positionalString(call, 0, &type)) return false;
-  std::vector<Param> params;
-  if (!parseParams(call, 1, &params)) return false;
   if (type != "objmesh") {
     warnOnce(call.line, "geometry/" + type, "'Geometry \"" + type + "\"' is not supported; skipped");
     return true;
   }
+  std::vector<Param> params;
+  if (!parseParams(call, 1, &params)) return false;
   std::string file;
   if (!stringParam(call, params, "filename", &file)) return false;
   if (file.empty()) return fail(call.line, "'Geometry \"objmesh\"' needs a \"filename\"");

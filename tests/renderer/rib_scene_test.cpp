@@ -79,7 +79,13 @@ TEST(RibOptions, ProjectionDefaultsToOrthographic) {
   EXPECT_TRUE(r.scene->camera.perspective);
   EXPECT_FLOAT_EQ(r.scene->camera.fovDegrees, 90.0f);
   EXPECT_FALSE(read("Projection \"perspective\" \"fov\" [\"wide\"]\n" + world("")).scene);
-  EXPECT_FALSE(read("Projection \"fisheye\"\n" + world("")).scene);
+  // Other projections are outside the subset: a warning and the default.
+  r = read("Projection \"perspective\"\nProjection \"fisheye\" \"fov\" [180]\n" + world(""));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  EXPECT_FALSE(r.scene->camera.perspective);
+  EXPECT_NE(r.warnings.find(":2: warning: unsupported projection 'fisheye'; using orthographic"),
+            std::string::npos)
+      << r.warnings;
 }
 
 TEST(RibOptions, DisplayModesNameTheAovs) {
@@ -677,6 +683,64 @@ TEST(RibForeign, IlluminateOfASkippedLightIsANoOp) {
   ASSERT_TRUE(r.scene) << r.error.format();
   EXPECT_TRUE(r.scene->meshes.at(0).lights.empty());
   EXPECT_TRUE(r.scene->meshes.at(0).lightsSet);
+}
+
+// Options and attributes of other renderers are skipped before their parameters are read, so
+// type words Relief does not know cannot stop the load; hpoint and bool are known types.
+TEST(RibForeign, UnknownCategoriesAndTypesWarn) {
+  ReadResult r = read("Option \"user\" \"bool foo\" [1]\nOption \"ri\" \"weird bar\" [\"x\"]\n"
+                      "Declare \"pw\" \"hpoint\"\nDeclare \"flag\" \"uniform bool\"\n"
+                      "Declare \"odd\" \"quaternion\"\n" +
+                      world("Attribute \"user\" \"struct s\" [1 2]\n"
+                            "Attribute \"visibility\" \"bool transmission\" [0]\n"
+                            "Sphere 1 -1 1 360 \"uniform mystery q\" [1] \"flag\" [1]\n"));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  EXPECT_FALSE(r.scene->materials.at(r.scene->meshes.at(0).materialIndex).castsShadows);
+  for (const char* expected : {":1: warning: unsupported option 'user' ignored",
+                               ":2: warning: unsupported option 'ri' ignored",
+                               ":5: warning: 'Declare': unknown type 'quaternion'",
+                               ":7: warning: unsupported attribute 'user' ignored",
+                               ":9: warning: 'Sphere': unknown type 'mystery'"})
+    EXPECT_NE(r.warnings.find(expected), std::string::npos) << expected << "\n" << r.warnings;
+}
+
+// A surface Relief does not have is matte; its parameters are another shader's, so a Kd or Ka of
+// another type is ignored instead of being an error, and one that is a single float is kept.
+TEST(RibForeign, UnknownSurfaceIsMatteWithoutTypeChecks) {
+  ReadResult r = read(world("Surface \"foo\" \"color Kd\" [1 0 0] \"float Ka\" [0.25] "
+                            "\"string map\" [\"x.tx\"] \"strange s\" [1]\n" + std::string(kTriangle) +
+                            "Surface \"bar\" \"Kd\" [0.5] \"Ka\" [\"no\"]\n" + kTriangle));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  const Material& foo = materialOf(*r.scene, 0);
+  EXPECT_EQ(foo.type, SurfaceType::Matte);
+  EXPECT_FLOAT_EQ(foo.Kd, 1.0f);
+  EXPECT_FLOAT_EQ(foo.Ka, 0.25f);
+  const Material& bar = materialOf(*r.scene, 1);
+  EXPECT_FLOAT_EQ(bar.Kd, 0.5f);
+  EXPECT_FLOAT_EQ(bar.Ka, 1.0f);
+  EXPECT_NE(r.warnings.find("surface 'foo' is not supported; using 'matte'"), std::string::npos);
+  EXPECT_EQ(r.warnings.find("strange"), std::string::npos) << r.warnings;
+}
+
+// "Pw" (homogeneous points) stands in for "P": RenderMan's point is (x/w, y/w, z/w).
+TEST(RibForeign, PwIsDividedByW) {
+  ReadResult r = read("Declare \"Pw\" \"vertex hpoint\"\n" +
+                      world("Polygon \"vertex hpoint Pw\" [0 0 0 1  2 0 0 2  0 3 0 3]\n"
+                            "PointsPolygons [3] [0 1 2] \"Pw\" [0 0 1 0.5  1 0 1 1  0 1 1 1]\n"
+                            "Patch \"bilinear\" \"Pw\" [0 0 0 1  2 0 0 2  0 2 0 2  4 4 0 4]\n"));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  ASSERT_EQ(r.scene->meshes.size(), 3u);
+  expectNear(r.scene->meshes[0].P[1], glm::vec3(1, 0, 0));
+  expectNear(r.scene->meshes[0].P[2], glm::vec3(0, 1, 0));
+  expectNear(r.scene->meshes[1].P[0], glm::vec3(0, 0, 2));
+  expectNear(r.scene->meshes[2].P.back(), glm::vec3(1, 1, 0));
+  EXPECT_EQ(r.warnings.find("Pw"), std::string::npos) << r.warnings;
+  r = read(world("\nPolygon \"Pw\" [0 0 0 1  1 0 0 0  0 1 0 1]"));
+  ASSERT_FALSE(r.scene);
+  EXPECT_EQ(r.error.format(), "/scenes/test.rib:3: error: 'Polygon': \"Pw\" point 1 has w = 0");
+  r = read(world("\nPolygon \"Pw\" [0 0 0  1 0 0  0 1 0]"));
+  ASSERT_FALSE(r.scene);
+  EXPECT_NE(r.error.message.find("\"Pw\" needs 4 numbers (x y z w) per point"), std::string::npos);
 }
 
 // --- The feature scene ---
