@@ -14,6 +14,7 @@
 #include <ostream>
 #include <set>
 #include <sstream>
+#include <utility>
 
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/type_ptr.hpp>
@@ -327,7 +328,10 @@ class RibParser {
       return std::nullopt;
     }
     const int eofLine = tokens_.back().line;
-    if (!stack_.empty()) {
+    if (motionLine_ > 0) {
+      fail(eofLine, "unexpected end of file: 'MotionBegin' at line " +
+                        std::to_string(motionLine_) + " has no 'MotionEnd'");
+    } else if (!stack_.empty()) {
       const StackEntry& e = stack_.back();
       fail(eofLine, std::string("unexpected end of file: '") +
                         (e.attribute ? "AttributeBegin" : "TransformBegin") + "' at line " +
@@ -838,6 +842,8 @@ class RibParser {
   int frameDepth_ = 0;
   int frameLine_ = 0;
   bool skipping_ = false;  // after the first frame: the rest of the file is skipped
+  int motionLine_ = 0;     // line of the open MotionBegin; 0: outside motion blocks
+  bool motionSampleTaken_ = false;  // the open motion block's first sample has run
   std::set<std::string> warnedKeys_;
   bool inWorld_ = false, worldDone_ = false;
   int worldLine_ = 0;
@@ -871,6 +877,27 @@ bool RibParser::execute(const Call& call) {
     recordingName_ = handle;
     recordingLine_ = call.line;
     return true;
+  }
+  // MotionBegin [times] sample... MotionEnd: each call inside is one sample of the same request.
+  // Without motion blur the scene is the one at the first time, so only the first call counts.
+  if (name == "MotionBegin") {
+    if (motionLine_ > 0)
+      return fail(call.line, "nested 'MotionBegin' (the block at line " +
+                                 std::to_string(motionLine_) + " is still open)");
+    warnOnce(call.line, "motion",
+             "motion blur is not supported; each motion block uses its first sample");
+    motionLine_ = call.line;
+    motionSampleTaken_ = false;
+    return true;
+  }
+  if (name == "MotionEnd") {
+    if (motionLine_ == 0) return fail(call.line, "'MotionEnd' without 'MotionBegin'");
+    motionLine_ = 0;
+    return true;
+  }
+  if (motionLine_ > 0) {
+    if (motionSampleTaken_) return true;
+    motionSampleTaken_ = true;
   }
   if (name == "ObjectEnd") return fail(call.line, "'ObjectEnd' without 'ObjectBegin'");
   if (name == "ObjectInstance") return doObjectInstance(call);
@@ -2320,6 +2347,8 @@ bool RibParser::doObjectInstance(const Call& call) {
                                " deep (does an object instance itself?)");
   const AttributeState saved = attr_;
   const size_t depth = stack_.size();
+  // An instance may be the sample of an enclosing motion block; its own calls are not samples.
+  const int motionLine = std::exchange(motionLine_, 0);
   const std::string savedFile = fileName_;
   ++instanceDepth_;
   bool ok = true;
@@ -2332,8 +2361,10 @@ bool RibParser::doObjectInstance(const Call& call) {
   }
   --instanceDepth_;
   fileName_ = savedFile;
-  if (ok && stack_.size() != depth)
-    return fail(call.line, "object '" + handle + "' has unbalanced attribute or transform blocks");
+  if (ok && (stack_.size() != depth || motionLine_ != 0))
+    return fail(call.line,
+                "object '" + handle + "' has unbalanced attribute, transform or motion blocks");
+  motionLine_ = motionLine;
   attr_ = saved;
   return ok;
 }

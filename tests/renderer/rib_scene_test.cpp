@@ -743,6 +743,34 @@ TEST(RibForeign, PwIsDividedByW) {
   EXPECT_NE(r.error.message.find("\"Pw\" needs 4 numbers (x y z w) per point"), std::string::npos);
 }
 
+// Without motion blur a motion block is its first sample: two Translates do not add up and two
+// Spheres are one sphere.
+TEST(RibForeign, MotionBlocksUseTheirFirstSample) {
+  ReadResult r = read(world("MotionBegin [0 1]\nTranslate 1 0 0\nTranslate 2 0 0\nMotionEnd\n" +
+                            std::string(kTriangle) +
+                            "MotionBegin [0 0.5 1]\nSphere 1 -1 1 360\nSphere 2 -2 2 360\n"
+                            "Sphere 3 -3 3 360\nMotionEnd\n"));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  ASSERT_EQ(r.scene->meshes.size(), 2u);
+  expectNear(r.scene->meshes[0].P[0], glm::vec3(1, 0, 0));
+  float radius = 0.0f;
+  for (const glm::vec3& p : r.scene->meshes[1].P) radius = std::max(radius, glm::length(p - glm::vec3(1, 0, 0)));
+  EXPECT_NEAR(radius, 1.0f, 1e-4f);
+  EXPECT_NE(r.warnings.find(":2: warning: motion blur is not supported"), std::string::npos);
+  EXPECT_EQ(r.warnings.find("motion blur", r.warnings.find("motion blur") + 1), std::string::npos);
+  // An instance as a motion sample plays all its calls.
+  r = read(world("ObjectBegin 1\n" + std::string(kTriangle) + kTriangle + "ObjectEnd\n"
+                 "MotionBegin [0 1]\nObjectInstance 1\nObjectInstance 1\nMotionEnd\n"));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  EXPECT_EQ(r.scene->meshes.size(), 2u);
+  r = read(world("MotionBegin [0 1]\nTranslate 1 0 0\n"));
+  ASSERT_FALSE(r.scene);
+  EXPECT_NE(r.error.message.find("'MotionBegin' at line 2 has no 'MotionEnd'"), std::string::npos)
+      << r.error.message;
+  EXPECT_FALSE(read(world("MotionEnd")).scene);
+  EXPECT_FALSE(read(world("MotionBegin [0 1]\nMotionBegin [0 1]\nMotionEnd\nMotionEnd")).scene);
+}
+
 // --- The feature scene ---
 
 TEST(RibFeatureScene, LoadsWithOneOfEverything) {
