@@ -316,6 +316,7 @@ class RibParser {
       : fileName_(fileName), options_(options), searchPath_(options.defaultShaderPath) {
     const std::filesystem::path p(fileName);
     baseDir_ = p.has_parent_path() ? p.parent_path().string() : std::string(".");
+    archivePath_ = {baseDir_};
     scene_.camera.perspective = false;  // RenderMan's default projection
     scene_.texturePath = options.defaultTexturePath;
   }
@@ -699,12 +700,31 @@ class RibParser {
   };
   bool readPrimvars(const Call& call, const std::vector<Param>& params,
                     const PrimvarCounts& counts, std::vector<Primvar>* out);
-  // A path named in the file being read: relative to that file's directory.
-  std::string resolveRelative(const std::string& name) const {
-    const std::filesystem::path currentDir = std::filesystem::path(fileName_).parent_path();
-    return std::filesystem::path(name).is_relative()
-               ? (currentDir / name).lexically_normal().string()
-               : name;
+  // Finds a file named by the file being read (an archive, an OBJ mesh). A relative name is
+  // tried against that file's directory, then along Option "searchpath" "archive" (by default
+  // the scene's directory), then from the working directory. Returns the first regular file, or
+  // "" with *tried listing where it looked.
+  std::string findFile(const std::string& name, std::string* tried) const {
+    namespace fs = std::filesystem;
+    std::vector<fs::path> candidates;
+    if (fs::path(name).is_absolute()) {
+      candidates.push_back(name);
+    } else {
+      candidates.push_back(fs::path(fileName_).parent_path() / name);
+      for (const std::string& dir : archivePath_) candidates.push_back(fs::path(dir) / name);
+      candidates.push_back(name);
+    }
+    std::vector<std::string> seen;
+    for (const fs::path& candidate : candidates) {
+      const std::string path = candidate.lexically_normal().string();
+      if (std::find(seen.begin(), seen.end(), path) != seen.end()) continue;
+      std::error_code ec;
+      if (fs::is_regular_file(path, ec)) return path;
+      seen.push_back(path);
+    }
+    tried->clear();
+    for (const std::string& path : seen) *tried += (tried->empty() ? "'" : ", '") + path + "'";
+    return std::string();
   }
   // Quadrics take st, s, t and Cs as constant (1 value) or varying/vertex (4 values at the
   // corners of the (u, v) range, interpolated bilinearly).
@@ -819,6 +839,7 @@ class RibParser {
   AttributeState attr_;
   std::vector<StackEntry> stack_;
   std::vector<std::string> searchPath_;
+  std::vector<std::string> archivePath_;  // Option "searchpath" "archive"; see findFile
   struct Declared {
     runtime::ParamType type;
     int arraySize = 0;
@@ -1051,7 +1072,7 @@ bool RibParser::executeCamera(const Call& call, bool* handled) {
     if (!parseParams(call, 1, &params)) return false;
     if (category == "relief") return doReliefOption(call, params);
     for (const Param& p : params) {
-      if (p.name != "shader" && p.name != "texture") {
+      if (p.name != "shader" && p.name != "texture" && p.name != "archive") {
         warnOnce(p.line, "searchpath/" + p.name,
                  "search path '" + p.name + "' is not supported; ignored");
         continue;
@@ -1059,9 +1080,13 @@ bool RibParser::executeCamera(const Call& call, bool* handled) {
       if ((p.type && *p.type != runtime::ParamType::String) || !p.value.isStringy() ||
           p.value.strings.size() != 1)
         return fail(p.line, "'Option \"searchpath\"': '" + p.name + "' expects one string");
-      std::vector<std::string>& previous = p.name == "shader" ? searchPath_ : scene_.texturePath;
-      const std::vector<std::string>& defaults =
-          p.name == "shader" ? options_.defaultShaderPath : options_.defaultTexturePath;
+      std::vector<std::string>& previous = p.name == "shader"    ? searchPath_
+                                           : p.name == "texture" ? scene_.texturePath
+                                                                 : archivePath_;
+      const std::vector<std::string> sceneDir = {baseDir_};
+      const std::vector<std::string>& defaults = p.name == "shader"    ? options_.defaultShaderPath
+                                                 : p.name == "texture" ? options_.defaultTexturePath
+                                                                       : sceneDir;
       std::vector<std::string> path;
       for (const std::string& dir : splitPath(p.value.strings[0])) {
         if (dir == "&") {
@@ -2298,7 +2323,9 @@ bool RibParser::doGeometry(const Call& call) {
   if (!stringParam(call, params, "filename", &file)) return false;
   if (file.empty()) return fail(call.line, "'Geometry \"objmesh\"' needs a \"filename\"");
   warnUnusedParams(call, params, {"filename"});
-  const std::string path = resolveRelative(file);
+  std::string tried;
+  const std::string path = findFile(file, &tried);
+  if (path.empty()) return fail(call.line, "cannot open mesh '" + file + "' (tried " + tried + ")");
   Mesh object;
   std::string error, warning;
   if (!loadObjMesh(path, &object, &error, &warning)) return fail(call.line, error);
@@ -2403,11 +2430,12 @@ bool RibParser::readArchive(const Call& call, const std::string& name) {
     return fail(call.line, "'" + call.name + "' nested more than " +
                                std::to_string(kMaxArchiveDepth) +
                                " deep (does an archive read itself?)");
-  const std::string path = resolveRelative(name);
+  std::string tried;
+  const std::string path = findFile(name, &tried);
+  if (path.empty())
+    return fail(call.line, "cannot open archive '" + name + "' (tried " + tried + ")");
   std::ifstream in(path, std::ios::binary);
-  std::error_code ec;
-  if (!in || !std::filesystem::is_regular_file(path, ec))
-    return fail(call.line, "cannot open archive '" + path + "'");
+  if (!in) return fail(call.line, "cannot open archive '" + path + "'");
   std::ostringstream buffer;
   buffer << in.rdbuf();
   std::vector<RibToken> tokens;

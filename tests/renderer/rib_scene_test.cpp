@@ -771,6 +771,35 @@ TEST(RibForeign, MotionBlocksUseTheirFirstSample) {
   EXPECT_FALSE(read(world("MotionBegin [0 1]\nMotionBegin [0 1]\nMotionEnd\nMotionEnd")).scene);
 }
 
+// Archives and OBJ meshes: beside the file that names them, then along Option "searchpath"
+// "archive", then from the working directory.
+TEST(RibForeign, ArchivesFollowTheSearchPathAndTheWorkingDirectory) {
+  TempDir dir("archivepath");
+  dir.write("lib/tri.rib", kTriangle);
+  dir.write("lib/quad.obj", "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n");
+  dir.write("cwd/fromcwd.rib", kTriangle);
+  const std::string scene =
+      dir.write("scenes/main.rib", "Option \"searchpath\" \"string archive\" [\"../lib:&\"]\n" +
+                                       world("ReadArchive \"tri.rib\"\n"
+                                             "Geometry \"objmesh\" \"string filename\" [\"quad.obj\"]\n"
+                                             "ReadArchive \"fromcwd.rib\"\n"));
+  const std::filesystem::path previous = std::filesystem::current_path();
+  std::filesystem::current_path(dir.path / "cwd");
+  SceneError error;
+  std::optional<Scene> s = readRibFile(scene, RibReadOptions{}, &error);
+  std::filesystem::current_path(previous);
+  ASSERT_TRUE(s) << error.format();
+  EXPECT_EQ(s->meshes.size(), 3u);
+  // Without the search path the archive is not found, and the message says where it looked.
+  const std::string plain = dir.write("scenes/plain.rib", world("\nReadArchive \"tri.rib\""));
+  EXPECT_FALSE(readRibFile(plain, RibReadOptions{}, &error));
+  EXPECT_EQ(error.line, 3);
+  EXPECT_NE(error.message.find("cannot open archive 'tri.rib' (tried '" +
+                               (dir.path / "scenes" / "tri.rib").string() + "'"),
+            std::string::npos)
+      << error.message;
+}
+
 // --- The feature scene ---
 
 TEST(RibFeatureScene, LoadsWithOneOfEverything) {
