@@ -224,6 +224,13 @@ bool isClassWord(std::string_view word) {
          word == "facevarying" || word == "facevertex";
 }
 
+// A number as a user would write it in a message (0.001, not 0.001000).
+std::string formatNumber(double value) {
+  std::ostringstream out;
+  out << value;
+  return out.str();
+}
+
 std::vector<std::string> splitWords(const std::string& s) {
   std::vector<std::string> words;
   std::istringstream in(s);
@@ -464,6 +471,7 @@ class RibParser {
   }
 
   // Takes `count` numbers from the leading arguments, bare or bracketed; the rest are parameters.
+  // Numbers beyond `count` before the first parameter are dropped with a warning.
   bool positionalNumbers(const Call& call, size_t count, std::vector<float>* out, size_t* next) {
     out->clear();
     size_t i = 0;
@@ -471,10 +479,19 @@ class RibParser {
       for (double d : call.args[i].numbers) out->push_back(float(d));
       ++i;
     }
-    if (out->size() != count) {
+    if (out->size() < count) {
       return fail(call.line, "'" + call.name + "' expects " + std::to_string(count) +
                                  " number" + (count == 1 ? "" : "s") + ", got " +
                                  std::to_string(out->size()));
+    }
+    size_t extra = out->size() - count;
+    for (; i < call.args.size() && call.args[i].isNumeric(); ++i)
+      extra += call.args[i].numbers.size();
+    if (extra > 0) {
+      warnOnce(call.line, "extra/" + call.name,
+               "'" + call.name + "' takes " + std::to_string(count) + " number" +
+                   (count == 1 ? "" : "s") + "; " + std::to_string(extra) + " more ignored");
+      out->resize(count);
     }
     *next = i;
     return true;
@@ -1546,7 +1563,13 @@ bool RibParser::doSurface(const Call& call) {
   if (has("transmitcolor") &&
       !tripleParam(call, params, "transmitcolor", "color", &m.transmitColor))
     return false;
-  if (!(m.roughness > 0.0f)) return fail(call.line, "'" + name + "': 'roughness' must be positive");
+  // Exporters write 0 for a perfect mirror-like highlight; the highlight exponent is 1/roughness.
+  constexpr float kMinRoughness = 1e-3f;
+  if (!(m.roughness >= kMinRoughness)) {
+    warn(call.line, "'" + name + "': 'roughness' " + formatNumber(m.roughness) +
+                        " is not positive; using " + formatNumber(kMinRoughness));
+    m.roughness = kMinRoughness;
+  }
   if (!(m.eta > 0.0f)) return fail(call.line, "'" + name + "': 'eta' must be positive");
   if (isKnown) warnUnusedParams(call, params, known);
   attr_.material = m;

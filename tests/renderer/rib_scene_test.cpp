@@ -800,6 +800,23 @@ TEST(RibForeign, ArchivesFollowTheSearchPathAndTheWorkingDirectory) {
       << error.message;
 }
 
+// Small slips of exporters warn instead of stopping the load.
+TEST(RibForeign, ExtraNumbersAndZeroRoughnessWarn) {
+  ReadResult r = read(world("Color 1 0 0 0\nOpacity [1 1 1 1]\nSurface \"plastic\" \"float roughness\" [0]\n" +
+                            std::string(kTriangle)));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  const Material& m = materialOf(*r.scene, 0);
+  expectNear(m.color, glm::vec3(1, 0, 0));
+  EXPECT_GT(m.roughness, 0.0f);
+  EXPECT_NE(r.warnings.find(":2: warning: 'Color' takes 3 numbers; 1 more ignored"), std::string::npos)
+      << r.warnings;
+  EXPECT_NE(r.warnings.find(":3: warning: 'Opacity' takes 3 numbers; 1 more ignored"), std::string::npos)
+      << r.warnings;
+  EXPECT_NE(r.warnings.find(":4: warning: 'plastic': 'roughness' 0 is not positive; using 0.001"),
+            std::string::npos)
+      << r.warnings;
+}
+
 // --- The feature scene ---
 
 TEST(RibFeatureScene, LoadsWithOneOfEverything) {
