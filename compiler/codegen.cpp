@@ -981,6 +981,64 @@ class ShaderCodegen {
     assignTo(baseExpr, base);
   }
 
+  // An lvalue (§4.1) whose indices have been evaluated once: the variable's storage, the array
+  // element (clamped), then the component of a triple or the element of a matrix (row * 4 + col).
+  // An `output` argument that is not a plain variable is read through it before the call and
+  // written back after, with each index expression run once.
+  struct Place {
+    const Slot* slot = nullptr;
+    Value* element = nullptr;  // array index, or null
+    Value* part = nullptr;     // component (triple) or row * 4 + col (matrix), or null
+  };
+  Place resolvePlace(const Expr& e) {
+    std::vector<const Expr*> indices;
+    const Expr* base = &e;
+    while (base->kind == ExprKind::Index) {
+      indices.push_back(base->operands[1].get());
+      base = base->operands[0].get();
+    }
+    std::reverse(indices.begin(), indices.end());
+    std::vector<Value*> values;
+    for (const Expr* i : indices) values.push_back(gen(*i).c[0].v);
+    Place place;
+    place.slot = &slotFor(base->decl);
+    size_t k = 0;
+    if (place.slot->type.isArray() && k < values.size())
+      place.element = clampIndex(values[k++], place.slot->type.arrayLength);
+    if (place.slot->type.kind == TypeKind::Matrix && k + 1 < values.size())
+      place.part = matrixIndex(values[k], values[k + 1]);
+    else if (k < values.size())
+      place.part = values[k];
+    return place;
+  }
+  Val readPlace(const Place& place) {
+    const Val whole = place.element ? loadElement(*place.slot, place.element) : load(*place.slot);
+    if (!place.part) return whole;
+    if (whole.type.kind == TypeKind::Matrix) return makeFloat(matrixElementAt(whole, place.part));
+    return makeFloat(component(whole, place.part));
+  }
+  void writePlace(const Place& place, const Val& value) {
+    Val whole = value;
+    if (place.part) {
+      whole = place.element ? loadElement(*place.slot, place.element) : load(*place.slot);
+      const Dual x = toFloatScalar(value).c[0];
+      if (whole.type.kind == TypeKind::Matrix) {
+        setMatrixElement(whole, place.part, x);
+      } else {
+        for (int k = 0; k < 3; ++k) {
+          Value* hit = k == 0   ? b_.CreateICmpSLE(place.part, ci(0))
+                       : k == 1 ? b_.CreateICmpEQ(place.part, ci(1))
+                                : b_.CreateICmpSGE(place.part, ci(2));
+          whole.c[k] = dselect(hit, x, whole.c[k]);
+        }
+      }
+    }
+    if (place.element)
+      storeElement(*place.slot, place.element, convert(whole, place.slot->type.element()));
+    else
+      store(*place.slot, convert(whole, place.slot->type));
+  }
+
   Val arith(Tok op, const Val& a0, const Val& b0) {
     if (a0.type.kind == TypeKind::Matrix || b0.type.kind == TypeKind::Matrix) return matrixArith(op, a0, b0);
     const Type rt = resultType(op, a0.type, b0.type);
@@ -1272,15 +1330,16 @@ class ShaderCodegen {
     }
     return b_.CreateAdd(b_.CreateMul(clamp3(row), ci(4)), clamp3(col));
   }
-  Dual matrixElementAt(const Val& m, Value* row, Value* col) {
-    Value* k = matrixIndex(row, col);
+  Dual matrixElementAt(const Val& m, Value* row, Value* col) { return matrixElementAt(m, matrixIndex(row, col)); }
+  void setMatrixElement(Val& m, Value* row, Value* col, Dual x) { setMatrixElement(m, matrixIndex(row, col), x); }
+  // By a clamped row * 4 + column from matrixIndex.
+  Dual matrixElementAt(const Val& m, Value* k) {
     if (auto* kc = llvm::dyn_cast<llvm::ConstantInt>(k)) return m.c[kc->getSExtValue()];
     Value* r = m.c[0].v;
     for (int i = 1; i < 16; ++i) r = b_.CreateSelect(b_.CreateICmpEQ(k, ci(i)), m.c[i].v, r);
     return {r, nullptr, nullptr};
   }
-  void setMatrixElement(Val& m, Value* row, Value* col, Dual x) {
-    Value* k = matrixIndex(row, col);
+  void setMatrixElement(Val& m, Value* k, Dual x) {
     for (int i = 0; i < 16; ++i) m.c[i] = {b_.CreateSelect(b_.CreateICmpEQ(k, ci(i)), x.v, m.c[i].v), nullptr, nullptr};
   }
   // p * m by the type of p: point (w = 1, divided by w'), vector (w = 0), normal (inverse transpose).
@@ -1605,16 +1664,28 @@ class ShaderCodegen {
   }
 
   // User functions are inlined at every call (recursion is a compile error, so this terminates).
-  // Output parameters alias the argument's storage; the others are fresh copies.
+  // Output parameters alias a variable argument's storage; an element or component argument is
+  // copied in and back out (Place). The other parameters are fresh copies.
   Val genUserCall(const Expr& e) {
     const FunctionDecl& f = *e.function;
     // Evaluate every argument before binding any parameter: an argument may call f itself.
     std::vector<Val> values(e.operands.size());
-    for (size_t i = 0; i < e.operands.size(); ++i)
-      if (!f.params[i]->isOutput) values[i] = convert(gen(*e.operands[i]), f.params[i]->type);
+    std::vector<Place> places(e.operands.size());
+    for (size_t i = 0; i < e.operands.size(); ++i) {
+      const Expr& arg = *e.operands[i];
+      if (!f.params[i]->isOutput) {
+        values[i] = convert(gen(arg), f.params[i]->type);
+      } else if (arg.kind != ExprKind::Identifier) {
+        places[i] = resolvePlace(arg);
+        values[i] = readPlace(places[i]);
+      }
+    }
     for (size_t i = 0; i < e.operands.size(); ++i) {
       const VarDecl* p = f.params[i].get();
-      if (p->isOutput) {
+      if (p->isOutput && places[i].slot) {
+        slots_.erase(p);  // an earlier call may have bound p to another variable's storage
+        store(slotFor(p), values[i]);
+      } else if (p->isOutput) {
         const Slot target = slotFor(e.operands[i]->decl);
         slots_[p] = target;
       } else if (p->type.isArray()) {
@@ -1641,6 +1712,8 @@ class ShaderCodegen {
     returns_.pop_back();
     if (!terminated()) b_.CreateBr(end);
     b_.SetInsertPoint(end);
+    for (size_t i = 0; i < e.operands.size(); ++i)
+      if (places[i].slot) writePlace(places[i], load(slotFor(f.params[i].get())));
     if (result) return load(*result);
     Val r;
     r.type = Type(TypeKind::Void);

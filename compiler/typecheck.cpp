@@ -998,6 +998,14 @@ class Checker {
     scopeDecls_ = std::move(savedDecls);
   }
 
+  // Lvalues (§4.1): a variable, an array element, a triple's `v[i]` or a matrix's `m[i][j]`, so
+  // an Index chain down to a variable (whether that is writable is checkAssignable's business).
+  static bool isLvalue(const Expr& e) {
+    const Expr* base = &e;
+    while (base->kind == ExprKind::Index) base = base->operands[0].get();
+    return base->kind == ExprKind::Identifier && base->decl;
+  }
+
   // Overload resolution (§6): exact match, then int→float-only conversions, then the unique
   // candidate with the fewest conversions.
   Type checkUserCall(Expr& e, const std::vector<FunctionDecl*>& candidates) {
@@ -1016,7 +1024,7 @@ class Checker {
         const VarDecl& p = *f->params[i];
         const Expr& a = *args[i];
         if (p.isOutput) {
-          ok = a.kind == ExprKind::Identifier && a.decl && a.type == p.type;
+          ok = isLvalue(a) && a.type == p.type;
           continue;
         }
         switch (conversion(a.type, p.type)) {
@@ -1041,7 +1049,7 @@ class Checker {
         for (size_t i = 0; i < args.size(); ++i) {
           const VarDecl& p = *f.params[i];
           const Expr& a = *args[i];
-          if (p.isOutput && !(a.kind == ExprKind::Identifier && a.decl && a.type == p.type)) {
+          if (p.isOutput && !(isLvalue(a) && a.type == p.type)) {
             report(DiagId::ErrOutputArgument, a.range.begin).arg(p.name).arg(typeName(p.type)).range(a.range);
             break;
           }

@@ -294,5 +294,37 @@ displacement d()
   EXPECT_EQ(printed, "9 9 3 5 1\n");
 }
 
+TEST(FunctionTest, OutputArgumentsMayBeAnyLvalue) {
+  // §2.1: output arguments are lvalues (§4.1): array elements, v[i] and m[i][j] too. Each index
+  // expression runs once although the element is read before the call and written after it.
+  TestBatch b(1);
+  const std::string printed = evaluate(R"(
+void twice(output float x) { x *= 2; }
+void setv(output vector w) { w = vector(7, 8, 9); }
+void inc(output int k) { k += 1; }
+displacement d()
+{
+    float arr[3] = {1, 2, 3};
+    int i = 0;
+    twice(arr[1]);
+    twice(arr[i + 2]);
+    vector v = vector(1, 2, 3);
+    twice(v[0]);
+    vector vs[2];
+    setv(vs[1]);
+    twice(vs[1][2]);
+    matrix m = 1;
+    twice(m[1][1]);
+    int counts[2] = {5, 6};
+    inc(counts[i++]);
+    float plain = 5;
+    twice(plain);
+    printf("%g %g %g %g %g %g %d %d %d %g\n", arr[1], arr[2], v[0], vs[1][0], vs[1][2], m[1][1], counts[0],
+           counts[1], i, plain);
+})",
+                                       b);
+  EXPECT_EQ(printed, "4 6 2 7 18 2 6 6 1 10\n");
+}
+
 }  // namespace
 }  // namespace relief::compiler

@@ -100,6 +100,27 @@ TEST(TypeCheckTest, ReadOnlyGlobalsAndNonLvalues) {
   EXPECT_EQ(check("P[0] = 1; N[2] += u; P += N;").errors, "");
 }
 
+TEST(TypeCheckTest, OutputArgumentsAreLvaluesOfTheParameterType) {
+  const std::string f = "void twice(output float x) { x *= 2; }\n";
+  auto errors = [&](const std::string& body) {
+    CompileFlags flags;
+    flags.jit = false;
+    CompileResult r = compileSource("o.disp", f + "displacement o()\n{\n" + body + "\n}\n", {}, flags);
+    std::string out;
+    for (const Diagnostic& d : r.diagnostics->sorted()) {
+      const PresumedLoc p = r.sources->presumed(d.loc);
+      out += std::to_string(p.line) + ":" + std::to_string(p.column) + ": " + d.message + "\n";
+    }
+    return out;
+  };
+  EXPECT_EQ(errors("float a[2]; vector w = 1; matrix m = 1;\ntwice(a[1]); twice(w[2]); twice(m[0][3]); twice(P[1]);"),
+            "");
+  EXPECT_EQ(errors("vector w = 1;\ntwice(xcomp(w));"),
+            "5:7: argument for output parameter 'x' must be an lvalue of type 'float'\n");
+  EXPECT_EQ(errors("int k[2];\ntwice(k[0]);"), "5:7: argument for output parameter 'x' must be an lvalue of type 'float'\n");
+  EXPECT_EQ(errors("twice(Ng[0]);"), "4:7: cannot assign to read-only variable 'Ng'\n");
+}
+
 TEST(TypeCheckTest, ParameterRules) {
   EXPECT_EQ(check("P += a * N;", "float a").errors, "1:22: shader parameter 'a' has no default value\n");
   EXPECT_EQ(check("P += a * b * N;", "float a = 1; float b = a * 2").errors, "");
