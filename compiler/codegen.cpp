@@ -2260,14 +2260,13 @@ class ShaderCodegen {
           const Val n = normalize3(load(slotFor(globals_[size_t(GlobalId::N)])));
           Dual amp = toFloatScalar(args.back()).c[0];
           if (args.size() == 2) {
-            // Amplitude in `space` units: scale by the length of the unit normal seen there.
+            // Amplitude in `space` units (§6.8): amp * length(ntransform(space, normalize(N))). A
+            // normal transforms by the inverse transpose, so that length is current units per
+            // space unit along N.
             Val nn = n;
             nn.type = Type(TypeKind::Normal);
             const Val ns = fromCurrentNamed(nn, *e.operands[0], args[0].c[0].v);
-            Dual len = dsqrtSafe(dot3(ns, ns));
-            // Guard the degenerate (singular) transform: a zero length would divide by 0.
-            amp = ddiv(amp, len);
-            amp = dselect(b_.CreateFCmpOEQ(len.v, cf(0)), dconst(0), amp);
+            amp = dmul(amp, dsqrtSafe(dot3(ns, ns)));
           }
           displaceBy(map(Type(TypeKind::Vector), n, [&](Dual x) { return dmul(x, amp); }));
         }

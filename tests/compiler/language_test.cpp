@@ -326,5 +326,26 @@ displacement d()
   EXPECT_EQ(printed, "4 6 2 7 18 2 6 6 1 10\n");
 }
 
+TEST(DisplaceTest, AmountInANamedSpaceScalesWithThatSpace) {
+  // §6.8: displace(space, amp) moves amp * length(ntransform(space, normalize(N))) along N, so
+  // 0.1 units of an object space scaled 2x (or of a shader space scaled 0.5x) are 0.2 (0.05) in
+  // current space.
+  for (const auto& [space, scale] : {std::pair<std::string, float>{"object", 2.0f}, {"shader", 0.5f}}) {
+    SCOPED_TRACE(space);
+    TestBatch b(1);
+    float* currentFrom = space == "object" ? b.spaces.currentFromObject : b.spaces.currentFromShader;
+    float* fromCurrent = space == "object" ? b.spaces.objectFromCurrent : b.spaces.shaderFromCurrent;
+    for (int d = 0; d < 3; ++d) {
+      currentFrom[d * 5] = scale;
+      fromCurrent[d * 5] = 1 / scale;
+    }
+    evaluate("displacement d(string sp = \"" + space + "\") { displace(\"" + space + "\", 0.1); }", b);
+    EXPECT_FLOAT_EQ(b.Pout[2][0], 0.75f + 0.1f * scale);
+    evaluate("displacement d(string sp = \"" + space + "\") { displace(sp, 0.1); }", b);  // looked up at run time
+    EXPECT_FLOAT_EQ(b.Pout[2][0], 0.75f + 0.1f * scale);
+    EXPECT_FLOAT_EQ(b.Pout[0][0], 0.25f);
+  }
+}
+
 }  // namespace
 }  // namespace relief::compiler
