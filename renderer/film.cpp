@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
@@ -88,6 +89,22 @@ bool Film::write(const std::string& path, std::string* error, bool withAlpha) co
 }
 
 bool Film::write(const std::string& path, std::string* error, const ImageWriteOptions& options) const {
+  std::string staged;
+  return writeStaged(path, &staged, error, options) && commitStagedImage(staged, path, error);
+}
+
+bool commitStagedImage(const std::string& stagedPath, const std::string& path, std::string* error) {
+  std::error_code ec;
+  fs::rename(stagedPath, path, ec);
+  if (!ec) return true;
+  std::error_code ignored;
+  fs::remove(stagedPath, ignored);
+  *error = "cannot write '" + path + "': " + ec.message();
+  return false;
+}
+
+bool Film::writeStaged(const std::string& path, std::string* stagedPath, std::string* error,
+                       const ImageWriteOptions& options) const {
   const bool withAlpha = options.alpha;
   std::string extension = fs::path(path).extension().string();
   std::transform(extension.begin(), extension.end(), extension.begin(),
@@ -145,16 +162,22 @@ bool Film::write(const std::string& path, std::string* error, const ImageWriteOp
     pixels = bytes.data();
   }
 
-  // Same directory, so the final rename is atomic; same extension, in case a plugin checks it.
+  // Same directory, so the final rename is atomic; same extension, in case a plugin checks it. The
+  // counter keeps two staged images of one process apart (two displays may name one file).
+  static std::atomic<uint64_t> stagedCount{0};
   const fs::path target(path);
   std::string tempName = ".";
   tempName += target.stem().string();
   tempName += ".tmp";
   tempName += std::to_string(::getpid());
+  tempName += "-";
+  tempName += std::to_string(stagedCount++);
   tempName += target.extension().string();
   const fs::path temp = target.parent_path() / tempName;
   if (!out->open(temp.string(), spec)) {
     *error = "cannot write '" + path + "': " + out->geterror();
+    std::error_code ignored;
+    fs::remove(temp, ignored);
     return false;
   }
   const bool ok = out->write_image(floatOutput ? OIIO::TypeDesc::FLOAT : OIIO::TypeDesc::UINT8, pixels);
@@ -166,14 +189,7 @@ bool Film::write(const std::string& path, std::string* error, const ImageWriteOp
     *error = "cannot write '" + path + "': " + (writeError.empty() ? "write failed" : writeError);
     return false;
   }
-  std::error_code ec;
-  fs::rename(temp, target, ec);
-  if (ec) {
-    std::error_code ignored;
-    fs::remove(temp, ignored);
-    *error = "cannot write '" + path + "': " + ec.message();
-    return false;
-  }
+  *stagedPath = temp.string();
   return true;
 }
 

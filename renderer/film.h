@@ -56,12 +56,21 @@ class Film {
   // 8-bit formats: unpremultiplied before sRGB encoding, as PNG expects).
   bool write(const std::string& path, std::string* error, bool withAlpha = false) const;
   bool write(const std::string& path, std::string* error, const ImageWriteOptions& options) const;
+  // The first half of write(), for several images that must appear together or not at all: the
+  // image is complete under the temporary name *stagedPath (in path's directory) and the caller
+  // renames it into place (commitStagedImage) or removes it. Nothing is left behind on failure.
+  bool writeStaged(const std::string& path, std::string* stagedPath, std::string* error,
+                   const ImageWriteOptions& options) const;
 
  private:
   int width_, height_;
   std::vector<float> rgb_;
   std::vector<float> alpha_;
 };
+
+// Renames an image written by Film::writeStaged to its final path (atomic within a directory);
+// on failure removes the staged file and returns false with *error set.
+bool commitStagedImage(const std::string& stagedPath, const std::string& path, std::string* error);
 
 // True for formats written as linear floats (exr, hdr), judged by the extension.
 bool isFloatFormat(const std::string& path);

@@ -635,9 +635,17 @@ int run(const CommandLine& cl) {
       {"relief:displacedTrianglesCreated", std::to_string(finalStats.displacedTrianglesCreated)},
   };
 
+  // Every image is staged under a temporary name first and renamed into place only when all were
+  // written: a failed display must not leave the others behind, looking like a finished render.
+  std::vector<std::string> staged;
+  auto discardStaged = [&staged](size_t from) {
+    std::error_code ignored;
+    for (size_t i = from; i < staged.size(); ++i) std::filesystem::remove(staged[i], ignored);
+  };
   for (size_t i = 0; i < outputs.size(); ++i) {
     const std::string& path = outputs[i];
-    // `-o out/image.png` into a fresh checkout should just work; a failure surfaces in write().
+    // `-o out/image.png` into a fresh checkout should just work; a failure surfaces in
+    // writeStaged().
     const std::filesystem::path parent = std::filesystem::path(path).parent_path();
     std::error_code ignored;
     if (!parent.empty()) std::filesystem::create_directories(parent, ignored);
@@ -683,9 +691,19 @@ int run(const CommandLine& cl) {
         }
         break;
     }
-    std::string writeError;
-    if (!image->write(path, &writeError, writeOptions)) {
+    std::string writeError, stagedPath;
+    if (!image->writeStaged(path, &stagedPath, &writeError, writeOptions)) {
+      discardStaged(0);
       std::cerr << "relief: error: " << writeError << "\n";
+      return 1;
+    }
+    staged.push_back(stagedPath);
+  }
+  for (size_t i = 0; i < outputs.size(); ++i) {
+    std::string renameError;
+    if (!relief::commitStagedImage(staged[i], outputs[i], &renameError)) {
+      discardStaged(i + 1);
+      std::cerr << "relief: error: " << renameError << "\n";
       return 1;
     }
   }

@@ -440,4 +440,23 @@ TEST(Relief, FailedOutputLeavesNoImage) {
   }
 }
 
+// Displays are all-or-nothing: when a later one cannot be written, the earlier ones (complete by
+// then) are not left behind either, nor any temporary file; the exit status says the render failed.
+TEST(Relief, FailedDisplayLeavesNoneOfTheOthers) {
+  const fs::path dir = scratchDir();
+  writeFile(dir / "blocker", "x");  // a file where a directory should be
+  const fs::path scene = smallScene(dir, "Display \"" + (dir / "main.png").string() + "\" \"file\" \"rgb\"\n"
+                                    "Display \"+" + (dir / "z.exr").string() + "\" \"file\" \"z\"\n"
+                                    "Display \"+" + (dir / "blocker" / "n.png").string() + "\" \"file\" \"N\"\n");
+  RunResult r = run(kRelief + " " + scene.string() + " --quiet");
+  EXPECT_EQ(r.exitCode, 1);
+  EXPECT_NE(r.err.find("n.png"), std::string::npos) << r.err;
+  EXPECT_EQ(r.out, "");
+  for (const auto& entry : fs::directory_iterator(dir)) {
+    const std::string name = entry.path().filename().string();
+    EXPECT_TRUE(name == "small.rib" || name == "blocker" || name == "stdout.txt" || name == "stderr.txt")
+        << name;
+  }
+}
+
 }  // namespace
