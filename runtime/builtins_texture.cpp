@@ -30,6 +30,7 @@ struct FailureLog {
   std::mutex mutex;
   std::set<std::string> seen;
   std::vector<std::string> pending;
+  std::string program = "relief";  // prefixes the printed message
 };
 FailureLog& failureLog() {
   static FailureLog log;
@@ -40,8 +41,8 @@ void recordFailure(const char* filename, const std::string& why) {
   std::lock_guard lock(log.mutex);
   if (!log.seen.insert(filename).second) return;
   log.pending.push_back(filename);
-  std::fprintf(stderr, "error: cannot read texture '%s'%s%s; using the fill value\n", filename,
-               why.empty() ? "" : ": ", why.c_str());
+  std::fprintf(stderr, "%s: error: cannot read texture '%s'%s%s; using the fill value\n",
+               log.program.c_str(), filename, why.empty() ? "" : ": ", why.c_str());
 }
 
 void fillMissing(const RlfTextureOptions* o, int32_t n, float* out, float* ds, float* dt) {
@@ -104,6 +105,12 @@ void setTextureSearchPath(const std::vector<std::string>& dirs) {
   for (const std::string& d : dirs) joined += (joined.empty() ? "" : ":") + d;
   // OIIO tries a relative name against the working directory first, then these directories.
   textureSystem()->attribute("searchpath", joined);
+}
+
+void setTextureMessageProgram(const std::string& name) {
+  FailureLog& log = failureLog();
+  std::lock_guard lock(log.mutex);
+  log.program = name;
 }
 
 std::vector<std::string> takeTextureFailures() {

@@ -41,6 +41,9 @@ namespace relief::runtime {
 // Names of texture files that failed to read through the shared TextureSystem since the last call,
 // each at most once per process (its first failure is also printed to stderr).
 std::vector<std::string> takeTextureFailures();
+// The program named at the start of the message printed for an unreadable texture, as every other
+// message of that program starts ("relief: error: ..."); "relief" until set.
+void setTextureMessageProgram(const std::string& name);
 // Directories searched, in order, for texture names that are relative and not found from the
 // working directory (the renderer passes the scene's Option "searchpath" "texture").
 void setTextureSearchPath(const std::vector<std::string>& dirs);

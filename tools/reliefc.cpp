@@ -14,6 +14,7 @@
 
 #include "compiler/compiler.h"
 #include "runtime/abi.h"
+#include "runtime/builtins_texture.h"
 #include "runtime/shader.h"
 
 namespace {
@@ -207,6 +208,7 @@ int evaluate(const Args& args, const CompileResult& result) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  relief::runtime::setTextureMessageProgram("reliefc");
   Args args;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];

@@ -362,7 +362,7 @@ TEST(Relief, TexturesFollowTheSearchPathAndAMissingOneIsOneError) {
           (dir / "missing.png").string());
   ASSERT_EQ(r.exitCode, 0) << r.err;
   EXPECT_TRUE(fs::exists(dir / "missing.png"));
-  const std::string message = "cannot read texture 'nothere.tif'";
+  const std::string message = "relief: error: cannot read texture 'nothere.tif'";
   const size_t first = r.err.find(message);
   EXPECT_NE(first, std::string::npos) << r.err;
   EXPECT_EQ(r.err.find(message, first + 1), std::string::npos) << r.err;  // once per file
