@@ -507,7 +507,7 @@ class ShaderCodegen {
     textureErrors_ = nullptr;
     services_ = nullptr;
     randomInputs_ = randomOrdinal_ = nullptr;
-    indexClamped_ = unknownSpace_ = nullptr;
+    indexClamped_ = unknownSpace_ = splineBasisProblems_ = nullptr;
     for (const auto& p : shader_.params) {
       if (p->type.isArray()) {
         const Slot& s = slotFor(p.get());
@@ -550,6 +550,8 @@ class ShaderCodegen {
     b_.CreateStore(ci(0), indexClamped_);
     unknownSpace_ = entryAlloca(i32_, "unknownspace");
     b_.CreateStore(ci(0), unknownSpace_);
+    splineBasisProblems_ = entryAlloca(i32_, "splinebasis");
+    b_.CreateStore(ci(0), splineBasisProblems_);
     b_.CreateStore(ci(0), nonFinite_);
     b_.CreateStore(ci(0), loopLimitHits_);
     b_.CreateStore(ci(0), textureErrors_);
@@ -728,6 +730,7 @@ class ShaderCodegen {
     bump(offsetof(RlfStatus, textureErrors), textureErrors_);
     bump(offsetof(RlfStatus, indexClamped), indexClamped_);
     bump(offsetof(RlfStatus, unknownSpace), unknownSpace_);
+    bump(offsetof(RlfStatus, splineBasis), splineBasisProblems_);
     b_.CreateRetVoid();
   }
 
@@ -1803,47 +1806,95 @@ class ShaderCodegen {
   }
 
   // spline (§6.6): every basis reads 4 knots from step·segment with a 4×4 basis matrix in
-  // row-vector form, value = [t³ t² t 1]·M·[k0 k1 k2 k3].
+  // row-vector form, value = [t³ t² t 1]·M·[k0 k1 k2 k3]. A literal basis folds to constants; a
+  // run-time name selects a row of a constant table (unknown or unfit names: catmull-rom, counted).
+  struct SplineBasis {
+    const char* name;
+    int step;
+    float m[16];
+    bool fits(int knots) const {
+      return step == 3 ? (knots - 1) % 3 == 0 : step == 2 ? knots % 2 == 0 : true;  // sema checked >= 4
+    }
+  };
+  static constexpr SplineBasis kSplineBases[] = {
+      {"catmull-rom", 1, {-0.5f, 1.5f, -1.5f, 0.5f, 1, -2.5f, 2, -0.5f, -0.5f, 0, 0.5f, 0, 0, 1, 0, 0}},
+      {"bspline", 1, {-1 / 6.f, 0.5f, -0.5f, 1 / 6.f, 0.5f, -1, 0.5f, 0, -0.5f, 0, 0.5f, 0, 1 / 6.f, 4 / 6.f, 1 / 6.f, 0}},
+      {"bezier", 3, {-1, 3, -3, 1, 3, -6, 3, 0, -3, 3, 0, 0, 1, 0, 0, 0}},
+      {"hermite", 2, {2, 1, -2, 1, -3, -2, 3, -1, 0, 1, 0, 0, 1, 0, 0, 0}},
+      {"linear", 1, {0, 0, 0, 0, 0, 0, 0, 0, 0, -1, 1, 0, 0, 1, 0, 0}},
+      {"constant", 1, {0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0, 0}},
+  };
+  static constexpr int kNumSplineBases = int(std::size(kSplineBases));
+
+  // Index into kSplineBases of the basis named by the string `name` at run time.
+  Value* splineBasisIndex(Value* name, int knots) {
+    llvm::FunctionCallee strcmpFn =
+        module_.getOrInsertFunction("strcmp", llvm::FunctionType::get(i32_, {ptr_, ptr_}, false));
+    Value* index = ci(0);
+    Value* usable = b_.getFalse();
+    for (int k = 0; k < kNumSplineBases; ++k) {
+      if (!kSplineBases[k].fits(knots)) continue;
+      Value* match = b_.CreateICmpEQ(b_.CreateCall(strcmpFn, {name, b_.CreateGlobalStringPtr(kSplineBases[k].name, "basis")}), ci(0));
+      index = b_.CreateSelect(match, ci(k), index);
+      usable = b_.CreateOr(usable, match);
+    }
+    if (splineBasisProblems_) {
+      Value* bad = b_.CreateZExt(b_.CreateNot(usable), i32_);
+      b_.CreateStore(b_.CreateAdd(b_.CreateLoad(i32_, splineBasisProblems_), bad), splineBasisProblems_);
+    }
+    return index;
+  }
+
   Val genSpline(const Expr& e, const std::vector<Val>& args) {
     size_t first = 0;
-    std::string basis = "catmull-rom";
-    if (args[0].type.kind == TypeKind::String) {
-      basis = e.operands[0]->text;
-      first = 1;
-    }
+    const SplineBasis* basis = &kSplineBases[0];
+    Value* dynamicIndex = nullptr;  // a run-time basis: its index into kSplineBases
     const Type kt = e.type;
     // Knots in an array slot (the argument's own, or a temporary for listed knots).
     const Slot* knots = nullptr;
-    if (args.size() == first + 2 && args[first + 1].array) {
-      knots = args[first + 1].array;
+    const size_t firstKnot = args[0].type.kind == TypeKind::String ? 2 : 1;
+    if (args.size() == firstKnot + 1 && args[firstKnot].array) {
+      knots = args[firstKnot].array;
     } else {
       temps_.push_back(std::make_unique<VarDecl>());
       temps_.back()->name = "spline.knots";
-      temps_.back()->type = Type(kt.kind, int(args.size() - first - 1));
+      temps_.back()->type = Type(kt.kind, int(args.size() - firstKnot));
       knots = &slotFor(temps_.back().get());
-      for (size_t i = first + 1; i < args.size(); ++i) storeElement(*knots, ci(int32_t(i - first - 1)), convert(args[i], kt));
+      for (size_t i = firstKnot; i < args.size(); ++i) storeElement(*knots, ci(int32_t(i - firstKnot)), convert(args[i], kt));
     }
     const int n = knots->type.arrayLength;
-    static constexpr float kCatmull[16] = {-0.5f, 1.5f, -1.5f, 0.5f, 1, -2.5f, 2, -0.5f, -0.5f, 0, 0.5f, 0, 0, 1, 0, 0};
-    static constexpr float kBspline[16] = {-1 / 6.f, 0.5f, -0.5f, 1 / 6.f, 0.5f, -1, 0.5f, 0, -0.5f, 0, 0.5f, 0, 1 / 6.f, 4 / 6.f, 1 / 6.f, 0};
-    static constexpr float kBezier[16] = {-1, 3, -3, 1, 3, -6, 3, 0, -3, 3, 0, 0, 1, 0, 0, 0};
-    static constexpr float kHermite[16] = {2, 1, -2, 1, -3, -2, 3, -1, 0, 1, 0, 0, 1, 0, 0, 0};
-    static constexpr float kLinear[16] = {0, 0, 0, 0, 0, 0, 0, 0, 0, -1, 1, 0, 0, 1, 0, 0};
-    static constexpr float kConstant[16] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0, 0};
-    const float* m = basis == "bspline"  ? kBspline
-                     : basis == "bezier" ? kBezier
-                     : basis == "hermite" ? kHermite
-                     : basis == "linear"  ? kLinear
-                     : basis == "constant" ? kConstant
-                                           : kCatmull;
-    const int step = basis == "bezier" ? 3 : basis == "hermite" ? 2 : 1;
-    const int spans = (n - 4) / step + 1;
+    if (args[0].type.kind == TypeKind::String) {
+      first = 1;
+      if (e.operands[0]->kind == ExprKind::StringLiteral) {
+        for (const SplineBasis& candidate : kSplineBases)
+          if (e.operands[0]->text == candidate.name) basis = &candidate;
+      } else {
+        dynamicIndex = splineBasisIndex(args[0].c[0].v, n);
+      }
+    }
+    // The basis matrix entry M[i][j], or null where a literal basis has a zero.
+    auto coefficient = [&](int i, int j) -> Value* {
+      if (!dynamicIndex) return basis->m[i * 4 + j] != 0 ? cf(basis->m[i * 4 + j]) : nullptr;
+      Value* at = b_.CreateAdd(b_.CreateMul(dynamicIndex, ci(16)), ci(i * 4 + j));
+      return b_.CreateLoad(f32_, b_.CreateInBoundsGEP(f32_, splineTable(), at));
+    };
+    // Spans: (n - 4) / step + 1, so the last one starts at knot n - 4 whatever the step.
+    Value* step = ci(basis->step);
+    Value* spans = ci((n - 4) / basis->step + 1);
+    if (dynamicIndex) {
+      for (int k = 0; k < kNumSplineBases; ++k)
+        if (kSplineBases[k].step != basis->step)
+          step = b_.CreateSelect(b_.CreateICmpEQ(dynamicIndex, ci(k)), ci(kSplineBases[k].step), step);
+      spans = b_.CreateAdd(b_.CreateSDiv(ci(n - 4), step), ci(1));
+    }
+    Value* spansF = b_.CreateSIToFP(spans, f32_);
+    Value* lastSpan = b_.CreateFSub(spansF, cf(1));
     const Dual x = dclamp01(toFloatScalar(args[first]).c[0]);
-    const Dual xs = dmul(x, dconst(float(spans)));
+    const Dual xs = dmul(x, {spansF, nullptr, nullptr});
     Value* segF = intrinsic(llvm::Intrinsic::floor, {xs.v});
-    segF = b_.CreateSelect(b_.CreateFCmpOGT(segF, cf(float(spans - 1))), cf(float(spans - 1)), segF);
+    segF = b_.CreateSelect(b_.CreateFCmpOGT(segF, lastSpan), lastSpan, segF);
     const Dual t = dsub(xs, {segF, nullptr, nullptr});
-    Value* base = b_.CreateMul(b_.CreateFPToSI(segF, i32_), ci(step));
+    Value* base = b_.CreateMul(b_.CreateFPToSI(segF, i32_), step);
     const Dual t2 = dmul(t, t);
     const Dual powers[4] = {dmul(t2, t), t2, t, dconst(1)};
     // Weight of knot j: Σ_i t^(3-i) · M[i][j].
@@ -1851,11 +1902,21 @@ class ShaderCodegen {
     for (int j = 0; j < 4; ++j) {
       Dual w = dconst(0);
       for (int i = 0; i < 4; ++i)
-        if (m[i * 4 + j] != 0) w = dadd(w, dmul(powers[i], dconst(m[i * 4 + j])));
+        if (Value* m = coefficient(i, j)) w = dadd(w, dmul(powers[i], {m, nullptr, nullptr}));
       const Val k = convert(loadElement(*knots, b_.CreateAdd(base, ci(j))), kt);
       for (int c = 0; c < numComponents(kt); ++c) r.c[c] = dadd(r.c[c], dmul(w, k.c[c]));
     }
     return r;
+  }
+  // kSplineBases' matrices as one constant array of the module.
+  llvm::GlobalVariable* splineTable() {
+    if (llvm::GlobalVariable* g = module_.getGlobalVariable("rlf.spline.bases", true)) return g;
+    std::vector<llvm::Constant*> values;
+    for (const SplineBasis& basis : kSplineBases)
+      for (float m : basis.m) values.push_back(llvm::ConstantFP::get(f32_, m));
+    auto* type = llvm::ArrayType::get(f32_, values.size());
+    return new llvm::GlobalVariable(module_, type, true, llvm::GlobalValue::PrivateLinkage,
+                                    llvm::ConstantArray::get(type, values), "rlf.spline.bases");
   }
 
   // Distance from q to the segment ab.
@@ -2325,6 +2386,7 @@ class ShaderCodegen {
   llvm::AllocaInst* randomOrdinal_ = nullptr;
   llvm::AllocaInst* indexClamped_ = nullptr;  // entry only
   llvm::AllocaInst* unknownSpace_ = nullptr;  // entry only
+  llvm::AllocaInst* splineBasisProblems_ = nullptr;  // entry only
   Value* services_ = nullptr;                  // batch->services (entry function only)
   Value* spaces_ = nullptr;
   bool usesStrings_ = false;  // format()/concat() seen: the entry frees their strings per point

@@ -1268,20 +1268,20 @@ class Checker {
   }
 
   // spline([basis,] x, knots...) (§6.6): T binds to the knots; a literal basis checks the count.
+  // A basis held in a string variable is chosen at run time (codegen falls back to catmull-rom
+  // for a name it does not know), so only the minimum of every basis, 4 knots, is checked here.
   Type checkSpline(Expr& e) {
     std::vector<ExprPtr>& args = e.operands;
     size_t first = 0;
     std::string basis = "catmull-rom";
+    bool runtimeBasis = false;
     auto noMatch = [&] {
       report(DiagId::ErrNoMatchingCall, e.range.begin).arg(e.text).arg(typeList(args)).range(e.opRange);
       return set(e, kError);
     };
     if (!args.empty() && args[0]->type.kind == TypeKind::String) {
-      if (args[0]->kind != ExprKind::StringLiteral) {
-        report(DiagId::ErrUnsupported, args[0]->range.begin).arg("a non-literal spline basis").range(args[0]->range);
-        return set(e, kError);
-      }
-      basis = args[0]->text;
+      runtimeBasis = args[0]->kind != ExprKind::StringLiteral;
+      if (!runtimeBasis) basis = args[0]->text;
       first = 1;
     }
     static const std::set<std::string> kBases = {"catmull-rom", "bspline", "linear", "constant", "bezier", "hermite"};
@@ -1308,7 +1308,12 @@ class Checker {
         if (args[i]->type.isArray() || conversion(args[i]->type, knotType) == Conversion::None) return noMatch();
       count = int(args.size() - first - 1);
     }
-    const bool ok = basis == "bezier" ? count >= 4 && (count - 1) % 3 == 0
+    if (runtimeBasis && count < 4) {
+      report(DiagId::ErrSplineKnotsAnyBasis, e.range.begin).arg(count).range(e.opRange);
+      return set(e, kError);
+    }
+    const bool ok = runtimeBasis           ? true
+                    : basis == "bezier"  ? count >= 4 && (count - 1) % 3 == 0
                     : basis == "hermite" ? count >= 4 && count % 2 == 0
                                          : count >= 4;
     if (!ok) {

@@ -9,7 +9,7 @@
 extern "C" {
 #endif
 
-enum { kRlfAbiVersion = 1 };
+enum { kRlfAbiVersion = 2 };
 
 // Three SoA component arrays of one batch. Any of x/y/z may be null only where a field says so.
 typedef struct RlfFloat3Array {
@@ -74,7 +74,9 @@ typedef struct RlfStatus {
   uint32_t indexClamped;  // run-time array/component indices clamped into range
   uint32_t unknownSpace;  // non-literal coordinate-space names that resolved to identity
   uint32_t textureErrors; // texture lookups that failed (missing file, ...)
-  uint32_t reserved[3];
+  uint32_t splineBasis;   // run-time spline basis names unknown or unfit for the knot count
+                          // (the call used "catmull-rom")
+  uint32_t reserved[2];
 } RlfStatus;
 
 // Callbacks the generated code may make into the host. All are noexcept and report failure by

@@ -347,5 +347,24 @@ TEST(DisplaceTest, AmountInANamedSpaceScalesWithThatSpace) {
   }
 }
 
+TEST(SplineTest, BasisNamedAtRunTime) {
+  // §6.6 with a basis in a string variable: chosen per call at run time. A name that is unknown or
+  // does not fit the knot count (bezier needs 3m+1) falls back to catmull-rom and is counted.
+  TestBatch b(1);
+  RlfStatus status{};
+  const std::string printed = evaluate(R"(
+displacement sp(string basis = "linear"; string bad = "cubic")
+{
+    float k[6] = {9, 0, 10, 20, 30, 9};
+    string b2 = "bezier";
+    printf("%g %g %g %g\n", spline(basis, 0.5, 9, 0, 10, 20, 9), spline(basis, 0.25, k),
+           spline(bad, 0.5, 0, 0, 1, 2, 2), spline("linear", 0.5, 9, 0, 10, 20, 9));
+    printf("%g %g\n", spline(b2, 0.5, 0, 1, 2, 3, 4), spline(b2, 0.5, 0, 1, 2, 3));
+})",
+                                       b, &status);
+  EXPECT_EQ(printed, "10 7.5 1 10\n2 1.5\n");
+  EXPECT_EQ(status.splineBasis, 2u);
+}
+
 }  // namespace
 }  // namespace relief::compiler
