@@ -32,6 +32,8 @@
 namespace {
 
 constexpr const char* kVersion = "0.1.0";
+// Per-thread side-cache capacity used when the cache budget is unlimited (--side-cache).
+constexpr uint64_t kDefaultSideCache = 1000000;
 
 constexpr const char* kUsage =
     "usage: relief [options] scene.rib\n"
@@ -55,7 +57,8 @@ constexpr const char* kUsage =
     "  --grid-resolution N       contributor-grid voxels along the longest axis (default: automatic)\n"
     "  --no-refine               keep contributors that reached nothing in their voxels' lists\n"
     "  --side-cache N            per-thread cache of N micro-triangles of whole subdivisions\n"
-    "                            reused by neighbouring voxel fills (0: off)\n"
+    "                            reused by neighbouring voxel fills (0: off; default: 1000000\n"
+    "                            with an unlimited cache budget, off with a budget)\n"
     "  --no-displacement         render the undisplaced surfaces\n"
     "  --edge-length L           target micro-triangle edge length in world units for every\n"
     "                            Displacement (overrides Attribute \"relief\" \"edgelength\")\n"
@@ -101,7 +104,7 @@ struct CommandLine {
   bool cacheTrianglesSet = false;
   int gridResolution = 0;  // 0: automatic
   bool refine = true;
-  uint64_t sideCache = 0;
+  std::optional<uint64_t> sideCache;  // unset: the default that suits the budget
   bool displace = true;
   float edgeLength = 0.0f;  // 0: the scene's
   std::string accel = "grid";
@@ -568,7 +571,11 @@ int run(const CommandLine& cl) {
   accelOptions.displace = cl.displace;
   accelOptions.gridResolution = cl.gridResolution;
   accelOptions.refineContributors = cl.refine;
-  accelOptions.sideCacheTriangles = cl.sideCache;
+  // With an unlimited budget memory is not what the user is saving, so neighbouring fills share
+  // whole subdivisions instead of repeating them (facade: half the shader points, docs/cache.md).
+  // Under a budget the side cache would hold displaced triangles beyond it: off unless asked for.
+  accelOptions.sideCacheTriangles =
+      cl.sideCache.value_or(accelOptions.cacheBudgetTriangles == UINT64_MAX ? kDefaultSideCache : 0);
   std::unique_ptr<relief::Accelerator> accel;
   if (cl.accel == "grid") {
     accel = relief::makeGridAccelerator(scene, accelOptions);

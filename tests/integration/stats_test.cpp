@@ -205,8 +205,13 @@ TEST(Stats, JsonHasTheDocumentedKeysAndInvariants) {
 }
 
 TEST(Stats, RefinementSideCacheAndGridResolutionFlags) {
-  const StatsRun refined = render("refined", "--threads 1 --grid-resolution 12");
-  const StatsRun plain = render("plain", "--threads 1 --grid-resolution 12 --no-refine");
+  const StatsRun refined = render("refined", "--threads 1 --grid-resolution 12 --side-cache 0");
+  const StatsRun plain =
+      render("plain", "--threads 1 --grid-resolution 12 --no-refine --side-cache 0");
+  // The side cache is on by default with an unlimited budget and off under a budget.
+  const StatsRun byDefault = render("default", "--threads 1 --grid-resolution 12");
+  const StatsRun budgeted =
+      render("budgeted", "--threads 1 --grid-resolution 12 --cache-triangles 20000");
   expectInvariants(refined);
   EXPECT_EQ(refined.num("grid.resolution_x"), 12);
   EXPECT_EQ(refined.stats.at("grid.refinement"), "true");
@@ -218,7 +223,11 @@ TEST(Stats, RefinementSideCacheAndGridResolutionFlags) {
   EXPECT_GT(side.num("cache.side_cache_hits"), 0);
   EXPECT_GT(side.num("cache.side_cache_peak_triangles"), 0);
   EXPECT_EQ(plain.num("cache.side_cache_hits"), 0);
-  for (const StatsRun* other : {&plain, &side}) {
+  EXPECT_EQ(plain.num("cache.side_cache_peak_triangles"), 0);
+  EXPECT_GT(byDefault.num("cache.side_cache_hits"), 0);
+  EXPECT_LT(byDefault.num("cache.shader_points"), plain.num("cache.shader_points"));
+  EXPECT_EQ(budgeted.num("cache.side_cache_peak_triangles"), 0);
+  for (const StatsRun* other : {&plain, &side, &byDefault, &budgeted}) {
     relief::test::ImageDiff d =
         relief::test::compareImages(other->image.string(), refined.image.string(), 0.0f);
     ASSERT_TRUE(d.loaded) << d.error;
