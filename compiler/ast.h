@@ -148,6 +148,9 @@ struct FunctionDecl {
   // Filled in by the type checker: what a call may write (propagates the §5 host contract).
   bool writesP = false;
   bool writesN = false;
+  // Its calls are varying whatever the arguments (§2): it reads a global other than PI or an
+  // enclosing variable, or uses a varying-only built-in, itself or through its callees.
+  bool readsVarying = false;
   // Expression nodes a call expands to once inlined (its body plus its callees', transitively).
   uint64_t inlineCost = 0;
 };

@@ -526,6 +526,7 @@ class Checker {
           }
           d->externTarget = target;
           scopes_.back()[d->name] = target;  // by reference: the same variable
+          if (target->storage != Storage::Global && !target->isUniform) noteVaryingSource();
         }
         break;
       case StmtKind::Empty: break;
@@ -580,8 +581,9 @@ class Checker {
           return set(e, kError);
         }
         ++d->reads;
-        e.isVarying = (d->storage == Storage::Global && d->global != GlobalId::PI) ||
-                      (d->storage == Storage::Local && !d->isUniform);
+        const bool varyingGlobal = d->storage == Storage::Global && d->global != GlobalId::PI;
+        if (varyingGlobal) noteVaryingSource();
+        e.isVarying = varyingGlobal || (d->storage == Storage::Local && !d->isUniform);
         return set(e, d->type);
       }
       case ExprKind::Unary: {
@@ -833,9 +835,23 @@ class Checker {
     }
     if (conversion(result, tt) == Conversion::Narrowing)
       report(DiagId::WarnNarrowing, value.range.begin).range(value.range);
-    if (target.kind == ExprKind::Identifier && target.decl && target.decl->isUniform && value.isVarying)
-      report(DiagId::ErrUniformFromVarying, value.range.begin).arg(target.decl->name).range(value.range);
+    checkUniformTarget(target, value);
     return set(e, tt);
+  }
+
+  // The one uniform check of §2: an explicitly uniform variable (or element of one) written with a
+  // varying value, by assignment or as an `output`/setcomp argument.
+  void checkUniformTarget(const Expr& target, const Expr& value) { checkUniformTarget(target, value.isVarying, value.range); }
+  void checkUniformTarget(const Expr& target, bool varying, SourceRange at) {
+    const Expr* base = &target;
+    while (base->kind == ExprKind::Index) base = base->operands[0].get();
+    if (varying && base->kind == ExprKind::Identifier && base->decl && base->decl->isUniform)
+      report(DiagId::ErrUniformFromVarying, at.begin).arg(base->decl->name).range(at);
+  }
+
+  // Marks the function being checked as varying whatever its arguments (FunctionDecl::readsVarying).
+  void noteVaryingSource() {
+    if (function_) function_->readsVarying = true;
   }
 
   Type checkConstruct(Expr& e) {
@@ -1091,11 +1107,16 @@ class Checker {
       report(DiagId::ErrRecursiveCall, e.range.begin).arg(e.text).range(e.opRange);
       return set(e, kError);
     }
+    // A call is uniform when its arguments are and the function reads nothing varying (§2).
+    e.isVarying = f->readsVarying;
+    for (const ExprPtr& a : args) e.isVarying |= a->isVarying;
+    if (f->readsVarying) noteVaryingSource();
     for (size_t i = 0; i < args.size(); ++i) {
       const VarDecl& p = *f->params[i];
       Expr& a = *args[i];
       if (p.isOutput) {
         if (!checkAssignable(a, a.range.begin, a.range)) return set(e, kError);
+        checkUniformTarget(a, e.isVarying, a.range);  // the function's result may land in it
       } else if (conversion(a.type, p.type) == Conversion::Narrowing) {
         report(DiagId::WarnNarrowing, a.range.begin).range(a.range);
       }
@@ -1109,7 +1130,6 @@ class Checker {
       return set(e, kError);
     }
     e.function = f;
-    e.isVarying = true;
     return set(e, f->returnType);
   }
 
@@ -1171,15 +1191,25 @@ class Checker {
       case BuiltinShape::CalcNormal:
       case BuiltinShape::Area:
       case BuiltinShape::Filterwidth:
-      case BuiltinShape::Filterstep: e.isVarying = true; break;
-      case BuiltinShape::Displace: markWrites(true, true); break;
+      case BuiltinShape::Filterstep:
+      case BuiltinShape::DerivRatio:
+        e.isVarying = true;
+        noteVaryingSource();
+        break;
+      case BuiltinShape::Displace:
+        markWrites(true, true);
+        noteVaryingSource();  // it reads P and N
+        break;
       case BuiltinShape::Printf:
         if (args[0]->kind == ExprKind::StringLiteral) checkFormat(*args[0], args);
         break;
       case BuiltinShape::StringFn:
         if (b->id == BuiltinId::Format && args[0]->kind == ExprKind::StringLiteral) checkFormat(*args[0], args);
         break;
-      case BuiltinShape::Random: e.isVarying = true; break;
+      case BuiltinShape::Random:
+        e.isVarying = true;
+        noteVaryingSource();
+        break;
       case BuiltinShape::Comp: {
         const bool m = args[0]->type.kind == TypeKind::Matrix;
         if (badConstantIndex(*args[1], m ? 4 : 3, args[0]->type) || (m && badConstantIndex(*args[2], 4, args[0]->type)))
@@ -1197,6 +1227,7 @@ class Checker {
         }
         // The first argument is an output: it must be a writable variable or component.
         if (!checkAssignable(*args[0], args[0]->range.begin, args[0]->range)) return set(e, kError);
+        checkUniformTarget(*args[0], e.isVarying, args.back()->range);
         break;
       default: break;
     }
@@ -1320,7 +1351,6 @@ class Checker {
       report(DiagId::ErrSplineKnots, e.range.begin).arg(basis).arg(count).range(e.opRange);
       return set(e, kError);
     }
-    e.isVarying = true;
     return set(e, knotType);
   }
 
@@ -1375,7 +1405,11 @@ class Checker {
         return set(e, kError);
       }
     }
-    if (first == 1) e.isVarying = true;
+    if (first == 1) {
+      // Without coordinates, texture reads the globals s and t.
+      e.isVarying = true;
+      noteVaryingSource();
+    }
     if (contextFloat_) return set(e, kFloat);
     return set(e, expected.isTriple() ? expected.element() : kFloat);
   }
