@@ -159,7 +159,7 @@ CompileResult compileFile(const std::string& path, const CompileOptions& options
   std::string error;
   if (!r.sources->addFile(path, &file, &error)) {
     r.ioError = true;
-    r.diagnostics->report(DiagId::ErrCannotOpen, SourceLoc{}).arg(error);
+    r.diagnostics->report(DiagId::ErrCannotOpen, SourceLoc{}).arg(error).inFile(path);
     return r;
   }
   compileBufferWithLargeStack(r, file, options, flags);

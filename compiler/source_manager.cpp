@@ -25,18 +25,18 @@ SourceManager::FileId SourceManager::addBuffer(std::string name, std::string tex
 bool SourceManager::addFile(const std::string& path, FileId* id, std::string* error, SourceLoc includedFrom) {
   std::error_code ec;
   if (std::filesystem::is_directory(path, ec)) {
-    *error = "cannot open '" + path + "': it is a directory";
+    *error = "cannot open file: it is a directory";
     return false;
   }
   std::ifstream in(path, std::ios::binary);
   if (!in) {
-    *error = "cannot open '" + path + "': " + std::strerror(errno);
+    *error = std::string("cannot open file: ") + std::strerror(errno);
     return false;
   }
   std::ostringstream ss;
   ss << in.rdbuf();
   if (in.bad()) {
-    *error = "cannot read '" + path + "'";
+    *error = "cannot read file";
     return false;
   }
   *id = addBuffer(path, ss.str(), includedFrom);

@@ -40,7 +40,7 @@ class SourceManager {
 
   // Adds a buffer named `name` (what diagnostics print) and returns its id.
   FileId addBuffer(std::string name, std::string text, SourceLoc includedFrom = {});
-  // Reads a file from disk; returns false and sets *error on failure.
+  // Reads a file from disk; returns false and sets *error on failure (the reason, not the path).
   bool addFile(const std::string& path, FileId* id, std::string* error, SourceLoc includedFrom = {});
   // Where the file was #included (invalid for main files and scratch buffers).
   SourceLoc includedFrom(FileId id) const { return files_[id]->includedFrom; }
