@@ -34,6 +34,7 @@ void compileBuffer(CompileResult& result, SourceManager::FileId file, const Comp
   Parser parser(std::move(tokens), result.sources->name(file), diags);
   std::unique_ptr<TranslationUnit> unit = parser.parseTranslationUnit();
   typeCheck(*unit, diags);
+  if (flags.onChecked) flags.onChecked(*unit);
   if (unit->shaders.empty() && !diags.hasErrors())
     diags.report(DiagId::ErrNoShader, SourceLoc{}).inFile(result.sources->name(file));
   if (diags.hasErrors()) {
@@ -145,11 +146,24 @@ static void compileBufferWithLargeStack(CompileResult& result, SourceManager::Fi
   if (job.error) std::rethrow_exception(job.error);
 }
 
+// No exception leaves the compiler (bad_alloc, a filesystem error, a bug): the host, reliefc or a
+// renderer, reports an internal error and goes on.
+static void compileGuarded(CompileResult& result, SourceManager::FileId file, const CompileOptions& options,
+                           const CompileFlags& flags) {
+  try {
+    compileBufferWithLargeStack(result, file, options, flags);
+  } catch (const std::exception& e) {
+    result.internalError = std::string("unexpected exception: ") + e.what();
+  } catch (...) {
+    result.internalError = "unexpected exception";
+  }
+}
+
 CompileResult compileSource(std::string name, std::string text, const CompileOptions& options,
                             const CompileFlags& flags) {
   CompileResult r = makeResult(options, flags);
   const auto file = r.sources->addBuffer(std::move(name), std::move(text));
-  compileBufferWithLargeStack(r, file, options, flags);
+  compileGuarded(r, file, options, flags);
   return r;
 }
 
@@ -162,7 +176,7 @@ CompileResult compileFile(const std::string& path, const CompileOptions& options
     r.diagnostics->report(DiagId::ErrCannotOpen, SourceLoc{}).arg(error).inFile(path);
     return r;
   }
-  compileBufferWithLargeStack(r, file, options, flags);
+  compileGuarded(r, file, options, flags);
   return r;
 }
 

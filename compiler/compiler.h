@@ -2,6 +2,7 @@
 // diagnostics and every shader it defines out, JIT-compiled. No LLVM here.
 #pragma once
 
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -20,6 +21,8 @@ struct CompileFlags {
   bool keepAst = false;    // keep the checked AST in CompileResult::ast
   unsigned errorLimit = 20;
   std::vector<std::string> disabledWarnings;  // -Wno-<name>, without the "-Wno-"
+  // Called with the type-checked AST before codegen (tools that inspect it, tests).
+  std::function<void(const TranslationUnit&)> onChecked;
 };
 
 struct CompileResult {
@@ -30,12 +33,14 @@ struct CompileResult {
   // Every shader of the file, in source order; empty unless compilation succeeded.
   std::vector<std::shared_ptr<const runtime::CompiledShader>> shaders;
   bool ioError = false;       // the input could not be read (diagnostic recorded)
-  std::string internalError;  // LLVM/JIT failure: a compiler bug, not a user error
+  // LLVM/JIT failure or an exception inside the compiler: a compiler bug, not a user error.
+  std::string internalError;
 
   bool success() const { return !ioError && internalError.empty() && !diagnostics->hasErrors(); }
   std::shared_ptr<const runtime::CompiledShader> find(std::string_view name) const;
 };
 
+// Neither throws: what goes wrong inside the compiler ends up in CompileResult::internalError.
 CompileResult compileSource(std::string name, std::string text, const CompileOptions& options = {},
                             const CompileFlags& flags = {});
 CompileResult compileFile(const std::string& path, const CompileOptions& options = {},

@@ -23,6 +23,14 @@ std::string withoutSplices(const char* begin, const char* end) {
   return out;
 }
 
+// The key of `#pragma once`: the canonical path, or the path as given where the file system
+// cannot say (a name too long to resolve, a scratch buffer), rather than an exception.
+std::string onceKey(const std::string& path) {
+  std::error_code ec;
+  std::filesystem::path canonical = std::filesystem::weakly_canonical(path, ec);
+  return ec ? path : canonical.string();
+}
+
 bool isIdentifierLike(const Token& t) {
   // Keywords can be directive names (#if, #else) and macro names.
   return t.is(Tok::Identifier) || (t.kind >= Tok::KwBreak);
@@ -273,7 +281,7 @@ void Preprocessor::directive(const Token& hash) {
     diags_.report(DiagId::ErrUserError, hash.loc).arg(text.empty() ? "#error" : text);
   } else if (n == "pragma") {
     if (line.size() > 1 && line[1].text == "once")
-      onceFiles_.insert(std::filesystem::weakly_canonical(sm_.name(stack_.back().file)).string());
+      onceFiles_.insert(onceKey(sm_.name(stack_.back().file)));
     // Unknown pragmas are ignored (§1.1).
   } else {
     diags_.report(DiagId::ErrUnknownDirective, name.loc).arg(n).range(name.range());
@@ -320,7 +328,7 @@ void Preprocessor::include(const Token& name, const std::vector<Token>& line) {
     fatal_ = true;  // compilation stops: later errors would only be noise
     return;
   }
-  if (onceFiles_.count(std::filesystem::weakly_canonical(found).string())) return;
+  if (onceFiles_.count(onceKey(found))) return;
   SourceManager::FileId id;
   std::string error;
   if (!sm_.addFile(found, &id, &error, name.loc)) {
