@@ -829,6 +829,7 @@ TEST(RibFeatureScene, LoadsWithOneOfEverything) {
       std::vector<std::string> names;
       if (name == "bumps") names = {"Km", "freq"};
       if (name == "grooves") names = {"depth", "count"};
+      if (name == "bricks") names = {"Km", "texname"};
       if (names.empty()) {
         *error = "unexpected shader";
         return nullptr;
@@ -837,6 +838,7 @@ TEST(RibFeatureScene, LoadsWithOneOfEverything) {
       for (size_t i = 0; i < names.size(); ++i) {
         params[i].name = names[i];
         params[i].offset = uint32_t(4 * i);
+        if (names[i] == "texname") params[i].type = runtime::ParamType::String;
       }
       return std::make_shared<runtime::CompiledShader>(std::string(name), &test::pushEntry,
                                                        params, 4 * names.size(), nullptr);
@@ -850,9 +852,13 @@ TEST(RibFeatureScene, LoadsWithOneOfEverything) {
   std::optional<Scene> scene = readRibFile(
       std::string(RELIEF_SOURCE_DIR) + "/examples/scenes/features.rib", options, &error);
   ASSERT_TRUE(scene) << error.format();
-  EXPECT_EQ(warnings.str().find("error"), std::string::npos);
-  EXPECT_EQ(scene->displayModes, (std::vector<std::string>{"rgb", "z"}));
+  EXPECT_EQ(warnings.str(), "");
+  EXPECT_EQ(scene->displayModes, (std::vector<std::string>{"rgb", "z", "N", "cachemiss"}));
   EXPECT_EQ(scene->maxDepth, 5);
+  EXPECT_EQ(scene->cacheBudgetTriangles, 1000000u);
+  EXPECT_EQ(scene->order, "hilbert");
+  ASSERT_FALSE(scene->texturePath.empty());
+  EXPECT_TRUE(std::filesystem::exists(std::filesystem::path(scene->texturePath[0]) / "bricks.png"));
   std::set<LightType> lightTypes;
   std::set<AreaShape> areaShapes;
   for (const Light& l : scene->lights) {
@@ -864,8 +870,18 @@ TEST(RibFeatureScene, LoadsWithOneOfEverything) {
   std::set<SurfaceType> surfaces;
   for (const Mesh& m : scene->meshes) surfaces.insert(scene->materials[m.materialIndex].type);
   EXPECT_EQ(surfaces.size(), 6u);  // matte plastic metal mirror glass constant
-  EXPECT_EQ(scene->displacements.size(), 2u);
+  EXPECT_EQ(scene->displacements.size(), 3u);
   EXPECT_EQ(scene->meshes.size(), 15u + 4u * 2u);  // 15 shapes and 4 two-part instanced posts
+  // The brick wall from the archive: its own normals (towards the camera) and texture coordinates.
+  size_t withNormalsAndSt = 0;
+  for (const Mesh& m : scene->meshes)
+    if (m.displacementIndex != UINT32_MAX && !m.N.empty() && !m.st.empty() &&
+        scene->displacements[m.displacementIndex].shader->name() == "bricks") {
+      ++withNormalsAndSt;
+      EXPECT_TRUE(scene->materials[m.materialIndex].reverseOrientation);
+      expectNear(m.N[0], glm::vec3(0, 0, -1));
+    }
+  EXPECT_EQ(withNormalsAndSt, 1u);
 }
 
 // --- Bad input ---
