@@ -1252,6 +1252,20 @@ class Checker {
         report(DiagId::WarnNarrowing, args[i]->range.begin).range(args[i]->range);
   }
 
+  // Where the decoded character `index` of a string literal sits in the source, when the
+  // literal's spelling is plain enough to tell (else at the opening quote).
+  static SourceRange literalCharRange(const Expr& literal, size_t index, size_t length) {
+    auto spelled = [&](size_t end) {
+      size_t n = 0;
+      for (size_t k = 0; k < end; ++k) n += std::string("\n\t\\\"").find(literal.text[k]) != std::string::npos ? 2 : 1;
+      return n;
+    };
+    const uint32_t width = literal.range.end.offset - literal.range.begin.offset;
+    if (width != spelled(literal.text.size()) + 2) return literal.range;  // a macro, a splice, ...
+    const SourceLoc at = literal.range.begin.advanced(uint32_t(1 + spelled(index)));
+    return {at, at.advanced(uint32_t(length))};
+  }
+
   // -Wformat: a literal printf format against its arguments (§6.8).
   void checkFormat(const Expr& format, const std::vector<ExprPtr>& args) {
     const std::string& f = format.text;
@@ -1262,12 +1276,18 @@ class Checker {
         ++i;
         continue;
       }
+      const size_t start = i;
       size_t j = i + 1;
       while (j < f.size() && std::string("-+ #0123456789.").find(f[j]) != std::string::npos) ++j;
       if (j >= f.size()) break;
       const char conv = f[j];
       i = j;
       ++conversions;
+      if (std::string("difges").find(conv) == std::string::npos) {
+        // The run time prints such a conversion verbatim (and skips its argument).
+        const SourceRange r = literalCharRange(format, start, j + 1 - start);
+        report(DiagId::WarnFormatInvalid, r.begin).arg(f.substr(j, 1)).range(r);
+      }
       if (arg >= args.size()) continue;
       const Expr& a = *args[arg++];
       const char* want = nullptr;
