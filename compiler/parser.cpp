@@ -3,6 +3,7 @@
 #include "compiler/parser.h"
 
 #include <algorithm>
+#include <cstdint>
 
 #include "compiler/lexer.h"
 
@@ -35,6 +36,32 @@ bool isAssignOp(Tok k) {
          k == Tok::StarAssign || k == Tok::SlashAssign || k == Tok::PercentAssign;
 }
 SourceRange join(SourceLoc b, SourceLoc e) { return {b, e}; }
+
+// The value of an integer constant expression (int literals under + - * / % and unary - +, as
+// after macro expansion `N * 2 + 1`); false for anything else or a result outside int.
+bool foldIntConstant(const Expr& e, int64_t* value) {
+  int64_t a = 0, b = 0;
+  switch (e.kind) {
+    case ExprKind::IntLiteral: *value = e.intValue; return true;
+    case ExprKind::Unary:
+      if ((e.op != Tok::Minus && e.op != Tok::Plus) || !foldIntConstant(*e.operands[0], &a)) return false;
+      *value = e.op == Tok::Minus ? -a : a;
+      break;
+    case ExprKind::Binary:
+      if (!foldIntConstant(*e.operands[0], &a) || !foldIntConstant(*e.operands[1], &b)) return false;
+      switch (e.op) {
+        case Tok::Plus: *value = a + b; break;
+        case Tok::Minus: *value = a - b; break;
+        case Tok::Star: *value = a * b; break;
+        case Tok::Slash: *value = b ? a / b : 0; break;  // int division by 0 is 0 (§4.1)
+        case Tok::Percent: *value = b ? a % b : 0; break;
+        default: return false;
+      }
+      break;
+    default: return false;
+  }
+  return *value >= INT32_MIN && *value <= INT32_MAX;
+}
 }  // namespace
 
 Parser::Parser(std::vector<Token> tokens, std::string fileName, DiagnosticsEngine& diags)
@@ -353,22 +380,19 @@ bool Parser::parseDeclarators(std::vector<std::unique_ptr<VarDecl>>& out, Type t
     decl->isUniform = isUniform;
     decl->storage = storage;
     if (tok().is(Tok::LBracket)) {
-      // "[" [int-const] "]": the length must be an integer literal (after macro expansion).
+      // "[" [int-const] "]": an integer constant expression (after macro expansion), like C's.
       const Token open = consume();
       if (accept(Tok::RBracket)) {
         decl->type.arrayLength = -1;
-      } else if (tok().is(Tok::IntLiteral) && peek().is(Tok::RBracket)) {
-        const Token n = consume();
-        consume();
-        if (n.intValue <= 0) {
-          diags_.report(DiagId::ErrArrayLength, n.loc).range(n.range());
+      } else {
+        ExprPtr length = parseConditional();
+        if (!length || !expectClosing(Tok::RBracket, open)) return false;
+        int64_t n = 0;
+        if (!foldIntConstant(*length, &n) || n <= 0) {
+          diags_.report(DiagId::ErrArrayLength, length->range.begin).range(length->range);
           return false;
         }
-        decl->type.arrayLength = n.intValue;
-      } else {
-        diags_.report(DiagId::ErrArrayLength, tok().loc).range(tok().range());
-        (void)open;
-        return false;
+        decl->type.arrayLength = int(n);
       }
     }
     if (accept(Tok::Assign)) {

@@ -366,5 +366,19 @@ displacement sp(string basis = "linear"; string bad = "cubic")
   EXPECT_EQ(status.splineBasis, 2u);
 }
 
+TEST(ArrayTest, LengthsAreIntegerConstantExpressions) {
+  // §3 `int-const`: constant arithmetic over int literals, as macros produce it.
+  TestBatch b(1);
+  const std::string printed = evaluate(R"(
+#define KNOTS 4
+displacement d(float k[KNOTS * 2 - 1] = {1, 2})
+{
+    float a[(KNOTS + 2) / 3], c[-(-KNOTS) % 3];
+    printf("%d %d %d\n", arraylength(k), arraylength(a), arraylength(c));
+})",
+                                       b);
+  EXPECT_EQ(printed, "7 2 1\n");
+}
+
 }  // namespace
 }  // namespace relief::compiler
