@@ -1430,8 +1430,10 @@ class Checker {
       e.isVarying = true;
       noteVaryingSource();
     }
+    // float|color (§6.7): a triple context asks for the three channels, which are a color; a
+    // spatial context then needs a cast (`vector(texture(...))`), as color↔spatial always does.
     if (contextFloat_) return set(e, kFloat);
-    return set(e, expected.isTriple() ? expected.element() : kFloat);
+    return set(e, expected.isTriple() ? Type(TypeKind::Color) : kFloat);
   }
 
   // The §6 "T" binding: first triple argument, else int when `allowInt` and all are int, else float.

@@ -65,6 +65,20 @@ TEST(TypeCheckTest, ContextTypedNoise) {
   EXPECT_EQ(typeName(stmts[5]->decls[0]->init->operands[0]->type), "color");
 }
 
+TEST(TypeCheckTest, TextureIsFloatOrColorWhateverTheContext) {
+  // §6.7: float|color texture(...), context-typed; a spatial context gets the color.
+  EXPECT_EQ(typeOfInit("color c = texture(\"t.tx\");"), "color");
+  EXPECT_EQ(typeOfInit("float f = texture(\"t.tx\");"), "float");
+  Checked cast = check("vector d = vector(texture(\"t.tx\", s, t));\nP += d;");
+  ASSERT_EQ(cast.errors, "");
+  EXPECT_EQ(typeName(cast.result.ast->shaders[0]->body->stmts[0]->decls[0]->init->operands[0]->type), "color");
+  EXPECT_EQ(check("vector d = texture(\"t.tx\");\nP += d;").errors,
+            "3:12: cannot initialize a variable of type 'vector' with a value of type 'color'\n");
+  EXPECT_EQ(check("P += texture(\"t.tx\");").errors,
+            "3:3: invalid operands to binary expression ('point' and 'color')\n");
+  EXPECT_EQ(check("P += texture(\"t.tx\") * N;").errors, "");
+}
+
 TEST(TypeCheckTest, Promotions) {
   EXPECT_EQ(check("float f = 1; point p = 2; vector v = P; normal n = v; int i = 0; f = i;\nP += f*p*n;").errors, "");
   EXPECT_EQ(check("color c = P;").errors,
