@@ -332,14 +332,17 @@ void GridAccelerator::intersectVoxel(uint32_t voxel, const WatertightRay& wr, co
     return;
   }
   const VoxelGeometry* g = cache_->acquire(voxel, stamp, [this](uint32_t v) { return buildVoxel(v); });
+  // tLimit() changes only with `best`, so it is recomputed there rather than per triangle.
+  float limit = tLimit();
   auto test = [&](uint32_t i) {
     const glm::uvec3 tri = g->triangle(i);
-    if (!intersectTriangle(wr, g->P[tri.x], g->P[tri.y], g->P[tri.z], ray.tMin, tLimit(), h)) return;
+    if (!intersectTriangle(wr, g->P[tri.x], g->P[tri.y], g->P[tri.z], ray.tMin, limit, h)) return;
     const auto [triangleId, microId] = g->key(i);
     if (!best.better(h.t, triangleId, microId)) return;
     best.found = true, best.t = h.t, best.triangleId = triangleId;
     best.microId = microId, best.hit = h;
     for (int c = 0; c < 3; ++c) best.p[c] = g->P[tri[c]], best.bary[c] = g->bary(tri[c]);
+    limit = tLimit();
   };
   if (g->subResolution.x == 0) {
     for (uint32_t i = 0; i < g->numTriangles() && !(anyHit && best.found); ++i) test(i);
