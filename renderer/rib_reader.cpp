@@ -319,8 +319,13 @@ struct StackEntry {
 
 class RibParser {
  public:
-  RibParser(const std::string& fileName, const RibReadOptions& options)
-      : fileName_(fileName), options_(options), searchPath_(options.defaultShaderPath) {
+  // listFrames: read no frame block, only number them (readRibFrameNumbers).
+  RibParser(const std::string& fileName, const RibReadOptions& options, bool listFrames = false)
+      : fileName_(fileName),
+        options_(options),
+        searchPath_(options.defaultShaderPath),
+        listFrames_(listFrames),
+        selectedFrame_(listFrames ? -1 : options.frame) {
     const std::filesystem::path p(fileName);
     baseDir_ = p.has_parent_path() ? p.parent_path().string() : std::string(".");
     archivePath_ = {baseDir_};
@@ -351,9 +356,17 @@ class RibParser {
     } else if (inWorld_) {
       fail(eofLine, "unexpected end of file: 'WorldBegin' at line " + std::to_string(worldLine_) +
                         " has no 'WorldEnd'");
-    } else if (frameDepth_ > 0 && !skipping_) {
+    } else if (frameDepth_ > 0) {
       fail(eofLine, "unexpected end of file: 'FrameBegin' at line " + std::to_string(frameLine_) +
                         " has no 'FrameEnd'");
+    } else if (listFrames_) {
+      // Frames are numbered, not read: there is no world to ask for.
+    } else if (selectedFrame_ < 0 || selectedFrame_ >= numFrames()) {
+      fail(0, "no frame with index " + std::to_string(selectedFrame_) + ": the file has " +
+                  std::to_string(numFrames()) + (numFrames() == 1 ? " frame" : " frames"));
+    } else if (!worldDone_ && !scene_.frameNumbers.empty()) {
+      fail(selectedFrameLine_, "frame " + std::to_string(scene_.frameNumbers[selectedFrame_]) +
+                                   " has no 'WorldBegin'/'WorldEnd' block: nothing to render");
     } else if (!worldDone_) {
       fail(eofLine, "no 'WorldBegin'/'WorldEnd' block: nothing to render");
     }
@@ -373,10 +386,38 @@ class RibParser {
       }
     }
     scene_.ambient = (scene_.ambientColor.r + scene_.ambientColor.g + scene_.ambientColor.b) / 3.0f;
+    scene_.frameIndex = std::max(selectedFrame_, 0);
     return std::move(scene_);
   }
 
  private:
+  int numFrames() const { return scene_.numFrames(); }
+
+  // FrameBegin n: numbers every frame, reads only the selected one.
+  bool beginFrame(const Call& call) {
+    if (frameDepth_ > 0) return fail(call.line, "nested 'FrameBegin'");
+    ++frameDepth_;
+    frameLine_ = call.line;
+    const int index = int(scene_.frameNumbers.size());
+    scene_.frameNumbers.push_back(frameNumber(call));
+    skipping_ = index != selectedFrame_;
+    if (!skipping_) selectedFrameLine_ = call.line;
+    return true;
+  }
+
+  // RIB numbers frames with an integer. Exporters always give one, so a missing or fractional
+  // number is only warned about and the frame takes its position (1-based) instead.
+  int frameNumber(const Call& call) {
+    const int position = int(scene_.frameNumbers.size()) + 1;
+    if (call.args.size() == 1 && call.args[0].isNumeric() && call.args[0].numbers.size() == 1) {
+      const double n = call.args[0].numbers[0];
+      if (n == std::floor(n) && std::fabs(n) <= 1e9) return int(n);
+    }
+    warn(call.line, "'FrameBegin' expects an integer frame number; numbering this frame " +
+                        std::to_string(position));
+    return position;
+  }
+
   // Executes the calls of tokens_ from pos_ to the end; false on the first error.
   bool runCalls() {
     Call call;
@@ -879,7 +920,11 @@ class RibParser {
   int instanceDepth_ = 0;
   int frameDepth_ = 0;
   int frameLine_ = 0;
-  bool skipping_ = false;  // after the first frame: the rest of the file is skipped
+  const bool listFrames_;
+  const int selectedFrame_;     // index into scene_.frameNumbers; -1: none (listFrames_)
+  int selectedFrameLine_ = 0;   // its FrameBegin
+  bool skipping_ = false;       // inside a frame block other than the selected one
+  bool frameDone_ = false;      // the selected frame and its world have ended
   int motionLine_ = 0;     // line of the open MotionBegin; 0: outside motion blocks
   bool motionSampleTaken_ = false;  // the open motion block's first sample has run
   std::set<std::string> warnedKeys_;
@@ -893,7 +938,18 @@ class RibParser {
 
 bool RibParser::execute(const Call& call) {
   const std::string& name = call.name;
-  if (skipping_) return true;
+  // Calls that cannot reach the frame being read: another frame's (FrameEnd restores the options
+  // and the world ends inside the frame), or any after the frame was rendered. Only frame blocks
+  // are followed, so that all are numbered and each must be closed.
+  if (skipping_ || frameDone_) {
+    if (name == "FrameBegin") return beginFrame(call);
+    if (name == "FrameEnd") {
+      if (frameDepth_ == 0) return fail(call.line, "'FrameEnd' without 'FrameBegin'");
+      --frameDepth_;
+      skipping_ = false;
+    }
+    return true;
+  }
   if (recording_) {
     if (name == "ObjectEnd") {
       recording_ = nullptr;
@@ -939,24 +995,16 @@ bool RibParser::execute(const Call& call) {
   }
   if (name == "ObjectEnd") return fail(call.line, "'ObjectEnd' without 'ObjectBegin'");
   if (name == "ObjectInstance") return doObjectInstance(call);
-  if (name == "FrameBegin") {
-    if (worldDone_) {
-      // One image per run: the first frame is rendered, later frames are read no further.
-      warn(call.line, "only the first frame is rendered; the frames from here on are skipped");
-      skipping_ = true;
-      return true;
-    }
-    if (frameDepth_ > 0) return fail(call.line, "nested 'FrameBegin'");
-    ++frameDepth_;
-    frameLine_ = call.line;
-    return true;
-  }
+  if (name == "FrameBegin") return beginFrame(call);
   if (name == "FrameEnd") {
     if (frameDepth_ == 0) return fail(call.line, "'FrameEnd' without 'FrameBegin'");
     if (inWorld_)
       return fail(call.line, "'FrameEnd' inside the world block (line " +
                                  std::to_string(worldLine_) + ")");
     --frameDepth_;
+    // Only the selected frame's FrameEnd gets here. Calls after it would come after its image in
+    // RenderMan; a frame whose world follows the block (not RIB, but accepted) keeps reading.
+    frameDone_ = worldDone_;
     return true;
   }
   bool handled = false;
@@ -1120,7 +1168,9 @@ bool RibParser::executeCamera(const Call& call, bool* handled) {
     }
   } else if (n == "WorldBegin") {
     if (inWorld_) return fail(call.line, "nested 'WorldBegin'");
-    if (worldDone_) return fail(call.line, "only one world block per file is supported");
+    if (worldDone_)
+      return fail(call.line, frameDepth_ > 0 ? "only one world block per frame is supported"
+                                             : "only one world block per file is supported");
     if (!stack_.empty())
       return fail(call.line, "'WorldBegin' inside an unclosed '" +
                                  std::string(stack_.back().attribute ? "AttributeBegin"
@@ -2506,20 +2556,44 @@ std::optional<Scene> readRibString(std::string_view text, const std::string& fil
   return parser.parse(std::move(tokens), error);
 }
 
-std::optional<Scene> readRibFile(const std::string& path, const RibReadOptions& options,
-                                 SceneError* error) {
+namespace {
+
+bool readSceneText(const std::string& path, std::string* text, SceneError* error) {
   std::ifstream in(path, std::ios::binary);
   if (!in) {
     *error = SceneError{path, 0, std::string("cannot open scene file: ") + std::strerror(errno)};
-    return std::nullopt;
+    return false;
   }
   if (std::filesystem::is_directory(path)) {
     *error = SceneError{path, 0, "cannot open scene file: it is a directory"};
-    return std::nullopt;
+    return false;
   }
   std::ostringstream buffer;
   buffer << in.rdbuf();
-  return readRibString(buffer.str(), path, options, error);
+  *text = buffer.str();
+  return true;
+}
+
+}  // namespace
+
+std::optional<Scene> readRibFile(const std::string& path, const RibReadOptions& options,
+                                 SceneError* error) {
+  std::string text;
+  if (!readSceneText(path, &text, error)) return std::nullopt;
+  return readRibString(text, path, options, error);
+}
+
+std::optional<std::vector<int>> readRibFrameNumbers(const std::string& path,
+                                                    const RibReadOptions& options,
+                                                    SceneError* error) {
+  std::string text;
+  std::vector<RibToken> tokens;
+  if (!readSceneText(path, &text, error) || !tokenizeRib(text, path, &tokens, error))
+    return std::nullopt;
+  RibParser parser(path, options, /*listFrames=*/true);
+  std::optional<Scene> scene = parser.parse(std::move(tokens), error);
+  if (!scene) return std::nullopt;
+  return std::move(scene->frameNumbers);
 }
 
 }  // namespace relief

@@ -34,6 +34,10 @@ struct RibReadOptions {
   std::vector<std::string> defaultTexturePath;
   // Receives `file:line: warning: message` lines; null drops them.
   std::ostream* warnings = nullptr;
+  // Which `FrameBegin` block to read, counted from 0 in file order. The scene is made of the calls
+  // outside frame blocks plus that block; the other blocks are only checked for balance, since
+  // FrameEnd restores what their calls set (RenderMan). A file without FrameBegin is frame 0.
+  int frame = 0;
 };
 
 // One RIB token. Requests are bare words; everything else is an argument.
@@ -57,6 +61,13 @@ std::optional<Scene> readRibFile(const std::string& path, const RibReadOptions& 
 // Reads RIB text; `fileName` names it in messages and its directory anchors relative search paths.
 std::optional<Scene> readRibString(std::string_view text, const std::string& fileName,
                                    const RibReadOptions& options, SceneError* error);
+
+// The n of each `FrameBegin n` block of a RIB file, in file order; empty when it has none (it is
+// one frame). Runs the calls outside frame blocks, which may fail, and skips every block, so it
+// costs little more than tokenizing when the frames hold the scene. On failure returns nullopt.
+std::optional<std::vector<int>> readRibFrameNumbers(const std::string& path,
+                                                    const RibReadOptions& options,
+                                                    SceneError* error);
 
 // A GLM (column-major, column-vector) transform as the shader ABI wants it: row-major with row
 // vectors, p' = p * M. The two layouts of the same matrix coincide element for element.

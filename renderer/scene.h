@@ -142,6 +142,11 @@ struct Scene {
   // Option "searchpath" "string texture": directories searched for texture files, in order
   // (relative entries already resolved against the scene file's directory).
   std::vector<std::string> texturePath;
+  // The n of each `FrameBegin n` block of the file, in order (empty: no FrameBegin, one frame), and
+  // which of them this scene is (RibReadOptions::frame).
+  std::vector<int> frameNumbers;
+  int frameIndex = 0;
+  int numFrames() const { return frameNumbers.empty() ? 1 : int(frameNumbers.size()); }
 };
 
 }  // namespace relief

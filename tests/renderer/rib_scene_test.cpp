@@ -203,17 +203,142 @@ TEST(RibTransforms, SingularTransformsSkipTheirGeometry) {
 
 // --- Frames and archives ---
 
-TEST(RibFrames, FirstFrameIsRenderedAndLaterFramesSkipped) {
-  ReadResult r = read("FrameBegin 1\nFormat 10 10 1\n" + world(kTriangle) +
-                      "FrameEnd\nFrameBegin 2\nFormat 20 20 1\n" +
-                      world(std::string(kTriangle) + kTriangle) + "FrameEnd\n");
+ReadResult readFrame(const std::string& text, int frame) {
+  std::ostringstream warnings;
+  RibReadOptions options;
+  options.warnings = &warnings;
+  options.frame = frame;
+  ReadResult r;
+  r.scene = readRibString(text, "/scenes/anim.rib", options, &r.error);
+  r.warnings = warnings.str();
+  return r;
+}
+
+// An exporter's animation: shared options first, then per frame a Display, a camera and a world.
+const std::string kTwoFrames =
+    "Format 10 10 1\nPixelSamples 2 2\nOption \"relief\" \"int maxdepth\" [3]\n"
+    "FrameBegin 7\nDisplay \"anim.0007.png\" \"file\" \"rgba\"\n"
+    "Projection \"perspective\" \"fov\" [40]\nTranslate 0 0 5\n" +
+    world(kTriangle) +
+    "FrameEnd\nPixelSamples 3 3\n"
+    "FrameBegin 8\nDisplay \"anim.0008.png\" \"file\" \"rgb\"\nFormat 20 20 1\n" +
+    world(std::string(kTriangle) + "Sphere 1 -1 1 360") + "FrameEnd\n";
+
+TEST(RibFrames, EachFrameHasItsOwnDisplayCameraAndWorld) {
+  ReadResult first = readFrame(kTwoFrames, 0);
+  ASSERT_TRUE(first.scene) << first.error.format();
+  EXPECT_EQ(first.scene->frameNumbers, (std::vector<int>{7, 8}));
+  EXPECT_EQ(first.scene->numFrames(), 2);
+  EXPECT_EQ(first.scene->frameIndex, 0);
+  EXPECT_EQ(first.scene->displays, (std::vector<std::string>{"anim.0007.png"}));
+  EXPECT_EQ(first.scene->displayModes, (std::vector<std::string>{"rgba"}));
+  EXPECT_TRUE(first.scene->camera.perspective);
+  EXPECT_FLOAT_EQ(first.scene->camera.fovDegrees, 40.0f);
+  expectNear(glm::vec3(first.scene->camera.worldFromCamera[3]), glm::vec3(0, 0, -5));
+  EXPECT_EQ(first.scene->meshes.size(), 1u);
+  EXPECT_EQ(first.scene->width, 10);
+  EXPECT_EQ(first.scene->pixelSamples, 4);  // the PixelSamples after its FrameEnd comes too late
+  EXPECT_EQ(first.warnings, "");
+
+  ReadResult second = readFrame(kTwoFrames, 1);
+  ASSERT_TRUE(second.scene) << second.error.format();
+  EXPECT_EQ(second.scene->frameNumbers, (std::vector<int>{7, 8}));
+  EXPECT_EQ(second.scene->frameIndex, 1);
+  EXPECT_EQ(second.scene->displays, (std::vector<std::string>{"anim.0008.png"}));
+  // Frame 7's camera ended with it; the options before the first frame are shared.
+  EXPECT_FALSE(second.scene->camera.perspective);
+  expectNear(glm::vec3(second.scene->camera.worldFromCamera[3]), glm::vec3(0));
+  EXPECT_EQ(second.scene->meshes.size(), 2u);
+  EXPECT_EQ(second.scene->width, 20);
+  EXPECT_EQ(second.scene->pixelSamples, 9);
+  EXPECT_EQ(second.scene->maxDepth, 3);
+  EXPECT_EQ(first.scene->maxDepth, 3);
+
+  ReadResult missing = readFrame(kTwoFrames, 2);
+  ASSERT_FALSE(missing.scene);
+  EXPECT_EQ(missing.error.format(),
+            "/scenes/anim.rib: error: no frame with index 2: the file has 2 frames");
+}
+
+TEST(RibFrames, AFileWithoutFramesIsOneFrame) {
+  ReadResult r = read(world(kTriangle));
   ASSERT_TRUE(r.scene) << r.error.format();
-  EXPECT_EQ(r.scene->width, 10);
-  EXPECT_EQ(r.scene->meshes.size(), 1u);
-  EXPECT_NE(r.warnings.find(":8: warning: only the first frame is rendered"), std::string::npos)
-      << r.warnings;
+  EXPECT_TRUE(r.scene->frameNumbers.empty());
+  EXPECT_EQ(r.scene->numFrames(), 1);
+  EXPECT_FALSE(readFrame(world(kTriangle), 1).scene);
+  ReadResult one = read("FrameBegin 3\n" + world(kTriangle) + "FrameEnd\n");
+  ASSERT_TRUE(one.scene) << one.error.format();
+  EXPECT_EQ(one.scene->frameNumbers, (std::vector<int>{3}));
+  EXPECT_EQ(one.warnings, "");
+}
+
+TEST(RibFrames, SkippedFramesAreStillChecked) {
+  // Frame 2 is skipped when frame 1 is read, but an unclosed or nested block in it is an error
+  // at its line; a stray character anywhere is a tokenizer error.
+  const std::string good = "FrameBegin 1\n" + world(kTriangle) + "FrameEnd\n";  // lines 1-6
+  ReadResult unclosed = readFrame(good + "FrameBegin 2\n" + world(kTriangle), 0);
+  ASSERT_FALSE(unclosed.scene);
+  EXPECT_GT(unclosed.error.line, 7);
+  EXPECT_NE(unclosed.error.message.find("'FrameBegin' at line 7 has no 'FrameEnd'"),
+            std::string::npos)
+      << unclosed.error.message;
+  ReadResult nested = readFrame(good + "FrameBegin 2\nFrameBegin 3\nFrameEnd\nFrameEnd\n", 0);
+  ASSERT_FALSE(nested.scene);
+  EXPECT_EQ(nested.error.format(), "/scenes/anim.rib:8: error: nested 'FrameBegin'");
+  ReadResult stray = readFrame(good + "FrameEnd\n", 0);
+  ASSERT_FALSE(stray.scene);
+  EXPECT_EQ(stray.error.format(), "/scenes/anim.rib:7: error: 'FrameEnd' without 'FrameBegin'");
+  ReadResult token = readFrame(good + "FrameBegin 2\nSphere 1 -1 1 \"360\nFrameEnd\n", 0);
+  ASSERT_FALSE(token.scene);
+  EXPECT_EQ(token.error.line, 8);
+  // A skipped frame's calls are not run: a bad one only fails when that frame is read.
+  const std::string badSecond = good + "FrameBegin 2\nSides 3\n" + world(kTriangle) + "FrameEnd\n";
+  EXPECT_TRUE(readFrame(badSecond, 0).scene);
+  ReadResult bad = readFrame(badSecond, 1);
+  ASSERT_FALSE(bad.scene);
+  EXPECT_EQ(bad.error.line, 8);
+  // A frame without a world has nothing to render; the error names the frame.
+  ReadResult empty = readFrame(good + "FrameBegin 2\nFrameEnd\n", 1);
+  ASSERT_FALSE(empty.scene);
+  EXPECT_EQ(empty.error.format(),
+            "/scenes/anim.rib:7: error: frame 2 has no 'WorldBegin'/'WorldEnd' block: nothing to "
+            "render");
   EXPECT_FALSE(read("FrameBegin 1\n" + world("")).scene);  // unclosed frame
   EXPECT_FALSE(read("FrameEnd\n" + world("")).scene);
+  EXPECT_FALSE(read("FrameBegin 1\n" + world("") + world("") + "FrameEnd\n").scene);
+}
+
+TEST(RibFrames, FramesWithoutANumberAreNumberedByPosition) {
+  ReadResult r = readFrame("FrameBegin\n" + world(kTriangle) + "FrameEnd\nFrameBegin 1.5\n" +
+                               world(kTriangle) + "FrameEnd\n",
+                           1);
+  ASSERT_TRUE(r.scene) << r.error.format();
+  EXPECT_EQ(r.scene->frameNumbers, (std::vector<int>{1, 2}));
+  EXPECT_NE(r.warnings.find(":7: warning: 'FrameBegin' expects an integer frame number; numbering "
+                            "this frame 2"),
+            std::string::npos)
+      << r.warnings;
+}
+
+TEST(RibFrames, FrameNumbersAreListedWithoutReadingTheFrames) {
+  TempDir dir("frames");
+  // The frames' calls would fail (no shader provider), but listing runs none of them.
+  const std::string path = dir.write(
+      "anim.rib", "Format 8 8 1\nFrameBegin 10\nDisplacement \"bumps\"\n" + world(kTriangle) +
+                      "FrameEnd\nFrameBegin 20\n" + world(kTriangle) + "FrameEnd\n");
+  SceneError error;
+  std::optional<std::vector<int>> numbers = readRibFrameNumbers(path, RibReadOptions(), &error);
+  ASSERT_TRUE(numbers) << error.format();
+  EXPECT_EQ(*numbers, (std::vector<int>{10, 20}));
+  const std::string single = dir.write("single.rib", world(kTriangle));
+  numbers = readRibFrameNumbers(single, RibReadOptions(), &error);
+  ASSERT_TRUE(numbers) << error.format();
+  EXPECT_TRUE(numbers->empty());
+  const std::string broken = dir.write("broken.rib", "FrameBegin 1\n" + world(kTriangle));
+  EXPECT_FALSE(readRibFrameNumbers(broken, RibReadOptions(), &error));
+  EXPECT_GT(error.line, 1);
+  EXPECT_NE(error.message.find("'FrameBegin' at line 1 has no 'FrameEnd'"), std::string::npos);
+  EXPECT_FALSE(readRibFrameNumbers((dir.path / "none.rib").string(), RibReadOptions(), &error));
 }
 
 TEST(RibFrames, DelayedReadArchiveReadsTheArchive) {
