@@ -1,6 +1,6 @@
 // relief: renders a RIB scene with displacement shaders compiled on the fly. The only place where
 // the compiler (ShaderLibrary, the ShaderProvider) meets the renderer (reader, accelerator, render
-// loop, film). Exit codes: 0 image written, 1 scene/shader/render error, 2 usage error.
+// loop, film). Exit codes: 0 images written, 1 scene/shader/render error, 2 usage error.
 #include <sys/resource.h>
 #include <unistd.h>
 
@@ -15,6 +15,8 @@
 #include <fstream>
 #include <iostream>
 #include <optional>
+#include <set>
+#include <streambuf>
 #include <string>
 #include <utility>
 #include <vector>
@@ -45,6 +47,7 @@ constexpr const char* kUsage =
     "  -o FILE                   write the image to FILE instead of the scene's Display\n"
     "                            (the scene's further displays go to FILE's directory)\n"
     "                            (format from the extension: png, exr, tif, ...)\n"
+    "  --frame N                 render only the frame of 'FrameBegin N' (default: every frame)\n"
     "  --resolution WxH          override the scene's Format\n"
     "  --spp N                   samples per pixel (overrides PixelSamples)\n"
     "  --threads N               render threads (default: all cores)\n"
@@ -76,6 +79,10 @@ constexpr const char* kUsage =
     "mode \"z\" (depth), \"N\" (normal) or \"cachemiss\" (cache misses per pixel) are written\n"
     "too. EXR files hold linear floats and render metadata; png/tif/jpg hold 8-bit sRGB.\n"
     "Progress: a bar on a terminal, plain lines every 10% otherwise, nothing with --quiet.\n"
+    "Frames: a scene with several FrameBegin blocks renders each in turn, each writing its own\n"
+    "Displays; a failed frame writes nothing and stops the run (earlier frames stay). With\n"
+    "several frames, -o FILE, --stats-json FILE and the default image name get the frame\n"
+    "number before the extension: -o out.png writes out.0001.png, out.0002.png, ...\n"
     "\n"
     "environment:\n"
     "  RELIEF_SHADER_PATH        ':'-separated shader directories, searched after -I\n"
@@ -86,12 +93,14 @@ constexpr const char* kUsage =
     "from the working directory, then along Option \"searchpath\" \"texture\" (default: the\n"
     "scene file's directory).\n"
     "\n"
-    "exit status: 0 image written, 1 scene/shader/render/output error, 2 usage error\n";
+    "exit status: 0 images written, 1 scene/shader/render/output error, 2 usage error (also a\n"
+    "--frame the scene does not have)\n";
 
 struct CommandLine {
   std::string scene;
   std::vector<std::string> shaderDirs;
   std::string output;
+  std::optional<int> frame;  // --frame: the n of a `FrameBegin n`; unset: every frame
   int width = 0, height = 0;
   int spp = 0;
   int threads = 0;
@@ -127,6 +136,16 @@ bool parsePositive(const std::string& text, long long max, long long* value) {
   return *value > 0 && *value <= max;
 }
 
+// A frame number: RIB numbers frames with any integer, though exporters start at 0 or 1.
+bool parseFrameNumber(const std::string& text, int* value) {
+  const size_t digits = text.rfind('-', 0) == 0 ? 1 : 0;
+  if (text.size() <= digits || text.size() > digits + 9) return false;
+  for (size_t i = digits; i < text.size(); ++i)
+    if (text[i] < '0' || text[i] > '9') return false;
+  *value = std::stoi(text);
+  return true;
+}
+
 // Returns -1 when parsing succeeded and the program should go on, else the exit code.
 int parseCommandLine(int argc, char** argv, CommandLine* cl) {
   std::vector<std::string> args(argv + 1, argv + argc);
@@ -153,6 +172,11 @@ int parseCommandLine(int argc, char** argv, CommandLine* cl) {
     } else if (a == "-o") {
       if (!value(&v)) return usageError("'-o' needs a file name");
       cl->output = v;
+    } else if (a == "--frame") {
+      int frame = 0;
+      if (!value(&v) || !parseFrameNumber(v, &frame))
+        return usageError("'--frame' needs a frame number (the n of 'FrameBegin n')");
+      cl->frame = frame;
     } else if (a == "--resolution") {
       if (!value(&v)) return usageError("'--resolution' needs WxH");
       const size_t x = v.find('x');
@@ -307,6 +331,9 @@ StatList collectStats(const CommandLine& cl, const relief::Scene& scene,
           : 0.0;
   StatList s = {
       {"scene.file", jsonString(cl.scene)},
+      {"scene.frame", scene.frameNumbers.empty()
+                          ? std::string("null")
+                          : std::to_string(scene.frameNumbers[size_t(scene.frameIndex)])},
       {"scene.input_triangles", u(inputTriangles)},
       {"image.width", u(uint64_t(scene.width))},
       {"image.height", u(uint64_t(scene.height))},
@@ -500,15 +527,82 @@ OutputKind outputKind(const std::string& mode) {
   return OutputKind::Colour;
 }
 
+// `out.png` -> `out.0007.png`: the frames of one run must not overwrite each other's files.
+std::string withFrameNumber(const std::string& path, int number) {
+  char digits[16];
+  std::snprintf(digits, sizeof digits, "%04d", number);
+  const std::filesystem::path p(path);
+  return (p.parent_path() / (p.stem().string() + "." + digits + p.extension().string())).string();
+}
+
+// Each frame is read from the whole file, so the calls outside frame blocks warn again for every
+// frame. This stream buffer passes a line on unless an earlier frame printed it.
+class FrameWarnings : public std::streambuf {
+ public:
+  explicit FrameWarnings(std::ostream& out) : out_(out) {}
+  ~FrameWarnings() override {
+    if (!line_.empty()) out_ << line_ << std::flush;
+  }
+
+  // The lines printed so far become an earlier frame's.
+  void nextFrame() {
+    earlier_.insert(current_.begin(), current_.end());
+    current_.clear();
+  }
+
+ protected:
+  int_type overflow(int_type c) override {
+    if (traits_type::eq_int_type(c, traits_type::eof())) return traits_type::not_eof(c);
+    line_ += traits_type::to_char_type(c);
+    if (line_.back() == '\n') {
+      if (!earlier_.count(line_)) {
+        out_ << line_ << std::flush;
+        current_.insert(line_);
+      }
+      line_.clear();
+    }
+    return c;
+  }
+
+ private:
+  std::ostream& out_;
+  std::string line_;
+  std::set<std::string> earlier_, current_;
+};
+
+// The files written by the frames rendered so far, to warn once when a frame would overwrite one.
+struct WrittenFiles {
+  std::set<std::string> paths;  // absolute, normalized
+  bool warned = false;
+};
+
+int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds, bool severalFrames,
+                std::ostream* warnings, WrittenFiles* written);
+
+// "no 'FrameBegin 5' in 'anim.rib' (its frames: 1, 2)": says which numbers exist, briefly.
+std::string missingFrameMessage(const CommandLine& cl, const std::vector<int>& numbers) {
+  const std::string frame = std::to_string(*cl.frame);
+  if (numbers.empty())
+    return "'--frame " + frame + "': '" + cl.scene + "' has no FrameBegin blocks (it is one frame)";
+  constexpr size_t kListed = 8;
+  std::string list;
+  for (size_t i = 0; i < numbers.size() && i < kListed; ++i)
+    list += (i ? ", " : "") + std::to_string(numbers[i]);
+  if (numbers.size() > kListed) list += ", ... " + std::to_string(numbers.back());
+  return "no 'FrameBegin " + frame + "' in '" + cl.scene + "' (its frames: " + list + ")";
+}
+
 int run(const CommandLine& cl) {
-  std::ostream* warnings = cl.quiet ? nullptr : &std::cerr;
-  // The shader directories double as #include directories, so shaders can share headers.
+  FrameWarnings frameWarnings(std::cerr);
+  std::ostream warningStream(&frameWarnings);
+  std::ostream* warnings = cl.quiet ? nullptr : &warningStream;
+  // The shader directories double as #include directories, so shaders can share headers. One
+  // library serves every frame: it compiles each shader file once.
   relief::compiler::CompileOptions compileOptions;
   compileOptions.includeDirs = cl.shaderDirs;
   compileOptions.noWarnings = cl.quiet;  // errors are still printed
   relief::compiler::ShaderLibrary shaders(compileOptions, &std::cerr);
 
-  const auto loadStart = std::chrono::steady_clock::now();
   relief::RibReadOptions readOptions;
   readOptions.shaders = &shaders;
   readOptions.defaultShaderPath = defaultShaderPath(cl);
@@ -518,13 +612,51 @@ int run(const CommandLine& cl) {
   }
   readOptions.warnings = warnings;
   relief::SceneError error;
-  std::optional<relief::Scene> loaded = relief::readRibFile(cl.scene, readOptions, &error);
-  if (!loaded) {
-    std::cerr << error.format() << "\n";
-    return 1;
+  // --frame names a FrameBegin number; listing the numbers reads no frame, so a broken frame
+  // elsewhere in the file does not stop this one.
+  int first = 0;
+  if (cl.frame) {
+    std::optional<std::vector<int>> numbers =
+        relief::readRibFrameNumbers(cl.scene, readOptions, &error);
+    if (!numbers) {
+      std::cerr << error.format() << "\n";
+      return 1;
+    }
+    const auto found = std::find(numbers->begin(), numbers->end(), *cl.frame);
+    if (found == numbers->end()) return usageError(missingFrameMessage(cl, *numbers));
+    first = int(found - numbers->begin());
+    frameWarnings.nextFrame();
   }
-  const double loadSeconds = secondsSince(loadStart);
-  relief::Scene& scene = *loaded;
+  WrittenFiles written;
+  for (int index = first;; ++index) {
+    const auto loadStart = std::chrono::steady_clock::now();
+    readOptions.frame = index;
+    std::optional<relief::Scene> scene = relief::readRibFile(cl.scene, readOptions, &error);
+    if (!scene) {
+      std::cerr << error.format() << "\n";
+      return 1;
+    }
+    const double loadSeconds = secondsSince(loadStart);
+    const int numFrames = scene->numFrames();
+    const bool severalFrames = !cl.frame && numFrames > 1;
+    if (severalFrames && !cl.quiet)
+      std::cerr << "relief: frame " << scene->frameNumbers[size_t(index)] << " (" << index + 1
+                << " of " << numFrames << ")\n";
+    const int code = renderFrame(cl, *scene, loadSeconds, severalFrames, warnings, &written);
+    if (code != 0 || cl.frame || index + 1 >= numFrames) return code;
+    frameWarnings.nextFrame();
+  }
+}
+
+// Renders the frame `scene` is and writes its displays, all or none. severalFrames: this run
+// renders more than one, so names from -o, --stats-json and the default get the frame number.
+int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds, bool severalFrames,
+                std::ostream* warnings, WrittenFiles* written) {
+  const bool numbered = !scene.frameNumbers.empty();  // the file has FrameBegin blocks
+  const int frameNumber = numbered ? scene.frameNumbers[size_t(scene.frameIndex)] : 0;
+  auto perFrame = [&](const std::string& path) {
+    return severalFrames ? withFrameNumber(path, frameNumber) : path;
+  };
   relief::runtime::setTextureSearchPath(scene.texturePath);
   if (cl.width > 0) {
     scene.width = cl.width;
@@ -547,18 +679,32 @@ int run(const CommandLine& cl) {
       for (size_t i = 1; i < outputs.size(); ++i)
         if (!dir.empty() && std::filesystem::path(outputs[i]).is_relative())
           outputs[i] = (dir / outputs[i]).string();
-      outputs[0] = cl.output;
+      outputs[0] = perFrame(cl.output);
     }
   } else if (!cl.output.empty()) {
-    outputs.push_back(cl.output);
+    outputs.push_back(perFrame(cl.output));
     modes.push_back("rgb");
   } else {
     modes.push_back("rgb");
-    outputs.push_back(std::filesystem::path(cl.scene).stem().string() + ".png");
+    outputs.push_back(perFrame(std::filesystem::path(cl.scene).stem().string() + ".png"));
     if (warnings)
       *warnings << cl.scene << ": warning: no Display in the scene; writing '" << outputs[0]
                 << "'\n";
   }
+  std::vector<std::string> outputKeys;
+  for (size_t i = 0; i < outputs.size(); ++i) {
+    std::error_code ignored;
+    outputKeys.push_back(std::filesystem::absolute(outputs[i], ignored).lexically_normal().string());
+    if (written->paths.count(outputKeys.back()) && !written->warned && warnings) {
+      written->warned = true;
+      const bool numberedName = i == 0 && severalFrames && !cl.output.empty();
+      *warnings << cl.scene << ": warning: frame " << frameNumber << " writes '" << outputs[i]
+                << "' again, over an earlier frame's image"
+                << (numberedName ? " (two frames have the same number)\n"
+                                 : "; give each frame its own Display\n");
+    }
+  }
+  written->paths.insert(outputKeys.begin(), outputKeys.end());
 
   uint64_t inputTriangles = 0;
   for (const relief::Mesh& m : scene.meshes) inputTriangles += m.numTriangles();
@@ -641,6 +787,7 @@ int run(const CommandLine& cl) {
       {"relief:peakResidentTriangles", std::to_string(finalStats.peakResidentTriangles)},
       {"relief:displacedTrianglesCreated", std::to_string(finalStats.displacedTrianglesCreated)},
   };
+  if (numbered) metadata.emplace_back("relief:frame", std::to_string(frameNumber));
 
   // Every image is staged under a temporary name first and renamed into place only when all were
   // written: a failed display must not leave the others behind, looking like a finished render.
@@ -717,8 +864,9 @@ int run(const CommandLine& cl) {
   if (warnings) reportShaderProblems(scene, *warnings);
   const StatList stats =
       collectStats(cl, scene, accel->stats(), renderStats, loadSeconds, buildSeconds, inputTriangles);
-  if (!cl.statsJson.empty() && !writeStatsJson(cl.statsJson, stats)) {
-    std::cerr << "relief: error: cannot write statistics to '" << cl.statsJson << "'\n";
+  const std::string statsJson = cl.statsJson.empty() ? std::string() : perFrame(cl.statsJson);
+  if (!statsJson.empty() && !writeStatsJson(statsJson, stats)) {
+    std::cerr << "relief: error: cannot write statistics to '" << statsJson << "'\n";
     return 1;
   }
   if (cl.stats) printStats(stats);

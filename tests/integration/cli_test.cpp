@@ -1,7 +1,8 @@
 // End-to-end tests of the executables: reliefc's exit codes and clang-style diagnostics, and relief
 // rendering the default example scene against a stored reference image, deterministically across
 // orders and thread counts, and refusing bad input without writing an image; the command-line
-// experience (help, version, progress, flags, RELIEF_SHADER_PATH precedence, AOV displays).
+// experience (help, version, progress, flags, RELIEF_SHADER_PATH precedence, AOV displays), and
+// RIB files with several frames.
 #include <sys/wait.h>
 
 #include <cmath>
@@ -187,7 +188,8 @@ TEST(Relief, HelpListsEveryOptionAndTheEnvironment) {
   for (const char* option :
        {"-I", "-o ", "--resolution", "--spp", "--threads", "--order", "--max-depth", "--filter",
         "blackman-harris", "--cache-triangles", "--no-displacement", "--stats", "--stats-json",
-        "--quiet", "--help", "--version", "RELIEF_SHADER_PATH", "cachemiss", "exit status"})
+        "--quiet", "--help", "--version", "RELIEF_SHADER_PATH", "cachemiss", "exit status",
+        "--frame", "out.0001.png"})
     EXPECT_NE(r.out.find(option), std::string::npos) << option;
 }
 
@@ -457,6 +459,146 @@ TEST(Relief, FailedDisplayLeavesNoneOfTheOthers) {
     EXPECT_TRUE(name == "small.rib" || name == "blocker" || name == "stdout.txt" || name == "stderr.txt")
         << name;
   }
+}
+
+// An exporter's animation: the camera before the first FrameBegin is shared; each frame has its
+// own Display and Format, and only frame 2 has a sphere. `frame2` replaces frame 2's world body.
+fs::path twoFrameScene(const fs::path& dir, const std::string& displayDir,
+                       const std::string& frame2 = "Sphere 0.5 -0.5 0.5 360\n") {
+  auto display = [&](const std::string& name) {
+    return displayDir.empty() ? std::string()
+                              : "Display \"" + (fs::path(displayDir) / name).string() +
+                                    "\" \"file\" \"rgb\"\n";
+  };
+  const std::string light = "LightSource \"distantlight\" 1 \"from\" [0 0 -1] \"to\" [0 0 0]\n";
+  return writeFile(dir / "anim.rib",
+                   "Option \"othercat\" \"int x\" [1]\n"
+                   "Projection \"perspective\" \"fov\" [40]\nTranslate 0 0 5\n"
+                   "FrameBegin 1\n" + display("anim.0001.png") + "Format 16 12 1\n"
+                   "WorldBegin\n" + light + "Polygon \"P\" [-1 -1 0  1 -1 0  1 1 0  -1 1 0]\n"
+                   "WorldEnd\nFrameEnd\n"
+                   "FrameBegin 2\n" + display("anim.0002.png") + "Format 24 18 1\n"
+                   "WorldBegin\n" + light + frame2 + "WorldEnd\nFrameEnd\n");
+}
+
+// Width x height of an image file, or "missing".
+std::string imageSize(const fs::path& file) {
+  auto in = OIIO::ImageInput::open(file.string());
+  if (!in) return "missing";
+  return std::to_string(in->spec().width) + "x" + std::to_string(in->spec().height);
+}
+
+size_t count(const std::string& text, const std::string& part) {
+  size_t n = 0;
+  for (size_t at = text.find(part); at != std::string::npos; at = text.find(part, at + 1)) ++n;
+  return n;
+}
+
+TEST(Relief, EveryFrameIsRenderedToItsOwnDisplay) {
+  const fs::path dir = scratchDir();
+  const fs::path scene = twoFrameScene(dir, dir.string());
+  RunResult r = run(kRelief + " " + scene.string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  const fs::path first = dir / "anim.0001.png", second = dir / "anim.0002.png";
+  EXPECT_EQ(r.out, first.string() + "\n" + second.string() + "\n");
+  EXPECT_EQ(imageSize(first), "16x12");
+  EXPECT_EQ(imageSize(second), "24x18");
+  // Progress per frame; the shared part's warning once, not once per frame.
+  EXPECT_NE(r.err.find("relief: frame 1 (1 of 2)"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("relief: frame 2 (2 of 2)"), std::string::npos) << r.err;
+  EXPECT_EQ(count(r.err, "unsupported option 'othercat'"), 1u) << r.err;
+  EXPECT_EQ(count(r.err, "rendering 100%"), 2u) << r.err;
+  // The sphere is in frame 2 only: rendered alone, frame 2 without it differs.
+  const fs::path plain = dir / "plain.png";
+  twoFrameScene(dir, "", "");
+  r = run(kRelief + " " + scene.string() + " --quiet --frame 2 -o " + plain.string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  twoFrameScene(dir, "");
+  const fs::path sphere = dir / "sphere.png";
+  r = run(kRelief + " " + scene.string() + " --quiet --frame 2 -o " + sphere.string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  relief::test::ImageDiff d = relief::test::compareImages(sphere.string(), plain.string(), 0.1f);
+  ASSERT_TRUE(d.loaded) << d.error;
+  EXPECT_GT(d.failingPixels, 10);
+}
+
+TEST(Relief, FrameFlagRendersOneFrameByItsNumber) {
+  const fs::path dir = scratchDir();
+  const fs::path scene = twoFrameScene(dir, dir.string());
+  RunResult r = run(kRelief + " " + scene.string() + " --frame 2");
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_EQ(r.out, (dir / "anim.0002.png").string() + "\n");
+  EXPECT_FALSE(fs::exists(dir / "anim.0001.png"));
+  EXPECT_EQ(r.err.find("relief: frame"), std::string::npos) << r.err;
+  // One frame with -o: the name is used as given.
+  r = run(kRelief + " " + scene.string() + " --quiet --frame 1 -o " + (dir / "one.png").string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_EQ(imageSize(dir / "one.png"), "16x12");
+}
+
+TEST(Relief, OutputAndStatsNamesGetTheFrameNumber) {
+  const fs::path dir = scratchDir();
+  const fs::path scene = twoFrameScene(dir, "");
+  RunResult r = run(kRelief + " " + scene.string() + " --quiet -o " + (dir / "out.png").string() +
+                    " --stats-json " + (dir / "stats.json").string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_EQ(r.out, (dir / "out.0001.png").string() + "\n" + (dir / "out.0002.png").string() + "\n");
+  EXPECT_EQ(imageSize(dir / "out.0001.png"), "16x12");
+  EXPECT_EQ(imageSize(dir / "out.0002.png"), "24x18");
+  EXPECT_FALSE(fs::exists(dir / "out.png"));
+  EXPECT_FALSE(fs::exists(dir / "stats.json"));
+  EXPECT_NE(readFile(dir / "stats.0001.json").find("\"scene.frame\": 1,"), std::string::npos);
+  EXPECT_NE(readFile(dir / "stats.0002.json").find("\"scene.frame\": 2,"), std::string::npos);
+}
+
+TEST(Relief, FramesWritingOneFileWarnOnce) {
+  const fs::path dir = scratchDir();
+  // The Display before the first frame is every frame's.
+  writeFile(dir / "same.rib", "Display \"" + (dir / "same.png").string() +
+                                  "\" \"file\" \"rgb\"\nFormat 8 6 1\nFrameBegin 1\nWorldBegin\n"
+                                  "WorldEnd\nFrameEnd\nFrameBegin 2\nWorldBegin\nWorldEnd\n"
+                                  "FrameEnd\nFrameBegin 3\nWorldBegin\nWorldEnd\nFrameEnd\n");
+  RunResult r = run(kRelief + " " + (dir / "same.rib").string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_EQ(count(r.err, "over an earlier frame's image"), 1u) << r.err;
+  EXPECT_NE(r.err.find("warning: frame 2 writes '" + (dir / "same.png").string() + "' again"),
+            std::string::npos)
+      << r.err;
+}
+
+TEST(Relief, MissingFrameIsAUsageError) {
+  const fs::path dir = scratchDir();
+  const fs::path scene = twoFrameScene(dir, dir.string());
+  RunResult r = run(kRelief + " " + scene.string() + " --frame 3");
+  EXPECT_EQ(r.exitCode, 2);
+  EXPECT_NE(r.err.find("relief: error: no 'FrameBegin 3' in '" + scene.string() +
+                       "' (its frames: 1, 2)"),
+            std::string::npos)
+      << r.err;
+  EXPECT_FALSE(fs::exists(dir / "anim.0001.png"));
+  r = run(kRelief + " " + smallScene(dir, "").string() + " --frame 1");
+  EXPECT_EQ(r.exitCode, 2);
+  EXPECT_NE(r.err.find("has no FrameBegin blocks"), std::string::npos) << r.err;
+  for (const char* bad : {"--frame", "--frame x", "--frame 1.5"}) {
+    r = run(kRelief + " " + scene.string() + " " + bad);
+    EXPECT_EQ(r.exitCode, 2) << bad;
+    EXPECT_NE(r.err.find("'--frame' needs a frame number"), std::string::npos) << r.err;
+  }
+}
+
+// A frame that fails stops the run at its file:line; the frames before it are complete and stay.
+TEST(Relief, FailedFrameKeepsTheEarlierFrames) {
+  const fs::path dir = scratchDir();
+  const fs::path scene = twoFrameScene(dir, "", "Sphere 1 -1 \"x\" 360\n");
+  RunResult r = run(kRelief + " " + scene.string() + " --quiet -o " + (dir / "out.png").string());
+  EXPECT_EQ(r.exitCode, 1);
+  EXPECT_NE(r.err.find(scene.string() + ":15: error:"), std::string::npos) << r.err;
+  EXPECT_EQ(r.out, (dir / "out.0001.png").string() + "\n");
+  EXPECT_EQ(imageSize(dir / "out.0001.png"), "16x12");
+  EXPECT_FALSE(fs::exists(dir / "out.0002.png"));
+  // Frame 1 alone does not read frame 2's calls.
+  r = run(kRelief + " " + scene.string() + " --quiet --frame 1 -o " + (dir / "one.png").string());
+  EXPECT_EQ(r.exitCode, 0) << r.err;
 }
 
 }  // namespace
