@@ -151,6 +151,8 @@ struct FunctionDecl {
   // Its calls are varying whatever the arguments (§2): it reads a global other than PI or an
   // enclosing variable, or uses a varying-only built-in, itself or through its callees.
   bool readsVarying = false;
+  // Defined in stdlib/ (prelude.h): shared by all compilations, its locations are not the user's.
+  bool isLibrary = false;
   // Expression nodes a call expands to once inlined (its body plus its callees', transitively).
   uint64_t inlineCost = 0;
 };

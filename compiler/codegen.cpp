@@ -333,6 +333,8 @@ class ShaderCodegen {
 
   // ---- Variables.
   Slot& slotFor(const VarDecl* d) {
+    // The prelude was checked with §5 globals of its own: they are the same variables.
+    if (d->storage == Storage::Global && globals_[size_t(d->global)]) d = globals_[size_t(d->global)];
     auto it = slots_.find(d);
     if (it != slots_.end()) return it->second;
     Slot s;
@@ -508,6 +510,16 @@ class ShaderCodegen {
     services_ = nullptr;
     randomInputs_ = randomOrdinal_ = nullptr;
     indexClamped_ = unknownSpace_ = splineBasisProblems_ = nullptr;
+    // Defaults may call library functions with loops (fBm): they count like the entry's, and
+    // past the limit the remaining defaults stay zero.
+    loopCounter_ = entryAlloca(i32_, "iterations");
+    b_.CreateStore(ci(0), loopCounter_);
+    abortBlock_ = newBlock("defaults.abort");
+    {
+      llvm::IRBuilderBase::InsertPointGuard guard(b_);
+      b_.SetInsertPoint(abortBlock_);
+      b_.CreateRetVoid();
+    }
     for (const auto& p : shader_.params) {
       if (p->type.isArray()) {
         const Slot& s = slotFor(p.get());
@@ -1614,47 +1626,6 @@ class ShaderCodegen {
     return r;
   }
 
-  Val fbm(const std::vector<Val>& args, bool turbulence, bool vectorValued) {
-    // Σ_{i<octaves} gain^i * snoise(p * lacunarity^i), as an IR loop over the octave count.
-    Val p = args[0];
-    Value* octaves = args[1].type.kind == TypeKind::Int ? args[1].c[0].v : floatToIntSafe(args[1].c[0].v);
-    Value* lac = args.size() > 2 ? toFloatScalar(args[2]).c[0].v : cf(2);
-    Value* gain = args.size() > 3 ? toFloatScalar(args[3]).c[0].v : cf(0.5f);
-    temps_.push_back(std::make_unique<VarDecl>());
-    temps_.back()->name = "fbm";
-    const Type rt(vectorValued ? TypeKind::Vector : TypeKind::Float);
-    temps_.back()->type = rt;
-    const Slot& sum = slotFor(temps_.back().get());
-    llvm::AllocaInst* amp = entryAlloca(f32_, "amp");
-    llvm::AllocaInst* freq = entryAlloca(f32_, "freq");
-    llvm::AllocaInst* i = entryAlloca(i32_, "octave");
-    store(sum, splat(rt, dconst(0)));
-    b_.CreateStore(cf(1), amp);
-    b_.CreateStore(cf(1), freq);
-    b_.CreateStore(ci(0), i);
-    llvm::BasicBlock* condB = newBlock("fbm.cond");
-    llvm::BasicBlock* bodyB = newBlock("fbm.body");
-    llvm::BasicBlock* endB = newBlock("fbm.end");
-    b_.CreateBr(condB);
-    b_.SetInsertPoint(condB);
-    // Octaves are capped so a wild parameter cannot stall the renderer.
-    Value* iv = b_.CreateLoad(i32_, i);
-    b_.CreateCondBr(b_.CreateAnd(b_.CreateICmpSLT(iv, octaves), b_.CreateICmpSLT(iv, ci(64))), bodyB, endB);
-    b_.SetInsertPoint(bodyB);
-    Value* a = b_.CreateLoad(f32_, amp);
-    Value* f = b_.CreateLoad(f32_, freq);
-    Val q = map(p.type, p, [&](Dual d) { return dmul(d, {f, nullptr, nullptr}); });
-    Val n = noiseOf({q}, rt, true);
-    if (turbulence) n = map(rt, n, [&](Dual x) { return dabs(x); });
-    store(sum, map2(rt, load(sum), n, [&](Dual acc, Dual x) { return dadd(acc, dmul(x, {a, nullptr, nullptr})); }));
-    b_.CreateStore(b_.CreateFMul(a, gain), amp);
-    b_.CreateStore(b_.CreateFMul(f, lac), freq);
-    b_.CreateStore(b_.CreateAdd(iv, ci(1)), i);
-    b_.CreateBr(condB);
-    b_.SetInsertPoint(endB);
-    return load(sum);
-  }
-
   void displaceBy(const Val& offset) {
     const Slot& pSlot = slotFor(globals_[size_t(GlobalId::P)]);
     const Slot& nSlot = slotFor(globals_[size_t(GlobalId::N)]);
@@ -1919,32 +1890,6 @@ class ShaderCodegen {
                                     llvm::ConstantArray::get(type, values), "rlf.spline.bases");
   }
 
-  // Distance from q to the segment ab.
-  Dual pointLineDistance(const Val& a, const Val& b, const Val& q) {
-    const Val ab = map2(Type(TypeKind::Vector), b, a, [&](Dual x, Dual y) { return dsub(x, y); });
-    const Val aq = map2(Type(TypeKind::Vector), q, a, [&](Dual x, Dual y) { return dsub(x, y); });
-    const Dual t = dclamp01(ddiv(dot3(aq, ab), dot3(ab, ab)));
-    Val d;
-    d.type = Type(TypeKind::Vector);
-    for (int k = 0; k < 3; ++k) d.c[k] = dsub(aq.c[k], dmul(t, ab.c[k]));
-    return dsqrtSafe(dot3(d, d));
-  }
-
-  // Rodrigues rotation of q by `angle` radians about the axis through a and b.
-  Val rotatePoint(const Val& q, Dual angle, const Val& a, const Val& b) {
-    const Val axis = normalize3(map2(Type(TypeKind::Vector), b, a, [&](Dual x, Dual y) { return dsub(x, y); }));
-    const Val p = map2(Type(TypeKind::Vector), q, a, [&](Dual x, Dual y) { return dsub(x, y); });
-    const Dual c = unaryMath(BuiltinId::Cos, angle);
-    const Dual s = unaryMath(BuiltinId::Sin, angle);
-    const Val kxp = cross3(axis, p);
-    const Dual kdp = dot3(axis, p);
-    Val r;
-    r.type = Type(TypeKind::Point);
-    for (int k = 0; k < 3; ++k)
-      r.c[k] = dadd(a.c[k], dadd(dadd(dmul(p.c[k], c), dmul(kxp.c[k], s)), dmul(axis.c[k], dmul(kdp, dsub(dconst(1), c)))));
-    return r;
-  }
-
   // random(): a hash of the invocation's input P, u, v and the call's ordinal (§6.5).
   Val randomOf(Type rt) {
     if (!randomInputs_) {
@@ -2057,15 +2002,14 @@ class ShaderCodegen {
           r.c[k] = dadd(dmul(a.c[k], dsub(dconst(1), x.c[k])), dmul(b.c[k], x.c[k]));
         return r;
       }
-      case BuiltinShape::Smoothstep:
-      case BuiltinShape::Linearstep: {
+      case BuiltinShape::Smoothstep: {
         const Type t = rt;
         const Val e0 = convert(args[0], t), e1 = convert(args[1], t), x = convert(args[2], t);
         Val r;
         r.type = t;
         for (int k = 0; k < numComponents(t); ++k) {
           const Dual tt = dclamp01(ddiv(dsub(x.c[k], e0.c[k]), dsub(e1.c[k], e0.c[k])));
-          Dual s = e.builtin->shape == BuiltinShape::Linearstep ? tt : dmul(dmul(tt, tt), dsub(dconst(3), dmul(dconst(2), tt)));
+          const Dual s = dmul(dmul(tt, tt), dsub(dconst(3), dmul(dconst(2), tt)));
           // e0 >= e1 degenerates to step(e1, x).
           Value* degenerate = b_.CreateFCmpOGE(e0.c[k].v, e1.c[k].v);
           const Dual st{b_.CreateSelect(b_.CreateFCmpOLT(x.c[k].v, e1.c[k].v), cf(0), cf(1)), nullptr, nullptr};
@@ -2077,12 +2021,6 @@ class ShaderCodegen {
       case BuiltinShape::Cross: return cross3(args[0], args[1]);
       case BuiltinShape::Length: return makeFloat(dsqrtSafe(dot3(args[0], args[0])));
       case BuiltinShape::Normalize: return normalize3(args[0]);
-      case BuiltinShape::Distance:
-      case BuiltinShape::Ptlined: {
-        if (args.size() == 3) return makeFloat(pointLineDistance(args[0], args[1], args[2]));
-        Val d = map2(Type(TypeKind::Vector), args[0], args[1], [&](Dual x, Dual y) { return dsub(x, y); });
-        return makeFloat(dsqrtSafe(dot3(d, d)));
-      }
       case BuiltinShape::Comp:
         if (args[0].type.kind == TypeKind::Matrix)
           return makeFloat(matrixElementAt(args[0], intIndex(args[1]), intIndex(args[2])));
@@ -2127,7 +2065,6 @@ class ShaderCodegen {
         }
         return r;
       }
-      case BuiltinShape::Rotate: return rotatePoint(args[0], toFloatScalar(args[1]).c[0], args[2], args[3]);
       case BuiltinShape::Random: return randomOf(rt);
       case BuiltinShape::PNoise: {
         // Split the arguments into the point (first half) and its periods (second half).
@@ -2223,14 +2160,6 @@ class ShaderCodegen {
         return derivOf(a, id == BuiltinId::Du);
       }
       case BuiltinShape::CalcNormal: return calculateNormal(args[0]);
-      case BuiltinShape::Area: {
-        const Val du = load(slotFor(globals_[size_t(GlobalId::du)]));
-        const Val dv = load(slotFor(globals_[size_t(GlobalId::dv)]));
-        Val a = map(Type(TypeKind::Vector), derivOf(args[0], true), [&](Dual x) { return dmul(x, du.c[0]); });
-        Val b = map(Type(TypeKind::Vector), derivOf(args[0], false), [&](Dual x) { return dmul(x, dv.c[0]); });
-        Val c = cross3(a, b);
-        return makeFloat(dsqrtSafe(dot3(c, c)));
-      }
       case BuiltinShape::Noise:
         if (id == BuiltinId::Cellnoise) return cellnoiseOf(args, rt);
         return noiseOf(args, rt, id == BuiltinId::Snoise);
@@ -2281,36 +2210,7 @@ class ShaderCodegen {
         const Dual hard{b_.CreateSelect(b_.CreateFCmpOLT(x.v, edge.v), cf(0), cf(1)), nullptr, nullptr};
         return makeFloat(dselect(b_.CreateFCmpOLE(width.v, cf(0)), hard, frac));
       }
-      case BuiltinShape::Reflect: {
-        const Val i = args[0], nn = args[1];
-        const Dual k = dmul(dconst(2), dot3(nn, i));
-        return makeTriple(Type(TypeKind::Vector), dsub(i.c[0], dmul(k, nn.c[0])), dsub(i.c[1], dmul(k, nn.c[1])),
-                          dsub(i.c[2], dmul(k, nn.c[2])));
-      }
-      case BuiltinShape::Faceforward: {
-        const Val nn = args[0], i = args[1];
-        const Val ref = args.size() == 3 ? args[2] : load(slotFor(globals_[size_t(GlobalId::Ng)]));
-        Value* facing = b_.CreateFCmpOLT(dot3(i, ref).v, cf(0));
-        Val r;
-        r.type = Type(TypeKind::Vector);
-        for (int k = 0; k < 3; ++k) r.c[k] = dselect(facing, nn.c[k], dneg(nn.c[k]));
-        return r;
-      }
-      case BuiltinShape::Luminance: {
-        const Val c = args[0];
-        return makeFloat(dadd(dadd(dmul(c.c[0], dconst(0.2126f)), dmul(c.c[1], dconst(0.7152f))),
-                              dmul(c.c[2], dconst(0.0722f))));
-      }
       case BuiltinShape::Texture: return genTexture(e, args);
-      case BuiltinShape::Hypot: {
-        Dual sum = dconst(0);
-        for (const Val& a : args) {
-          const Dual x = toFloatScalar(a).c[0];
-          sum = dadd(sum, dmul(x, x));
-        }
-        return makeFloat(dsqrtSafe(sum));
-      }
-      case BuiltinShape::FBm: return fbm(args, id == BuiltinId::Turbulence, id == BuiltinId::VfBm);
       case BuiltinShape::MatrixFn:
         if (id == BuiltinId::Determinant) return makeFloat(determinant(args[0]));
         return id == BuiltinId::Inverse ? inverse(args[0]) : transposed(args[0]);

@@ -16,6 +16,7 @@
 #include "compiler/jit.h"
 #include "compiler/lexer.h"
 #include "compiler/parser.h"
+#include "compiler/prelude.h"
 #include "compiler/preprocessor.h"
 #include "compiler/typecheck.h"
 
@@ -26,14 +27,28 @@ namespace {
 void compileBuffer(CompileResult& result, SourceManager::FileId file, const CompileOptions& options,
                    const CompileFlags& flags) {
   DiagnosticsEngine& diags = *result.diagnostics;
+  const std::string stdlibDir = options.stdlibDir.empty() ? defaultStdlibDir() : options.stdlibDir;
+  std::string stdlibError;
+  bool stdlibBroken = false;
+  result.prelude = loadPrelude(stdlibDir, &stdlibError, &stdlibBroken);
+  if (!result.prelude) {
+    // A stdlib that does not compile is our bug; a missing one, a setup problem like a missing file.
+    if (stdlibBroken) {
+      result.internalError = stdlibError;
+    } else {
+      result.ioError = true;
+      diags.report(DiagId::ErrStdlib, SourceLoc{}).arg(stdlibError).inFile(result.sources->name(file));
+    }
+    return;
+  }
   PreprocessorOptions ppOptions;
   ppOptions.includeDirs = options.includeDirs;
   ppOptions.defines = options.defines;
-  ppOptions.builtinIncludeDir = RELIEF_STDLIB_DIR;
+  ppOptions.builtinIncludeDir = stdlibDir;
   std::vector<Token> tokens = Preprocessor(*result.sources, diags, ppOptions).run(file);
   Parser parser(std::move(tokens), result.sources->name(file), diags);
   std::unique_ptr<TranslationUnit> unit = parser.parseTranslationUnit();
-  typeCheck(*unit, diags);
+  typeCheck(*unit, diags, result.prelude.get());
   if (flags.onChecked) flags.onChecked(*unit);
   if (unit->shaders.empty() && !diags.hasErrors())
     diags.report(DiagId::ErrNoShader, SourceLoc{}).inFile(result.sources->name(file));

@@ -15,6 +15,8 @@
 
 namespace relief::compiler {
 
+struct Prelude;
+
 struct CompileFlags {
   bool jit = true;         // false: stop after the optimized IR (reliefc --emit-llvm without --eval)
   bool emitLlvm = false;   // keep the optimized IR text in CompileResult::llvmIr
@@ -29,10 +31,11 @@ struct CompileResult {
   std::shared_ptr<SourceManager> sources;
   std::unique_ptr<DiagnosticsEngine> diagnostics;
   std::unique_ptr<TranslationUnit> ast;
+  std::shared_ptr<const Prelude> prelude;  // the stdlib functions `ast` may call
   std::string llvmIr;
   // Every shader of the file, in source order; empty unless compilation succeeded.
   std::vector<std::shared_ptr<const runtime::CompiledShader>> shaders;
-  bool ioError = false;       // the input could not be read (diagnostic recorded)
+  bool ioError = false;       // the input or the stdlib could not be read (diagnostic recorded)
   // LLVM/JIT failure or an exception inside the compiler: a compiler bug, not a user error.
   std::string internalError;
 

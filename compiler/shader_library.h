@@ -23,6 +23,9 @@ struct CompileOptions {
   bool noWarnings = false;
   // Loop iterations one invocation may run (all loops together) before it aborts (language.md §7).
   uint32_t loopIterationLimit = 1u << 20;
+  // The stdlib directory: library functions compiled with every shader, and the built-in
+  // #include directory. Empty: defaultStdlibDir() (prelude.h).
+  std::string stdlibDir;
 };
 
 // Compiles `<name>.disp` found on a search path (first match wins), caches compiled files, and returns

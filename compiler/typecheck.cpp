@@ -2,6 +2,8 @@
 // Context-typed calls (noise, §6.1) receive an expected type from their parent expression.
 #include "compiler/typecheck.h"
 
+#include "compiler/prelude.h"
+
 #include <algorithm>
 #include <climits>
 #include <cstdint>
@@ -162,7 +164,8 @@ class UninitializedAnalysis {
 class Checker {
  public:
   friend class UninitializedAnalysis;
-  Checker(TranslationUnit& unit, DiagnosticsEngine& diags) : unit_(unit), diags_(diags) {}
+  Checker(TranslationUnit& unit, DiagnosticsEngine& diags, const Prelude* prelude)
+      : unit_(unit), diags_(diags), prelude_(prelude) {}
 
   void run() {
     // After syntax errors, parts of bodies are missing: "unused" would be a guess, not a finding.
@@ -322,11 +325,12 @@ class Checker {
           return &e;
         break;
       case ExprKind::Call:
+        // Library functions are pure math over their arguments unless they read globals.
+        if (e.function && e.function->isLibrary && !e.function->readsVarying) break;
         if (!e.builtin) return &e;
         switch (e.builtin->shape) {
           case BuiltinShape::Deriv:
           case BuiltinShape::CalcNormal:
-          case BuiltinShape::Area:
           case BuiltinShape::Texture:
           case BuiltinShape::Random:
           case BuiltinShape::Transform:  // reads the batch's spaces (unless given a matrix)
@@ -963,7 +967,7 @@ class Checker {
           .note(DiagId::NotePreviousDeclaration, other->nameRange.begin, {}, other->nameRange);
       redefinition = true;
     }
-    if (!visible && findBuiltin(f.name))
+    if (!visible && (findBuiltin(f.name) || (prelude_ && prelude_->find(f.name))))
       report(DiagId::WarnShadowFunction, f.nameRange.begin).arg(f.name).range(f.nameRange);
     if (!redefinition) overloads.push_back(&f);
 
@@ -1024,7 +1028,8 @@ class Checker {
 
   // Overload resolution (§6): exact match, then int→float-only conversions, then the unique
   // candidate with the fewest conversions.
-  Type checkUserCall(Expr& e, const std::vector<FunctionDecl*>& candidates) {
+  // Library candidates are reported like built-ins: at the callee, without notes into stdlib/.
+  Type checkUserCall(Expr& e, const std::vector<FunctionDecl*>& candidates, bool library) {
     std::vector<ExprPtr>& args = e.operands;
     struct Viable {
       FunctionDecl* f;
@@ -1059,7 +1064,7 @@ class Checker {
       if (ok) viable.push_back(v);
     }
     if (viable.empty()) {
-      if (candidates.size() == 1 && candidates[0]->params.size() == args.size()) {
+      if (!library && candidates.size() == 1 && candidates[0]->params.size() == args.size()) {
         // Non-overloaded: point at the offending argument.
         const FunctionDecl& f = *candidates[0];
         for (size_t i = 0; i < args.size(); ++i) {
@@ -1099,7 +1104,8 @@ class Checker {
     if (n != 1) {
       auto builder = report(DiagId::ErrAmbiguousCall, e.range.begin);
       builder.arg(e.text).range(e.opRange);
-      for (const Viable& v : viable) builder.note(DiagId::NoteCandidate, v.f->nameRange.begin, {}, v.f->nameRange);
+      for (const Viable& v : viable)
+        if (!v.f->isLibrary) builder.note(DiagId::NoteCandidate, v.f->nameRange.begin, {}, v.f->nameRange);
       return set(e, kError);
     }
     FunctionDecl* f = best->f;
@@ -1134,8 +1140,11 @@ class Checker {
   }
 
   Type checkCall(Expr& e, Type expected) {
-    if (const std::vector<FunctionDecl*>* fns = lookupFunctions(e.text)) {
-      // A user function hides every library overload of its name (§3).
+    // A user function hides every library overload of its name (§3); library functions written in
+    // the language (the prelude) come next, then those built into the compiler.
+    const std::vector<FunctionDecl*>* fns = lookupFunctions(e.text);
+    const bool library = !fns && prelude_ && (fns = prelude_->find(e.text));
+    if (fns) {
       const FunctionDecl* single = fns->size() == 1 ? (*fns)[0] : nullptr;
       bool ok = true;
       for (size_t i = 0; i < e.operands.size(); ++i) {
@@ -1145,7 +1154,7 @@ class Checker {
         if (!requireValue(a, t)) ok = false;
       }
       if (!ok) return set(e, kError);
-      return checkUserCall(e, *fns);
+      return checkUserCall(e, *fns, library);
     }
     const BuiltinInfo* b = findBuiltin(e.text);
     e.builtin = b;
@@ -1189,7 +1198,6 @@ class Checker {
     switch (b->shape) {
       case BuiltinShape::Deriv:
       case BuiltinShape::CalcNormal:
-      case BuiltinShape::Area:
       case BuiltinShape::Filterwidth:
       case BuiltinShape::Filterstep:
       case BuiltinShape::DerivRatio:
@@ -1447,11 +1455,6 @@ class Checker {
     }
     return kFloat;
   }
-  static bool allSpatial(const std::vector<ExprPtr>& args) {
-    for (const ExprPtr& a : args)
-      if (!a->type.isSpatial()) return false;
-    return true;
-  }
   static bool fits(const Expr& a, Type t) { return conversion(a.type, t) != Conversion::None; }
   static bool allFit(const std::vector<ExprPtr>& args, Type t, size_t from = 0, size_t to = SIZE_MAX) {
     for (size_t i = from; i < args.size() && i < to; ++i)
@@ -1514,21 +1517,15 @@ class Checker {
         const Type t = bindT(args, false);
         return allFit(args, t, 0, 2) && (fits(*args[2], t) || args[2]->type.isScalar()) ? t : kError;
       }
-      case BuiltinShape::Linearstep: return n == 3 && allFit(args, kFloat) ? kFloat : kError;
       case BuiltinShape::Dot:
         if (n != 2) return kError;
         return binaryResult(Tok::Dot, args[0]->type, args[1]->type);
       case BuiltinShape::Cross:
         return n == 2 && args[0]->type.isSpatial() && args[1]->type.isSpatial() ? kVector : kError;
       case BuiltinShape::Length:
-      case BuiltinShape::Component:
-      case BuiltinShape::Area: return n == 1 && args[0]->type.isSpatial() ? kFloat : kError;
+      case BuiltinShape::Component: return n == 1 && args[0]->type.isSpatial() ? kFloat : kError;
       case BuiltinShape::Normalize: return n == 1 && args[0]->type.isSpatial() ? args[0]->type : kError;
       case BuiltinShape::CalcNormal: return n == 1 && args[0]->type.isSpatial() ? kVector : kError;
-      case BuiltinShape::Distance:
-        if (n == 3) return allSpatial(args) ? kFloat : kError;  // distance(a, b, q) = ptlined
-        return n == 2 && args[0]->type.isSpatial() && args[1]->type.isSpatial() ? kFloat : kError;
-      case BuiltinShape::Ptlined: return n == 3 && allSpatial(args) ? kFloat : kError;
       // Indices are `int`; a float converts as §2.1 says (truncated, -Wnarrowing at the call).
       case BuiltinShape::Comp:
         if (matrixFirst) return n == 3 && args[1]->type.isScalar() && args[2]->type.isScalar() ? kFloat : kError;
@@ -1544,11 +1541,6 @@ class Checker {
         if (n != 2 || !args[1]->type.isScalar()) return kError;
         if (args[0]->type.isScalar()) return kFloat;
         return args[0]->type.isSpatial() ? kVector : kError;
-      case BuiltinShape::Rotate:
-        return n == 4 && args[0]->type.isSpatial() && args[1]->type.isScalar() && args[2]->type.isSpatial() &&
-                       args[3]->type.isSpatial()
-                   ? Type(TypeKind::Point)
-                   : kError;
       case BuiltinShape::Random:
         if (n != 0) return kError;
         if (contextFloat_) return kFloat;
@@ -1570,11 +1562,6 @@ class Checker {
         if (n == 1 && (args[0]->type.isSpatial() || args[0]->type.isScalar())) return kVoid;
         if (n == 2 && args[0]->type.kind == TypeKind::String && args[1]->type.isScalar()) return kVoid;
         return kError;
-      case BuiltinShape::FBm:
-        if (n != 2 && n != 4) return kError;
-        if (!args[0]->type.isSpatial() || !args[1]->type.isScalar()) return kError;
-        if (n == 4 && !(args[2]->type.isScalar() && args[3]->type.isScalar())) return kError;
-        return b.id == BuiltinId::VfBm ? kVector : kFloat;
       case BuiltinShape::MatrixFn:
         if (n != 1 || !matrixFirst) return kError;
         return b.id == BuiltinId::Determinant ? kFloat : Type(TypeKind::Matrix);
@@ -1619,15 +1606,6 @@ class Checker {
         if (n == 5) return scalar(0) && scalar(1) && scalar(2) && widthOption(3) ? kFloat : kError;
         return kError;
       }
-      case BuiltinShape::Reflect:
-        return n == 2 && args[0]->type.isSpatial() && args[1]->type.isSpatial() ? kVector : kError;
-      case BuiltinShape::Faceforward:
-        if (n != 2 && n != 3) return kError;
-        for (const ExprPtr& a : args)
-          if (!a->type.isSpatial()) return kError;
-        return kVector;
-      case BuiltinShape::Luminance: return n == 1 && args[0]->type.kind == TypeKind::Color ? kFloat : kError;
-      case BuiltinShape::Hypot: return (n == 2 || n == 3) && allFit(args, kFloat) ? kFloat : kError;
       case BuiltinShape::Texture:  // checkTexture
       case BuiltinShape::Spline: return kError;  // checkSpline
       case BuiltinShape::Printf: {
@@ -1654,6 +1632,7 @@ class Checker {
 
   TranslationUnit& unit_;
   DiagnosticsEngine& diags_;
+  const Prelude* prelude_;
   DiagnosticsEngine scratch_;
   std::vector<std::unordered_map<std::string, VarDecl*>> scopes_;
   std::vector<std::vector<VarDecl*>> scopeDecls_;
@@ -1794,9 +1773,9 @@ void UninitializedAnalysis::stmt(const Stmt& s) {
   }
 }
 
-bool typeCheck(TranslationUnit& unit, DiagnosticsEngine& diags) {
+bool typeCheck(TranslationUnit& unit, DiagnosticsEngine& diags, const Prelude* prelude) {
   const unsigned before = diags.numErrors();
-  Checker(unit, diags).run();
+  Checker(unit, diags, prelude).run();
   return diags.numErrors() == before;
 }
 

@@ -8,7 +8,10 @@
 
 namespace relief::compiler {
 
-// Returns false if any error was reported (then codegen must not run).
-bool typeCheck(TranslationUnit& unit, DiagnosticsEngine& diags);
+struct Prelude;
+
+// Returns false if any error was reported (then codegen must not run). Calls may resolve to the
+// functions `prelude` makes visible (library functions, hidden by a user function of their name).
+bool typeCheck(TranslationUnit& unit, DiagnosticsEngine& diags, const Prelude* prelude = nullptr);
 
 }  // namespace relief::compiler

@@ -121,6 +121,41 @@ TEST(CliTest, UsageAndInputErrorsExitWithTwo) {
   EXPECT_EQ(reliefc("--help").exitCode, 0);
 }
 
+TEST(CliTest, FindsTheStdlibNextToAnInstalledBinaryOrWhereTheEnvironmentSays) {
+  const fs::path source = fs::path(RELIEF_TEST_DATA_DIR) / "spec" / "examples.disp";
+  // $RELIEF_STDLIB_DIR first: a missing directory is an I/O error (exit 2) naming it.
+  setenv("RELIEF_STDLIB_DIR", "/nonexistent/stdlib", 1);
+  const CliRun missing = reliefc(quote(source.string()));
+  unsetenv("RELIEF_STDLIB_DIR");
+  EXPECT_EQ(missing.exitCode, 2);
+  EXPECT_NE(missing.err.find("error: cannot load the standard library: no directory '/nonexistent/stdlib'"),
+            std::string::npos)
+      << missing.err;
+
+  // An installed layout, <prefix>/bin/reliefc and <prefix>/<bin>/RELIEF_STDLIB_FROM_BIN, wins over
+  // the source tree: an incomplete stdlib there is what this copy of reliefc reports.
+  const fs::path prefix = fs::path(::testing::TempDir()) / "relief_install";
+  fs::remove_all(prefix);
+  fs::create_directories(prefix / "bin");
+  const fs::path stdlib = (prefix / "bin" / RELIEF_STDLIB_FROM_BIN).lexically_normal();
+  fs::create_directories(stdlib);
+  fs::copy_file(RELIEF_RELIEFC_PATH, prefix / "bin" / "reliefc");
+  fs::copy_file(fs::path(RELIEF_SOURCE_DIR) / "stdlib" / "noise.disp", stdlib / "noise.disp");
+  const std::string installed = quote((prefix / "bin" / "reliefc").string());
+  const std::string evalCraggy = " --eval " + quote(source.string()) + " --shader craggy";
+  const int incomplete = std::system((installed + evalCraggy + " >/dev/null 2>" +
+                                      quote((prefix / "err.txt").string())).c_str());
+  EXPECT_EQ(WEXITSTATUS(incomplete), 2);
+  EXPECT_NE(readFile(prefix / "err.txt").find("'" + stdlib.string() + "' does not define 'linearstep'"),
+            std::string::npos)
+      << readFile(prefix / "err.txt");
+  for (const auto& entry : fs::directory_iterator(fs::path(RELIEF_SOURCE_DIR) / "stdlib"))
+    fs::copy_file(entry.path(), stdlib / entry.path().filename(), fs::copy_options::overwrite_existing);
+  const int complete = std::system((installed + evalCraggy + " >" + quote((prefix / "out.txt").string())).c_str());
+  EXPECT_EQ(WEXITSTATUS(complete), 0);
+  EXPECT_EQ(readFile(prefix / "out.txt"), reliefc(evalCraggy.substr(1)).out);
+}
+
 TEST(CliTest, EvalPrintsTheDisplacedPointAndNormal) {
   const fs::path lift = writeTemp("relief_lift.disp", "displacement lift(float Km = 0.05)\n{\n    P += Km * normalize(N);\n}\n");
   const CliRun r = reliefc("--eval " + quote(lift.string()) + " -p Km=0.2 --at " +
