@@ -3,6 +3,7 @@
 // and I/O exit codes, and --eval printing the displaced P and N.
 #include <gtest/gtest.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
@@ -39,7 +40,9 @@ struct CliRun {
 // Runs reliefc with `args` (already quoted) in `dir`.
 CliRun reliefc(const std::string& args, const fs::path& dir = fs::current_path()) {
   static int counter = 0;
-  const fs::path tmp = fs::path(::testing::TempDir()) / ("reliefc_cli_" + std::to_string(counter++));
+  // ctest runs each test in its own process, several at once: the pid keeps their files apart.
+  const fs::path tmp = fs::path(::testing::TempDir()) /
+                       ("reliefc_cli_" + std::to_string(getpid()) + "_" + std::to_string(counter++));
   const std::string command = "cd " + quote(dir.string()) + " && " + quote(RELIEF_RELIEFC_PATH) + " " + args +
                               " >" + quote(tmp.string() + ".out") + " 2>" + quote(tmp.string() + ".err");
   const int status = std::system(command.c_str());
