@@ -253,6 +253,7 @@ void displace(const Displacement& disp, const TriangleFrame& frame, Vertices& vs
   counters.status.indexClamped += status.indexClamped;
   counters.status.unknownSpace += status.unknownSpace;
   counters.status.textureErrors += status.textureErrors;
+  counters.status.splineBasis += status.splineBasis;
   uint32_t replaced = 0, outOfBound = 0;
   // Squared, with a relative slack so that rounding on a point displaced exactly by the bound
   // does not count.
@@ -292,6 +293,7 @@ void displace(const Displacement& disp, const TriangleFrame& frame, Vertices& vs
     add(pc->nonFinite, std::max(status.nonFinite, replaced));
     add(pc->loopLimit, status.loopLimit), add(pc->indexClamped, status.indexClamped);
     add(pc->unknownSpace, status.unknownSpace), add(pc->textureErrors, status.textureErrors);
+    add(pc->splineBasis, status.splineBasis);
   }
 }
 

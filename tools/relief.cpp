@@ -418,6 +418,7 @@ void reportShaderProblems(const relief::Scene& scene, std::ostream& out) {
     report(p->indexClamped, "array or component indices were clamped into range");
     report(p->unknownSpace, "unknown coordinate space names were treated as 'current'");
     report(p->textureErrors, "texture lookups failed");
+    report(p->splineBasis, "spline calls named an unknown or unfit basis (catmull-rom was used)");
     if (const uint64_t n = p->outOfBound.load()) {
       float excess;
       const uint32_t bits = p->maxExcessBits.load();

@@ -202,6 +202,9 @@ int evaluate(const Args& args, const CompileResult& result) {
   if (status.textureErrors)
     std::cerr << "reliefc: warning: shader '" << shader->name() << "': " << status.textureErrors
               << " texture lookup(s) failed\n";
+  if (status.splineBasis)
+    std::cerr << "reliefc: warning: shader '" << shader->name()
+              << "': spline basis name unknown or unfit for the knot count; catmull-rom was used\n";
   return 0;
 }
 

@@ -425,6 +425,27 @@ TEST(Relief, DisplacementBeyondTheBoundIsOneWarningWithTheLargestExcess) {
   EXPECT_EQ(r.err.find("beyond the displacement bound"), std::string::npos) << r.err;
 }
 
+// A spline basis named at run time that the library does not know falls back to catmull-rom and
+// is counted (language.md §6.6); the render warns once, naming the shader and its RIB line.
+TEST(Relief, UnknownRuntimeSplineBasisIsOneWarningNamingTheShader) {
+  const fs::path dir = scratchDir();
+  writeFile(dir / "sb.disp",
+            "displacement sb(string basis = \"nosuch\") {\n"
+            "  float k = spline(basis, u, 0, 0.1, 0.2, 0.3);\n"
+            "  P += 0.01 * k * normalize(N);\n"
+            "}\n");
+  const fs::path scene = smallScene(dir, "",
+                                    "Attribute \"displacementbound\" \"float sphere\" [0.01]\n"
+                                    "Attribute \"relief\" \"float edgelength\" [0.5]\n"
+                                    "Displacement \"sb\"\n");
+  RunResult r = run(kRelief + " " + scene.string() + " -o " + (dir / "sb.png").string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  const std::string expected = scene.string() + ":8: warning: displacement shader 'sb': ";
+  const size_t at = r.err.find(expected);
+  ASSERT_NE(at, std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("unknown or unfit basis", at), std::string::npos) << r.err;
+}
+
 TEST(Relief, FailedOutputLeavesNoImage) {
   const fs::path dir = scratchDir();
   const fs::path scene = smallScene(dir, "");
