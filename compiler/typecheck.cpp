@@ -384,6 +384,8 @@ class Checker {
         return;
       }
       const Type element = d.type.element();
+      // Expr starts out varying; a list is varying only if one of its elements is.
+      list.isVarying = false;
       for (size_t i = 0; i < list.operands.size(); ++i) {
         Expr& x = *list.operands[i];
         const Type t = checkExpr(x, element);
