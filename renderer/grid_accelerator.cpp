@@ -153,6 +153,18 @@ GridAccelerator::GridAccelerator(const Scene& scene, const AccelOptions& options
     const char* env = std::getenv("RELIEF_CHECK_BUDGET");
     cache_->setCheckBudget(options.checkBudget || (env && std::string_view(env) == "1"));
   }
+  if (cache_ && options.sideCacheTriangles) {
+    // A contributor listed in one voxel only is subdivided by that voxel's fills alone: keeping
+    // its whole subdivision would only cost memory (sphere_box: 131K such small triangles, about
+    // 60 MB of side cache for no time saved).
+    std::vector<uint8_t> seen(grid_.numTriangles(), 0);
+    sharedContributor_.assign(grid_.numTriangles(), 0);
+    for (uint32_t v = 0; v < grid_.numVoxels(); ++v)
+      for (uint32_t id : grid_.allContributors(v)) {
+        if (seen[id]) sharedContributor_[id] = 1;
+        seen[id] = 1;
+      }
+  }
 }
 
 GridAccelerator::~GridAccelerator() = default;
@@ -253,7 +265,7 @@ std::unique_ptr<VoxelGeometry> GridAccelerator::buildVoxel(uint32_t voxel) {
   for (size_t k = 0; k < contributors.size(); ++k) {
     const uint32_t id = contributors[k];
     const auto [mesh, triangle] = grid_.split(id);
-    const MicroMesh& mm = options_.sideCacheTriangles
+    const MicroMesh& mm = options_.sideCacheTriangles && sharedContributor_[id]
                               ? sideCached(id, counters)
                               : (subdivideTriangle(scene_.meshes[mesh], triangle,
                                                    grid_.displacement(mesh), culled, counters, &cull),

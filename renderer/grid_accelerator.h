@@ -60,6 +60,7 @@ class GridAccelerator final : public Accelerator {
   std::atomic<uint64_t> clock_{1};
   std::vector<std::atomic<uint8_t>> voxelCounted_;  // per voxel: its unique triangles counted
   std::vector<std::atomic<uint8_t>> knownEmpty_;    // per voxel: filled once with no triangles
+  std::vector<uint8_t> sharedContributor_;  // per input triangle: listed in 2+ voxels (side cache)
   std::atomic<uint64_t> uniqueTriangles_{0}, shaderPoints_{0}, fillNanos_{0}, displaceNanos_{0};
   std::atomic<uint64_t> maxVoxelTriangles_{0};
   std::atomic<uint64_t> droppedContributors_{0};

@@ -76,5 +76,27 @@ TEST(CacheSide, SameHitsWithTheSideCacheAtAnyBudgetAndOnTwoThreads) {
   }
 }
 
+// A contributor listed in one voxel only is subdivided by that voxel's fills alone, so the side
+// cache leaves it out: with a single voxel nothing is shared and nothing is kept, and the hits are
+// those of per-voxel fills.
+TEST(CacheSide, ContributorsOfOneVoxelOnlyBypassTheSideCache) {
+  testing::SphereOptions o;
+  o.nu = 24, o.nv = 12;
+  const Scene scene = testing::makeSphereScene(o);
+  const std::vector<Ray> rays = sweep();
+  AccelOptions base;
+  base.gridResolution = 1;
+  GridAccelerator reference(scene, base);
+  AccelOptions withSide = base;
+  withSide.sideCacheTriangles = 20000;
+  GridAccelerator side(scene, withSide);
+  for (size_t i = 0; i < rays.size(); ++i)
+    ASSERT_EQ(key(side.intersect(rays[i])), key(reference.intersect(rays[i]))) << i;
+  const AccelStats s = side.stats();
+  EXPECT_EQ(s.sideCacheHits + s.sideCacheMisses, 0u);
+  EXPECT_EQ(s.sideCachePeakTriangles, 0u);
+  EXPECT_EQ(s.shaderPoints, reference.stats().shaderPoints);
+}
+
 }  // namespace
 }  // namespace relief
