@@ -152,11 +152,18 @@ void Parser::syncStatement() {
     } else if (tok().is(Tok::Semi) && depth == 0) {
       consume();
       return;
-    } else if (tok().is(Tok::KwDisplacement) || tok().is(Tok::ShaderKindWord)) {
+    } else if (atShaderHeader()) {
       return;
     }
     consume();
   }
+}
+
+// Inside a body, a shader keyword ends it (a '}' is missing) only where it starts a shader, as
+// in `surface plastic(`; elsewhere (`float light = 1;`) it is a misused reserved word, reported
+// by whoever expected an identifier or expression, and the body goes on.
+bool Parser::atShaderHeader() const {
+  return (tok().is(Tok::KwDisplacement) || tok().is(Tok::ShaderKindWord)) && peek().is(Tok::Identifier);
 }
 
 // Skips to the next shader keyword or to a line that starts a function definition.
@@ -496,8 +503,7 @@ StmtPtr Parser::parseStatement() {
 StmtPtr Parser::parseBlock() {
   const Token open = consume();
   auto block = std::make_unique<Stmt>(StmtKind::Block, open.range());
-  while (!tok().is(Tok::RBrace) && !tok().is(Tok::Eof) && !tok().is(Tok::KwDisplacement) &&
-         !tok().is(Tok::ShaderKindWord)) {
+  while (!tok().is(Tok::RBrace) && !tok().is(Tok::Eof) && !atShaderHeader()) {
     const size_t before = pos_;
     recovering_ = false;
     StmtPtr s = parseStatement();

@@ -41,6 +41,7 @@ class Parser {
   void errorExpectedExpression();
   bool missingSemiAtLineEnd() const;
   void syncStatement();
+  bool atShaderHeader() const;
   void syncTopLevel();
   bool isTypeKeyword(Tok k) const;
   bool startsDeclaration() const;
