@@ -463,7 +463,9 @@ StmtPtr Parser::parseStatement() {
       const Token kw = consume();
       auto s = std::make_unique<Stmt>(kw.is(Tok::KwBreak) ? StmtKind::Break : StmtKind::Continue,
                                       kw.range());
-      if (!expectAfterPrev(Tok::Semi, kw.is(Tok::KwBreak) ? "'break'" : "'continue'")) return nullptr;
+      if (!expectAfterPrev(Tok::Semi, kw.is(Tok::KwBreak) ? "'break'" : "'continue'") &&
+          !missingSemiAtLineEnd())
+        recovering_ = true;
       return s;
     }
     case Tok::Semi: {
@@ -648,7 +650,8 @@ StmtPtr Parser::parseReturn() {
     s->expr = parseExpression();
     if (!s->expr) return nullptr;
   }
-  if (!expectAfterPrev(Tok::Semi, "return statement")) return nullptr;
+  // Kept without its ';', so that the function still counts as returning here.
+  if (!expectAfterPrev(Tok::Semi, "return statement") && !missingSemiAtLineEnd()) recovering_ = true;
   s->range.end = prev().end();
   return s;
 }
