@@ -133,7 +133,9 @@ class Checker;
 
 // -Wuninitialized (§8): a local without initializer read on some path before any assignment.
 // Definite-assignment analysis over the checked AST; loop bodies may not run, `return`/`break`/
-// `continue` end a path, and an `output` argument counts as an assignment. Arrays are exempt.
+// `continue` end a path, and an `output` argument (of a user function or a setter such as
+// `setxcomp`) counts as an assignment. Arrays are exempt. As in clang, writing one component or
+// element (`v[1] = 2`) neither reads the variable nor leaves it partly uninitialized.
 class UninitializedAnalysis {
  public:
   explicit UninitializedAnalysis(Checker& checker) : checker_(checker) {}
@@ -153,6 +155,7 @@ class UninitializedAnalysis {
     return r;
   }
   void expr(const Expr& e);
+  void readIndices(const Expr& target);
   void assignTarget(const Expr& target);
 
   Checker& checker_;
@@ -1659,8 +1662,15 @@ class Checker {
 
 }  // namespace
 
+// The indices of a written lvalue (`a[i][j] = x`) are read; its variable is not.
+void UninitializedAnalysis::readIndices(const Expr& target) {
+  for (const Expr* t = &target; t->kind == ExprKind::Index; t = t->operands[0].get()) expr(*t->operands[1]);
+}
+
 void UninitializedAnalysis::assignTarget(const Expr& target) {
-  if (target.kind == ExprKind::Identifier && target.decl) state_.assigned.insert(target.decl);
+  const Expr* base = &target;
+  while (base->kind == ExprKind::Index) base = base->operands[0].get();
+  if (base->kind == ExprKind::Identifier && base->decl) state_.assigned.insert(base->decl);
 }
 
 void UninitializedAnalysis::expr(const Expr& e) {
@@ -1672,14 +1682,13 @@ void UninitializedAnalysis::expr(const Expr& e) {
       return;
     case ExprKind::Assign: {
       const Expr& target = *e.operands[0];
-      // The target's index expressions (and, for compound assignment, the target) are reads.
-      if (target.kind == ExprKind::Index) {
+      // Compound assignment reads the target; plain assignment only its indices.
+      if (e.op != Tok::Assign)
         expr(target);
-      } else if (e.op != Tok::Assign) {
-        expr(target);
-      }
+      else
+        readIndices(target);
       expr(*e.operands[1]);
-      if (target.kind == ExprKind::Identifier) assignTarget(target);
+      assignTarget(target);
       return;
     }
     case ExprKind::Binary:
@@ -1701,17 +1710,23 @@ void UninitializedAnalysis::expr(const Expr& e) {
       state_ = join(a, state_);
       return;
     }
-    case ExprKind::Call:
+    case ExprKind::Call: {
+      // All arguments are evaluated before the call writes its output arguments.
+      std::vector<const Expr*> written;
       for (size_t i = 0; i < e.operands.size(); ++i) {
         const bool isOutput = e.function && i < e.function->params.size() && e.function->params[i]->isOutput;
         const bool isSetter = e.builtin && i == 0 &&
                               (e.builtin->shape == BuiltinShape::Setcomp || e.builtin->shape == BuiltinShape::SetXyz);
-        if (isOutput && e.operands[i]->kind == ExprKind::Identifier) continue;  // written, not read
-        if (!isSetter) expr(*e.operands[i]);
+        if (isOutput || isSetter) {
+          readIndices(*e.operands[i]);
+          written.push_back(e.operands[i].get());
+        } else {
+          expr(*e.operands[i]);
+        }
       }
-      for (size_t i = 0; e.function && i < e.operands.size() && i < e.function->params.size(); ++i)
-        if (e.function->params[i]->isOutput) assignTarget(*e.operands[i]);
+      for (const Expr* w : written) assignTarget(*w);
       return;
+    }
     default: break;
   }
   for (const ExprPtr& c : e.operands) expr(*c);
