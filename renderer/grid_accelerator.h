@@ -34,7 +34,7 @@ class GridAccelerator final : public Accelerator {
   AccelStats stats() const override;
 
   const ContributorGrid& grid() const { return grid_; }
-  // Null when nothing is displaced (input triangles are intersected straight from the grid).
+  // Never null: undisplaced input triangles are cached whole (statistics leave them out).
   const GeometryCache* cache() const { return cache_.get(); }
   // The largest triangle count of any voxel filled so far (bounds the budget overshoot).
   uint64_t maxVoxelTriangles() const { return maxVoxelTriangles_.load(std::memory_order_relaxed); }

@@ -8,6 +8,7 @@
 
 #include "geometry_test_util.h"
 #include "renderer/grid_accelerator.h"
+#include "renderer/intersect.h"
 
 namespace relief {
 namespace {
@@ -161,6 +162,44 @@ namespace {
 
 // The compact per-voxel storage returns exactly what was put in: keys across segment boundaries
 // (input triangle changes, micro ids beyond 16 bits) and barycentrics in both encodings.
+// Undisplaced input triangles dense in a voxel go through the cache (stored whole, with a
+// sub-voxel grid); the nearest hit, its triangle and its barycentrics must be what testing every
+// triangle gives, and none of it may show in the displaced-geometry statistics.
+TEST(GeometryCache, DenseUndisplacedVoxelsMatchBruteForce) {
+  SphereOptions o;
+  o.nu = 96, o.nv = 48;  // 9,216 triangles in one voxel
+  o.displaced = false;
+  const Scene scene = makeSphereScene(o);
+  AccelOptions options;
+  options.gridResolution = 1;
+  GridAccelerator accel(scene, options);
+  const Mesh& mesh = scene.meshes[0];
+  int hits = 0;
+  for (const Ray& ray : scatteredRays()) {
+    const std::optional<Hit> hit = accel.intersect(ray);
+    const WatertightRay wr(ray);
+    float bestT = ray.tMax;
+    uint32_t bestTriangle = UINT32_MAX;
+    TriangleHit th, best{};
+    for (uint32_t t = 0; t < mesh.numTriangles(); ++t) {
+      const glm::vec3 a = mesh.P[mesh.indices[3 * t]], b = mesh.P[mesh.indices[3 * t + 1]],
+                      c = mesh.P[mesh.indices[3 * t + 2]];
+      if (intersectTriangle(wr, a, b, c, ray.tMin, bestT, th)) bestT = th.t, bestTriangle = t, best = th;
+    }
+    ASSERT_EQ(hit.has_value(), bestTriangle != UINT32_MAX);
+    if (!hit) continue;
+    ++hits;
+    EXPECT_EQ(hit->t, bestT);
+    EXPECT_EQ(hit->triangleIndex, bestTriangle);
+    EXPECT_EQ(hit->bary, glm::vec2(best.b1, best.b2));
+  }
+  EXPECT_GT(hits, 1000);
+  const AccelStats s = accel.stats();
+  EXPECT_EQ(s.accesses, 0u);
+  EXPECT_EQ(s.uniqueDisplacedTriangles, 0u);
+  EXPECT_EQ(s.peakResidentTriangles, 0u);
+}
+
 TEST(VoxelStorage, KeysAndBarycentricsRoundTrip) {
   VoxelGeometry g;
   const std::pair<uint32_t, uint32_t> keys[] = {
