@@ -80,7 +80,7 @@ struct VarDecl {
   bool isOutput = false;
   bool isUniform = false;  // explicitly declared uniform
   bool writable = true;
-  bool invalid = false;  // its initializer failed to parse: declared, but never diagnosed again
+  bool invalid = false;  // its initializer failed to parse or check: declared, never diagnosed again
   VarDecl* externTarget = nullptr;  // `extern` declarations: the variable they refer to
 
   // Filled in by the type checker.

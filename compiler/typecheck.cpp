@@ -294,11 +294,13 @@ class Checker {
       } else if (!p->init) {
         report(DiagId::ErrMissingDefault, p->nameRange.begin).arg(p->name).range(p->nameRange);
       } else {
+        const unsigned errorsBefore = diags_.numErrors();
         checkInit(*p);
         if (!p->init->type.isError()) {
           if (const Expr* bad = firstNonConstant(*p->init))
             report(DiagId::ErrNonConstantDefault, bad->range.begin).range(bad->range);
         }
+        if (diags_.numErrors() != errorsBefore) p->invalid = true;
       }
       declare(*p);
     }
@@ -435,9 +437,11 @@ class Checker {
           if (d->type.arrayLength < 0 && !d->init)
             report(DiagId::ErrUnsizedArray, d->nameRange.begin).range(d->nameRange);
           if (d->init) {
+            const unsigned errorsBefore = diags_.numErrors();
             checkInit(*d);
             if (d->isUniform && d->init->isVarying && !d->init->type.isError())
               report(DiagId::ErrUniformFromVarying, d->init->range.begin).arg(d->name).range(d->init->range);
+            if (diags_.numErrors() != errorsBefore) d->invalid = true;
           }
           declare(*d);
         }
