@@ -366,7 +366,9 @@ class Checker {
         warned = true;
       }
       checkStmt(*s);
-      if (s->kind == StmtKind::Return || s->kind == StmtKind::Break || s->kind == StmtKind::Continue)
+      // A break/continue outside a loop is an error, not a jump: what follows still runs.
+      if (s->kind == StmtKind::Return ||
+          ((s->kind == StmtKind::Break || s->kind == StmtKind::Continue) && loopDepth_ > 0))
         terminated = true;
     }
   }
