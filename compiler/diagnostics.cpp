@@ -34,6 +34,11 @@ std::string DiagnosticsEngine::format(DiagId id, const std::vector<std::string>&
       const size_t i = size_t(p[1] - '0');
       if (i < args.size()) out += args[i];
       ++p;
+    } else if (*p == '%' && p[1] == 's' && p[2] >= '0' && p[2] <= '9') {
+      // clang's %sN: an English plural 's' unless argument N is 1 ("1 argument", "2 arguments").
+      const size_t i = size_t(p[2] - '0');
+      if (i < args.size() && args[i] != "1") out += 's';
+      p += 2;
     } else {
       out += *p;
     }

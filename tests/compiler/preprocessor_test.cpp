@@ -67,7 +67,9 @@ TEST(PreprocessorTest, DirectiveErrors) {
 
 TEST(PreprocessorTest, MacroArgumentCountIsChecked) {
   auto r = preprocess("#define F(a, b) a\nF(1)\n");
-  EXPECT_EQ(r->errors, "2:1: macro 'F' expects 2 arguments, but 1 were given\n");
+  EXPECT_EQ(r->errors, "2:1: macro 'F' expects 2 arguments, but was given 1\n");
+  r = preprocess("#define G(a) a\nG(1, 2)\n");
+  EXPECT_EQ(r->errors, "2:1: macro 'G' expects 1 argument, but was given 2\n");
 }
 
 TEST(PreprocessorTest, IncludesSearchPathsAndPragmaOnce) {
