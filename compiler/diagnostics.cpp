@@ -161,15 +161,14 @@ void renderOne(std::ostream& out, const SourceManager& sm, const Diagnostic& d,
                const TextDiagnosticOptions& opt) {
   const PresumedLoc p = sm.presumed(d.loc);
   if (p.isValid() && d.severity != Severity::Note) {
-    // The include stack, innermost first, as clang prints it.
-    SourceLoc at = sm.includedFrom(sm.fileOf(d.loc));
-    bool first = true;
-    for (int depth = 0; at.isValid() && depth < 100; ++depth) {
-      const PresumedLoc ip = sm.presumed(at);
-      out << (first ? "In file included from " : "                      from ") << ip.file << ':' << ip.line
-          << ":\n";
-      first = false;
-      at = sm.includedFrom(sm.fileOf(at));
+    // The include stack as clang prints it: outermost #include first, one line each.
+    std::vector<SourceLoc> stack;
+    for (SourceLoc at = sm.includedFrom(sm.fileOf(d.loc)); at.isValid() && stack.size() < 100;
+         at = sm.includedFrom(sm.fileOf(at)))
+      stack.push_back(at);
+    for (auto it = stack.rbegin(); it != stack.rend(); ++it) {
+      const PresumedLoc ip = sm.presumed(*it);
+      out << "In file included from " << ip.file << ':' << ip.line << ":\n";
     }
   }
   if (opt.color) out << kBold;
