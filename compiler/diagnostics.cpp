@@ -157,10 +157,18 @@ constexpr const char* kBold = "\033[1m";
 constexpr const char* kGreen = "\033[1;32m";
 constexpr const char* kReset = "\033[0m";
 
+// `lastInclude` (may be null) is where the file of the previous diagnostic or note was included:
+// like clang, the stack is not repeated for consecutive diagnostics in the same included file.
 void renderOne(std::ostream& out, const SourceManager& sm, const Diagnostic& d,
-               const TextDiagnosticOptions& opt) {
+               const TextDiagnosticOptions& opt, SourceLoc* lastInclude) {
   const PresumedLoc p = sm.presumed(d.loc);
-  if (p.isValid() && d.severity != Severity::Note) {
+  bool repeated = false;
+  if (lastInclude && p.isValid()) {
+    const SourceLoc include = sm.includedFrom(sm.fileOf(d.loc));
+    repeated = include == *lastInclude;
+    *lastInclude = include;
+  }
+  if (p.isValid() && d.severity != Severity::Note && !repeated) {
     // The include stack as clang prints it: outermost #include first, one line each.
     std::vector<SourceLoc> stack;
     for (SourceLoc at = sm.includedFrom(sm.fileOf(d.loc)); at.isValid() && stack.size() < 100;
@@ -267,15 +275,23 @@ void jsonBody(std::ostream& out, const SourceManager& sm, const Diagnostic& d) {
 }
 }  // namespace
 
+namespace {
+void renderWithNotes(std::ostream& out, const SourceManager& sm, const Diagnostic& d,
+                     const TextDiagnosticOptions& options, SourceLoc* lastInclude) {
+  renderOne(out, sm, d, options, lastInclude);
+  for (const Diagnostic& n : d.notes) renderOne(out, sm, n, options, lastInclude);
+}
+}  // namespace
+
 void renderText(std::ostream& out, const SourceManager& sm, const Diagnostic& d,
                 const TextDiagnosticOptions& options) {
-  renderOne(out, sm, d, options);
-  for (const Diagnostic& n : d.notes) renderOne(out, sm, n, options);
+  renderWithNotes(out, sm, d, options, nullptr);
 }
 
 void renderAllText(std::ostream& out, const SourceManager& sm, const DiagnosticsEngine& engine,
                    const TextDiagnosticOptions& options) {
-  for (const Diagnostic& d : engine.sorted(sm)) renderText(out, sm, d, options);
+  SourceLoc lastInclude;
+  for (const Diagnostic& d : engine.sorted(sm)) renderWithNotes(out, sm, d, options, &lastInclude);
 }
 
 std::string summaryLine(unsigned numWarnings, unsigned numErrors) {
