@@ -55,6 +55,33 @@ const std::unordered_map<std::string_view, Tok>& keywordTable() {
 bool isIdentStart(char c) { return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || c == '_'; }
 bool isDigit(char c) { return c >= '0' && c <= '9'; }
 bool isIdentChar(char c) { return isIdentStart(c) || isDigit(c); }
+
+// Length (2 to 4) of the well-formed UTF-8 sequence at p, with its code point in *cp; 0 if the
+// bytes are not one (a stray continuation byte, an overlong form, a surrogate, a truncation).
+int utf8Sequence(const char* p, const char* end, uint32_t* cp) {
+  const auto byte = [&](int i) { return static_cast<unsigned char>(p[i]); };
+  const unsigned char lead = byte(0);
+  int len = 0;
+  uint32_t min = 0;
+  if (lead >= 0xC2 && lead <= 0xDF) len = 2, min = 0x80, *cp = lead & 0x1F;
+  else if (lead >= 0xE0 && lead <= 0xEF) len = 3, min = 0x800, *cp = lead & 0x0F;
+  else if (lead >= 0xF0 && lead <= 0xF4) len = 4, min = 0x10000, *cp = lead & 0x07;
+  else return 0;
+  if (end - p < len) return 0;
+  for (int i = 1; i < len; ++i) {
+    if ((byte(i) & 0xC0) != 0x80) return 0;
+    *cp = (*cp << 6) | (byte(i) & 0x3F);
+  }
+  if (*cp < min || *cp > 0x10FFFF || (*cp >= 0xD800 && *cp <= 0xDFFF)) return 0;
+  return len;
+}
+
+std::string hex(uint32_t value, int digits) {
+  static const char* kDigits = "0123456789ABCDEF";
+  std::string out(size_t(digits), '0');
+  for (int i = digits - 1; i >= 0; --i, value >>= 4) out[size_t(i)] = kDigits[value & 15];
+  return out;
+}
 }  // namespace
 
 Lexer::Lexer(const SourceManager& sm, SourceManager::FileId file, DiagnosticsEngine& diags)
@@ -263,10 +290,20 @@ Token Lexer::next() {
       default: break;
     }
     if (kind == Tok::Eof) {
-      // Any other byte: report at it and resume after it.
-      sink().report(DiagId::ErrBadCharacter, locOf(start))
-          .arg(std::string_view(start, 1));
-      ++cur_;
+      // Any other character: report at it and resume after it. A non-ASCII one is a whole UTF-8
+      // sequence (one error, its code point named), else a single byte that is not UTF-8.
+      uint32_t cp = 0;
+      if (static_cast<unsigned char>(c) < 0x80) {
+        sink().report(DiagId::ErrBadCharacter, locOf(start)).arg(std::string_view(start, 1));
+      } else if (const int n = utf8Sequence(start, end_, &cp)) {
+        sink().report(DiagId::ErrBadCodePoint, locOf(start))
+            .arg(std::string_view(start, size_t(n)))
+            .arg(hex(cp, cp > 0xFFFFF ? 6 : cp > 0xFFFF ? 5 : 4));
+        len = n;
+      } else {
+        sink().report(DiagId::ErrBadByte, locOf(start)).arg(hex(static_cast<unsigned char>(c), 2));
+      }
+      cur_ += len;
       return make(Tok::Unknown, start);
     }
     cur_ += len;

@@ -116,6 +116,17 @@ TEST(LexerTest, BadCharactersAreReportedAndSkipped) {
   EXPECT_EQ(l->messages[0], "1:3: invalid character '@' in source");
   EXPECT_EQ(l->messages[1], "1:7: invalid character '$' in source");
   EXPECT_EQ(l->tokens[2].text, "b");
+
+  // A non-ASCII character is one error naming its code point; a byte that is not UTF-8 is named
+  // by its value, so messages stay valid UTF-8.
+  auto u = lex("caf\xC3\xA9 \xF0\x9F\x98\x80 x\xE9 \xC3");
+  ASSERT_EQ(u->messages.size(), 4u);
+  EXPECT_EQ(u->messages[0], "1:4: invalid character '\xC3\xA9' (U+00E9) in source");
+  EXPECT_EQ(u->messages[1], "1:7: invalid character '\xF0\x9F\x98\x80' (U+1F600) in source");
+  EXPECT_EQ(u->messages[2], "1:13: invalid byte 0xE9 in source (not UTF-8)");
+  EXPECT_EQ(u->messages[3], "1:15: invalid byte 0xC3 in source (not UTF-8)");
+  EXPECT_EQ(u->tokens[0].text, "caf");
+  EXPECT_EQ(u->tokens[1].text, "\xC3\xA9");
 }
 
 TEST(LexerTest, ReservedWordsAndShaderKinds) {
