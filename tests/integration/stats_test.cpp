@@ -205,20 +205,22 @@ TEST(Stats, JsonHasTheDocumentedKeysAndInvariants) {
 }
 
 TEST(Stats, RefinementSideCacheAndGridResolutionFlags) {
-  const StatsRun refined = render("refined", "--threads 1 --grid-resolution 12 --side-cache 0");
+  // Five renders: a quarter of the usual pixels keeps the test quick under the sanitizers (the
+  // later --resolution wins).
+  const StatsRun refined = render("refined", "--resolution 48x36 --threads 1 --grid-resolution 12 --side-cache 0");
   const StatsRun plain =
-      render("plain", "--threads 1 --grid-resolution 12 --no-refine --side-cache 0");
+      render("plain", "--resolution 48x36 --threads 1 --grid-resolution 12 --no-refine --side-cache 0");
   // The side cache is on by default with an unlimited budget and off under a budget.
-  const StatsRun byDefault = render("default", "--threads 1 --grid-resolution 12");
+  const StatsRun byDefault = render("default", "--resolution 48x36 --threads 1 --grid-resolution 12");
   const StatsRun budgeted =
-      render("budgeted", "--threads 1 --grid-resolution 12 --cache-triangles 20000");
+      render("budgeted", "--resolution 48x36 --threads 1 --grid-resolution 12 --cache-triangles 20000");
   expectInvariants(refined);
   EXPECT_EQ(refined.num("grid.resolution_x"), 12);
   EXPECT_EQ(refined.stats.at("grid.refinement"), "true");
   EXPECT_EQ(plain.stats.at("grid.refinement"), "false");
   EXPECT_GT(refined.num("grid.dropped_contributors"), 0);
   EXPECT_EQ(plain.num("grid.dropped_contributors"), 0);
-  const StatsRun side = render("side", "--threads 1 --grid-resolution 12 --side-cache 20000");
+  const StatsRun side = render("side", "--resolution 48x36 --threads 1 --grid-resolution 12 --side-cache 20000");
   expectInvariants(side);
   EXPECT_GT(side.num("cache.side_cache_hits"), 0);
   EXPECT_GT(side.num("cache.side_cache_peak_triangles"), 0);
