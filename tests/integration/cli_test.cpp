@@ -182,6 +182,40 @@ TEST(Relief, MalformedSceneReportsFileAndLine) {
   EXPECT_FALSE(fs::exists(image));
 }
 
+// The bad inputs through the command line: each is `file:line: error:` naming what is
+// missing, a non-zero exit, and no image (the reader tests check the messages in detail).
+TEST(Relief, BadInputsAreFileAndLineErrorsWithoutAnImage) {
+  const fs::path dir = scratchDir();
+  const std::string head =
+      "Format 32 24 1\nProjection \"perspective\" \"fov\" [40]\nTranslate 0 0 5\nWorldBegin\n"
+      "LightSource \"distantlight\" 1\n";
+  struct Case {
+    const char* name;
+    std::string text;
+    const char* where;  // expected "file:line" suffix
+    const char* what;   // expected part of the message
+  };
+  const Case cases[] = {
+      {"noshader", head + "Attribute \"displacementbound\" \"float sphere\" [0.1]\n"
+                          "Displacement \"nosuchshader\"\nSphere 1 -1 1 360\nWorldEnd\n",
+       ".rib:7: error:", "nosuchshader"},
+      {"nomesh", head + "Geometry \"objmesh\" \"string filename\" [\"nosuchmesh.obj\"]\nWorldEnd\n",
+       ".rib:6: error:", "nosuchmesh.obj"},
+      {"truncated", head + "Sphere 1 -1 1 360\nAttributeBegin\n", ".rib:", "error:"},
+      {"wrongtype", head + "Surface \"plastic\" \"float Ks\" [\"shiny\"]\nSphere 1 -1 1 360\nWorldEnd\n",
+       ".rib:6: error:", "'Ks'"},
+  };
+  for (const Case& c : cases) {
+    const fs::path scene = writeFile(dir / (std::string(c.name) + ".rib"), c.text);
+    const fs::path image = dir / (std::string(c.name) + ".png");
+    RunResult r = run(kRelief + " " + scene.string() + " --quiet -o " + image.string());
+    EXPECT_NE(r.exitCode, 0) << c.name;
+    EXPECT_NE(r.err.find(std::string(c.name) + c.where), std::string::npos) << c.name << ": " << r.err;
+    EXPECT_NE(r.err.find(c.what), std::string::npos) << c.name << ": " << r.err;
+    EXPECT_FALSE(fs::exists(image)) << c.name;
+  }
+}
+
 TEST(Relief, HelpListsEveryOptionAndTheEnvironment) {
   RunResult r = run(kRelief + " --help");
   EXPECT_EQ(r.exitCode, 0);
