@@ -6,7 +6,7 @@
 
 namespace relief {
 
-WatertightRay::WatertightRay(const Ray& ray) : origin(ray.origin) {
+WatertightRay::WatertightRay(const Ray& ray) {
   const glm::vec3 d = ray.direction;
   const glm::vec3 ad = glm::abs(d);
   kz = ad.x > ad.y ? (ad.x > ad.z ? 0 : 2) : (ad.y > ad.z ? 1 : 2);
@@ -17,7 +17,7 @@ WatertightRay::WatertightRay(const Ray& ray) : origin(ray.origin) {
   sx = d[kx] / d[kz];
   sy = d[ky] / d[kz];
   sz = 1.0f / d[kz];
-  ox = origin[kx], oy = origin[ky], oz = origin[kz];
+  ox = ray.origin[kx], oy = ray.origin[ky], oz = ray.origin[kz];
 }
 
 }  // namespace relief

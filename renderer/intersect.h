@@ -17,7 +17,6 @@ namespace relief {
 // Per-ray set-up: the axis permutation and shear that map the ray onto +z through the origin.
 struct WatertightRay {
   explicit WatertightRay(const Ray& ray);
-  glm::vec3 origin;
   int kx, ky, kz;
   float sx, sy, sz;
   float ox, oy, oz;  // origin[kx], origin[ky], origin[kz]
