@@ -53,6 +53,11 @@ template <int D>
   for (int k = 0; k < (1 << D); ++k) out[k] = level[k];
 }
 
+// The 3D gradients: the twelve edge midpoints of a cube, as in improved noise.
+constexpr float kDirs3[12][3] = {{1, 1, 0},  {-1, 1, 0}, {1, -1, 0}, {-1, -1, 0},
+                                 {1, 0, 1},  {-1, 0, 1}, {1, 0, -1}, {-1, 0, -1},
+                                 {0, 1, 1},  {0, -1, 1}, {0, 1, -1}, {0, -1, -1}};
+
 // Gradient vectors of the improved-noise family: unit-ish, evenly spread.
 template <int D>
 void gradient(uint32_t h, float* g) {
@@ -66,10 +71,7 @@ void gradient(uint32_t h, float* g) {
     g[0] = d[0];
     g[1] = d[1];
   } else if constexpr (D == 3) {
-    static constexpr float kDirs[12][3] = {{1, 1, 0},  {-1, 1, 0}, {1, -1, 0}, {-1, -1, 0},
-                                           {1, 0, 1},  {-1, 0, 1}, {1, 0, -1}, {-1, 0, -1},
-                                           {0, 1, 1},  {0, -1, 1}, {0, 1, -1}, {0, -1, -1}};
-    const auto& d = kDirs[(h >> 8) % 12];
+    const auto& d = kDirs3[(h >> 8) % 12];
     for (int i = 0; i < 3; ++i) g[i] = d[i];
   } else {
     // 32 vectors with one zero component and ±1 elsewhere.
@@ -156,9 +158,6 @@ float noise3(const float* p, float* grad) {
     grad[0] = grad[1] = grad[2] = 0;
     return 0.5f;
   }
-  static constexpr float kDirs[12][3] = {{1, 1, 0},  {-1, 1, 0}, {1, -1, 0}, {-1, -1, 0},
-                                         {1, 0, 1},  {-1, 0, 1}, {1, 0, -1}, {-1, 0, -1},
-                                         {0, 1, 1},  {0, -1, 1}, {0, 1, -1}, {0, -1, -1}};
   int32_t cells[3][2];
   float f[3], s[3], ds[3];
   for (int i = 0; i < 3; ++i) {
@@ -173,7 +172,7 @@ float noise3(const float* p, float* grad) {
   hashCorners<3>(cells, hashes);
   float n[8], gx[8], gy[8], gz[8];
   for (int k = 0; k < 8; ++k) {
-    const float* g = kDirs[(hashes[k] >> 8) % 12];
+    const float* g = kDirs3[(hashes[k] >> 8) % 12];
     const float dx = f[0] - float(k & 1), dy = f[1] - float((k >> 1) & 1), dz = f[2] - float(k >> 2);
     gx[k] = g[0];
     gy[k] = g[1];
