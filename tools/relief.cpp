@@ -408,10 +408,12 @@ void reportShaderProblems(const relief::Scene& scene, std::ostream& out) {
     const relief::ShaderProblemCounts* p = d.problems.get();
     if (!p || !d.shader || std::find(seen.begin(), seen.end(), p) != seen.end()) continue;
     seen.push_back(p);
+    auto warn = [&]() -> std::ostream& {
+      return out << d.sourceFile << ":" << d.sourceLine << ": warning: displacement shader '"
+                 << d.shader->name() << "'";
+    };
     auto report = [&](const std::atomic<uint64_t>& count, const char* what) {
-      if (const uint64_t n = count.load())
-        out << d.sourceFile << ":" << d.sourceLine << ": warning: displacement shader '"
-            << d.shader->name() << "': " << n << " " << what << "\n";
+      if (const uint64_t n = count.load()) warn() << ": " << n << " " << what << "\n";
     };
     report(p->nonFinite, "points produced NaN or infinity (left undisplaced)");
     report(p->loopLimit, "invocations hit the loop-iteration limit");
@@ -423,8 +425,7 @@ void reportShaderProblems(const relief::Scene& scene, std::ostream& out) {
       float excess;
       const uint32_t bits = p->maxExcessBits.load();
       std::memcpy(&excess, &bits, 4);
-      out << d.sourceFile << ":" << d.sourceLine << ": warning: displacement shader '"
-          << d.shader->name() << "' moved " << n << " points beyond the displacement bound "
+      warn() << " moved " << n << " points beyond the displacement bound "
           << d.boundWorld << " (world units), by up to " << excess
           << "; rays may miss those parts: raise Attribute \"displacementbound\"\n";
     }
