@@ -255,6 +255,14 @@ fs::path smallScene(const fs::path& dir, const std::string& displays, const std:
                        "WorldEnd\n");
 }
 
+// smallScene with its square displaced by `call` (a Displacement line), under a displacement bound
+// of `bound` world units and a coarse edge length. The Displacement call is line 8.
+fs::path displacedScene(const fs::path& dir, const std::string& bound, const std::string& call) {
+  return smallScene(dir, "",
+                    "Attribute \"displacementbound\" \"float sphere\" [" + bound + "]\n"
+                    "Attribute \"relief\" \"float edgelength\" [0.5]\n" + call + "\n");
+}
+
 TEST(Relief, PlainProgressLinesWhenNotATerminalAndNoneWhenQuiet) {
   const fs::path dir = scratchDir();
   const fs::path scene = smallScene(dir, "");
@@ -414,10 +422,7 @@ TEST(Relief, NanFromAShaderIsAWarningNamingIt) {
             "  float big = 1e30 + u;\n"
             "  P += Km * big * big * normalize(N);\n"
             "}\n");
-  const fs::path scene = smallScene(dir, "",
-                                    "Attribute \"displacementbound\" \"float sphere\" [0.1]\n"
-                                    "Attribute \"relief\" \"float edgelength\" [0.5]\n"
-                                    "Displacement \"broken\"\n");
+  const fs::path scene = displacedScene(dir, "0.1", "Displacement \"broken\"");
   RunResult r = run(kRelief + " " + scene.string() + " -o " + (dir / "nan.png").string());
   ASSERT_EQ(r.exitCode, 0) << r.err;
   EXPECT_TRUE(fs::exists(dir / "nan.png"));
@@ -436,10 +441,8 @@ TEST(Relief, DisplacementBeyondTheBoundIsOneWarningWithTheLargestExcess) {
   const fs::path dir = scratchDir();
   writeFile(dir / "push.disp",
             "displacement push(float amount = 0.2) { P += amount * normalize(N); }\n");
-  const fs::path scene = smallScene(dir, "",
-                                    "Attribute \"displacementbound\" \"float sphere\" [0.05]\n"
-                                    "Attribute \"relief\" \"float edgelength\" [0.5]\n"
-                                    "Displacement \"push\" \"float amount\" [0.2]\n");
+  const std::string push = "Displacement \"push\" \"float amount\" [0.2]";
+  const fs::path scene = displacedScene(dir, "0.05", push);
   RunResult r = run(kRelief + " " + scene.string() + " -o " + (dir / "far.png").string());
   ASSERT_EQ(r.exitCode, 0) << r.err;
   const std::string expected = scene.string() + ":8: warning: displacement shader 'push' moved ";
@@ -450,10 +453,7 @@ TEST(Relief, DisplacementBeyondTheBoundIsOneWarningWithTheLargestExcess) {
       << r.err;
   EXPECT_EQ(r.err.find(expected, at + 1), std::string::npos) << r.err;  // once
 
-  const fs::path within = smallScene(dir, "",
-                                     "Attribute \"displacementbound\" \"float sphere\" [0.25]\n"
-                                     "Attribute \"relief\" \"float edgelength\" [0.5]\n"
-                                     "Displacement \"push\" \"float amount\" [0.2]\n");
+  const fs::path within = displacedScene(dir, "0.25", push);
   r = run(kRelief + " " + within.string() + " -o " + (dir / "near.png").string());
   ASSERT_EQ(r.exitCode, 0) << r.err;
   EXPECT_EQ(r.err.find("beyond the displacement bound"), std::string::npos) << r.err;
@@ -468,10 +468,7 @@ TEST(Relief, UnknownRuntimeSplineBasisIsOneWarningNamingTheShader) {
             "  float k = spline(basis, u, 0, 0.1, 0.2, 0.3);\n"
             "  P += 0.01 * k * normalize(N);\n"
             "}\n");
-  const fs::path scene = smallScene(dir, "",
-                                    "Attribute \"displacementbound\" \"float sphere\" [0.01]\n"
-                                    "Attribute \"relief\" \"float edgelength\" [0.5]\n"
-                                    "Displacement \"sb\"\n");
+  const fs::path scene = displacedScene(dir, "0.01", "Displacement \"sb\"");
   RunResult r = run(kRelief + " " + scene.string() + " -o " + (dir / "sb.png").string());
   ASSERT_EQ(r.exitCode, 0) << r.err;
   const std::string expected = scene.string() + ":8: warning: displacement shader 'sb': ";

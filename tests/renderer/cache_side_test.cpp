@@ -34,10 +34,15 @@ std::vector<Ray> sweep() {
   return rays;
 }
 
-TEST(CacheSide, SameHitsWithTheSideCacheAtAnyBudgetAndOnTwoThreads) {
+// The displaced sphere both tests use: 288 input triangles, each spanning a few voxels at grid 12.
+Scene sideScene() {
   testing::SphereOptions o;
   o.nu = 24, o.nv = 12;
-  const Scene scene = testing::makeSphereScene(o);
+  return testing::makeSphereScene(o);
+}
+
+TEST(CacheSide, SameHitsWithTheSideCacheAtAnyBudgetAndOnTwoThreads) {
+  const Scene scene = sideScene();
   const std::vector<Ray> rays = sweep();
   AccelOptions base;
   base.gridResolution = 12;
@@ -80,9 +85,7 @@ TEST(CacheSide, SameHitsWithTheSideCacheAtAnyBudgetAndOnTwoThreads) {
 // cache leaves it out: with a single voxel nothing is shared and nothing is kept, and the hits are
 // those of per-voxel fills.
 TEST(CacheSide, ContributorsOfOneVoxelOnlyBypassTheSideCache) {
-  testing::SphereOptions o;
-  o.nu = 24, o.nv = 12;
-  const Scene scene = testing::makeSphereScene(o);
+  const Scene scene = sideScene();
   const std::vector<Ray> rays = sweep();
   AccelOptions base;
   base.gridResolution = 1;
