@@ -45,7 +45,22 @@ struct Val {
   const Slot* array = nullptr;
 };
 
-// Storage of a variable: one alloca per component and lane ([N x T] allocas for arrays).
+// Which derivative lanes of variables get storage. A lane alloca exists only where some store may put
+// a non-zero derivative in it: otherwise its loads would be opaque zeros that the optimiser may not
+// fold (0 * x is not 0 for x = inf), and uniform data such as parameters would pay for dual
+// arithmetic. Lanes are numbered in the deterministic order codegen creates them; generateModule
+// reruns codegen with `allocate` = the previous run's `live` until the two agree.
+struct LanePlan {
+  std::vector<char> allocate;  // by lane number; empty: every lane
+  std::vector<char> live;      // filled by the run: a non-zero derivative was stored
+  bool dropped = false;        // a non-zero derivative met an unallocated lane: rerun with every lane
+  uint32_t count = 0;          // lanes the run numbered
+  bool allocates(uint32_t lane) const { return allocate.empty() || (lane < allocate.size() && allocate[lane]); }
+  bool isLive(uint32_t lane) const { return lane < live.size() && live[lane]; }
+};
+
+// Storage of a variable: one alloca per component and lane ([N x T] allocas for arrays). A null
+// lane alloca holds an exact zero (see LanePlan).
 struct Slot {
   Type type;
   llvm::AllocaInst* v[16] = {};
@@ -71,8 +86,8 @@ runtime::ParamType paramTypeOf(TypeKind k) {
 
 class ShaderCodegen {
  public:
-  ShaderCodegen(llvm::Module& module, const ShaderDecl& shader, uint32_t loopLimit)
-      : ctx_(module.getContext()), module_(module), shader_(shader), b_(ctx_), loopLimit_(loopLimit) {
+  ShaderCodegen(llvm::Module& module, const ShaderDecl& shader, uint32_t loopLimit, LanePlan& lanes)
+      : ctx_(module.getContext()), module_(module), shader_(shader), b_(ctx_), loopLimit_(loopLimit), lanes_(lanes) {
     f32_ = llvm::Type::getFloatTy(ctx_);
     i32_ = llvm::Type::getInt32Ty(ctx_);
     i64_ = llvm::Type::getInt64Ty(ctx_);
@@ -169,10 +184,13 @@ class ShaderCodegen {
     Value* q = b_.CreateFDiv(a.v, safeB);
     Dual r;
     r.v = b_.CreateSelect(zero, cf(0), q);
+    // The lanes share one reciprocal: divisions are the slowest arithmetic there is.
+    Value* recip = nullptr;
     auto lane = [&](Value* da, Value* db) -> Value* {
       if (!da && !db) return nullptr;
       Value* num = lSub(da, lMul(db, q));
-      return b_.CreateSelect(zero, cf(0), b_.CreateFDiv(num ? num : cf(0), safeB));
+      if (!recip) recip = b_.CreateFDiv(cf(1), safeB);
+      return b_.CreateSelect(zero, cf(0), b_.CreateFMul(num ? num : cf(0), recip));
     };
     r.du = lane(a.du, b.du);
     r.dv = lane(a.dv, b.dv);
@@ -270,9 +288,18 @@ class ShaderCodegen {
                       dsub(dmul(a.c[0], b.c[1]), dmul(a.c[1], b.c[0])));
   }
   Val normalize3(const Val& a) {
-    // Zero stays zero: ddiv by a zero length yields 0.
+    // One reciprocal of the length for the three components and their lanes; zero stays zero.
     const Dual len = dsqrtSafe(dot3(a, a));
-    return makeTriple(a.type, ddiv(a.c[0], len), ddiv(a.c[1], len), ddiv(a.c[2], len));
+    Value* zero = b_.CreateFCmpOEQ(len.v, cf(0));
+    Value* r = b_.CreateSelect(zero, cf(0), b_.CreateFDiv(cf(1), b_.CreateSelect(zero, cf(1), len.v)));
+    Value* negR2 = nullptr;
+    auto lane = [&](Value* dlen) -> Value* {
+      if (!dlen) return nullptr;
+      if (!negR2) negR2 = b_.CreateFNeg(b_.CreateFMul(r, r));
+      return b_.CreateFMul(dlen, negR2);  // d(1/len) = -dlen / len²
+    };
+    const Dual inv{r, lane(len.du), lane(len.dv)};
+    return makeTriple(a.type, dmul(a.c[0], inv), dmul(a.c[1], inv), dmul(a.c[2], inv));
   }
   template <typename F>
   Val map(Type t, const Val& a, F f) {
@@ -347,11 +374,36 @@ class ShaderCodegen {
     for (int k = 0; k < elementComponents(d->type); ++k) {
       s.v[k] = entryAlloca(t, d->name.c_str());
       if (hasLanes) {
-        s.du[k] = entryAlloca(lane);
-        s.dv[k] = entryAlloca(lane);
+        s.du[k] = laneAlloca(lane);
+        s.dv[k] = laneAlloca(lane);
       }
     }
     return slots_.emplace(d, s).first->second;
+  }
+  llvm::AllocaInst* laneAlloca(llvm::Type* t) {
+    const uint32_t id = lanes_.count++;
+    if (!lanes_.allocates(id)) return nullptr;
+    llvm::AllocaInst* a = entryAlloca(t);
+    laneIds_[a] = id;
+    return a;
+  }
+  // Stores one derivative lane (null: zero) into a lane alloca, which may be absent.
+  void storeLane(llvm::AllocaInst* slot, Value* index, Value* lane) {
+    const bool nonZero = lane && !(llvm::isa<llvm::ConstantFP>(lane) && llvm::cast<llvm::ConstantFP>(lane)->isZero());
+    if (!slot) {
+      if (nonZero) lanes_.dropped = true;
+      return;
+    }
+    if (nonZero) {
+      const uint32_t id = laneIds_.at(slot);
+      if (lanes_.live.size() <= id) lanes_.live.resize(id + 1, 0);
+      lanes_.live[id] = 1;
+    }
+    b_.CreateStore(lane ? lane : cf(0), index ? elementPtr(slot, index) : slot);
+  }
+  Value* loadLane(llvm::AllocaInst* slot, Value* index) {
+    if (!slot) return nullptr;
+    return b_.CreateLoad(f32_, index ? elementPtr(slot, index) : slot);
   }
 
   // ---- Arrays: element access with run-time indices clamped into range (§6.3).
@@ -375,20 +427,16 @@ class ShaderCodegen {
     llvm::Type* et = s.type.kind == TypeKind::Int ? i32_ : s.type.kind == TypeKind::String ? ptr_ : f32_;
     for (int k = 0; k < elementComponents(s.type); ++k) {
       r.c[k].v = b_.CreateLoad(et, elementPtr(s.v[k], index));
-      if (s.du[k]) {
-        r.c[k].du = b_.CreateLoad(f32_, elementPtr(s.du[k], index));
-        r.c[k].dv = b_.CreateLoad(f32_, elementPtr(s.dv[k], index));
-      }
+      r.c[k].du = loadLane(s.du[k], index);
+      r.c[k].dv = loadLane(s.dv[k], index);
     }
     return r;
   }
   void storeElement(const Slot& s, Value* index, const Val& a) {
     for (int k = 0; k < elementComponents(s.type); ++k) {
       b_.CreateStore(a.c[k].v, elementPtr(s.v[k], index));
-      if (s.du[k]) {
-        b_.CreateStore(a.c[k].du ? a.c[k].du : cf(0), elementPtr(s.du[k], index));
-        b_.CreateStore(a.c[k].dv ? a.c[k].dv : cf(0), elementPtr(s.dv[k], index));
-      }
+      storeLane(s.du[k], index, a.c[k].du);
+      storeLane(s.dv[k], index, a.c[k].dv);
     }
   }
   // Zero-fills `s`, then stores the initializer list (sema bounded its length).
@@ -416,10 +464,8 @@ class ShaderCodegen {
     }
     for (int k = 0; k < numComponents(s.type); ++k) {
       r.c[k].v = b_.CreateLoad(s.v[k]->getAllocatedType(), s.v[k]);
-      if (s.du[k]) {
-        r.c[k].du = b_.CreateLoad(f32_, s.du[k]);
-        r.c[k].dv = b_.CreateLoad(f32_, s.dv[k]);
-      }
+      r.c[k].du = loadLane(s.du[k], nullptr);
+      r.c[k].dv = loadLane(s.dv[k], nullptr);
     }
     return r;
   }
@@ -432,10 +478,8 @@ class ShaderCodegen {
     }
     for (int k = 0; k < numComponents(s.type); ++k) {
       b_.CreateStore(a.c[k].v, s.v[k]);
-      if (s.du[k]) {
-        b_.CreateStore(a.c[k].du ? a.c[k].du : cf(0), s.du[k]);
-        b_.CreateStore(a.c[k].dv ? a.c[k].dv : cf(0), s.dv[k]);
-      }
+      storeLane(s.du[k], nullptr, a.c[k].du);
+      storeLane(s.dv[k], nullptr, a.c[k].dv);
     }
   }
   Val zeroOf(Type t) {
@@ -2292,7 +2336,14 @@ class ShaderCodegen {
   bool usesStrings_ = false;  // format()/concat() seen: the entry frees their strings per point
   uint32_t loopLimit_ = kLoopIterationLimit;
   Value* orientation_ = nullptr;
+  LanePlan& lanes_;
+  std::map<const llvm::AllocaInst*, uint32_t> laneIds_;
 };
+
+// Codegen passes per shader before the lane plan is taken as it stands: every pass after the first
+// is sound (it stores no non-zero derivative into a missing lane, or it says so), and two or three
+// reach the fixed point on real shaders.
+constexpr int kLanePasses = 4;
 
 }  // namespace
 
@@ -2300,9 +2351,34 @@ std::unique_ptr<llvm::Module> generateModule(const TranslationUnit& unit, llvm::
                                              std::vector<ShaderLayout>& layouts, uint32_t loopLimit) {
   auto module = std::make_unique<llvm::Module>(unit.fileName, context);
   for (const auto& shader : unit.shaders) {
-    ShaderCodegen cg(*module, *shader, std::max<uint32_t>(loopLimit, 1));
-    cg.setGlobals(unit);
-    layouts.push_back(cg.generate());
+    LanePlan lanes;
+    for (int pass = 1;; ++pass) {
+      lanes.count = 0;
+      ShaderCodegen cg(*module, *shader, std::max<uint32_t>(loopLimit, 1), lanes);
+      cg.setGlobals(unit);
+      ShaderLayout layout = cg.generate();
+      // live ⊆ allocate; equal means another pass would generate the same code.
+      bool converged = true;
+      for (uint32_t id = 0; id < lanes.count; ++id)
+        converged = converged && lanes.isLive(id) == lanes.allocates(id);
+      if (!lanes.dropped && (converged || pass >= kLanePasses)) {
+        layouts.push_back(std::move(layout));
+        break;
+      }
+      module->getFunction(layout.entrySymbol)->eraseFromParent();
+      module->getFunction(layout.defaultsSymbol)->eraseFromParent();
+      // A dropped derivative (not expected, but cheap to guard): every lane; that pass cannot drop.
+      lanes.allocate.clear();
+      if (!lanes.dropped) lanes.allocate.assign(lanes.count, 0);
+      for (uint32_t id = 0; id < lanes.count && !lanes.dropped; ++id) lanes.allocate[id] = lanes.isLive(id);
+      lanes.live.clear();
+      lanes.dropped = false;
+    }
+  }
+  // Strings and tables of discarded passes.
+  for (auto it = module->global_begin(); it != module->global_end();) {
+    llvm::GlobalVariable& g = *it++;
+    if (g.hasPrivateLinkage() && g.use_empty()) g.eraseFromParent();
   }
   return module;
 }

@@ -179,6 +179,78 @@ displacement d()
   }
 }
 
+// Codegen gives derivative storage only to variables that can receive a non-zero derivative
+// (LanePlan, codegen.cpp). Each variable here starts with a uniform value and gets its varying
+// one later: in a later loop iteration, through an output parameter, in an array element, and
+// through a chain of copies. Their derivatives must survive.
+TEST(JitTest, DerivativesReachVariablesThatStartUniform) {
+  auto shader = compileOne(R"(
+void square(float x; output float r) { r = x * x; }
+displacement d(float k = 2)
+{
+    float a = k, early = 0;
+    for (float i = 0; i < 2; i += 1) {
+        early = Du(a);
+        a = u * u;
+    }
+    float b = 1;
+    square(v, b);
+    float arr[2] = {k, k};
+    arr[1] = u * v;
+    float c1 = k, c2 = c1, c3 = c2;
+    c1 = v * 3;
+    c2 = c1;
+    c3 = c2;
+    P = point(early, Dv(b), Du(arr[1]));
+    N = normal(Dv(arr[1]), Dv(c3), Du(k));
+})");
+  ASSERT_TRUE(shader);
+  runtime::ShaderInstance instance(shader);
+  TestBatch b(8);
+  for (size_t i = 0; i < 8; ++i) {
+    fillSphere(b, i, 0.3, 0.4);
+    b.u[i] = 0.1f * float(i) + 0.05f;
+    b.v[i] = 0.7f - 0.05f * float(i);
+  }
+  RlfStatus status{};
+  RlfShadingBatch view = b.all();
+  instance.evaluate(view, status);
+  for (size_t i = 0; i < 8; ++i) {
+    const double u = b.u[i], v = b.v[i];
+    EXPECT_NEAR(b.Pout[0][i], 2 * u, 1e-6);
+    EXPECT_NEAR(b.Pout[1][i], 2 * v, 1e-6);
+    EXPECT_NEAR(b.Pout[2][i], v, 1e-6);
+    EXPECT_NEAR(b.Nout[0][i], u, 1e-6);
+    EXPECT_NEAR(b.Nout[1][i], 3, 1e-6);
+    EXPECT_EQ(b.Nout[2][i], 0);
+  }
+}
+
+// Parameters and constants carry no derivative storage, so the optimised code multiplies nothing
+// by a zero derivative (LLVM may not fold 0 * x itself) and normalize() divides once.
+TEST(JitTest, UniformDataCostsNoDerivativeArithmetic) {
+  CompileFlags flags;
+  flags.jit = false;
+  flags.emitLlvm = true;
+  CompileResult r = compileSource("lanes.disp", R"(
+displacement d(float Km = 0.1; float freq = 4)
+{
+    float f = freq;
+    float h = Km * sin(s * f) * f;
+    P += h * normalize(N);
+})", {}, flags);
+  ASSERT_TRUE(r.success()) << renderDiagnostics(r) << r.internalError;
+  std::istringstream ir(r.llvmIr);
+  size_t divisions = 0;
+  for (std::string line; std::getline(ir, line);) {
+    const bool arithmetic = line.find("= fmul") != std::string::npos || line.find("= fadd") != std::string::npos;
+    EXPECT_FALSE(arithmetic && line.find(" 0.000000e+00") != std::string::npos) << line;
+    divisions += line.find("= fdiv") != std::string::npos;
+  }
+  // normalize(N) and the final normalize(calculatenormal(P)) divide once each, sqrt's derivative once.
+  EXPECT_LE(divisions, 3u) << r.llvmIr;
+}
+
 TEST(JitTest, CalculateNormalOfUndisplacedSphereIsItsNormal) {
   auto shader = compileOne("displacement d() { N = normalize(calculatenormal(P)); }");
   ASSERT_TRUE(shader);
