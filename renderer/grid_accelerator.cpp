@@ -122,6 +122,101 @@ void buildSubGrid(VoxelGeometry& g, const Bounds3& box, float padding) {
   else g.subTriangles32.assign(refs.begin(), refs.end());
 }
 
+// Builds g's BVH (VoxelGeometry::BvhNode): median splits of the triangle boxes' centres along the
+// longest axis, so the tree is balanced (depth at most log2(n / kBvhLeafSize) + 1) and the build
+// is O(n log n) with no surface-area estimates. Boxes are the triangles' grown by `padding` (as
+// the sub-grid's) and then rounded outward by one lattice step, so a decoded box always holds its
+// triangles whatever the float rounding of the decode. Deterministic: the same triangles in the
+// same order give the same tree (ties in the split order by triangle index).
+void buildBvh(VoxelGeometry& g, float padding) {
+  const uint32_t n = g.numTriangles();
+  if (n < kSubGridThreshold || n >= (1u << 24)) return;
+  // The split works on (centre, index) records in place, so nth_element compares local data.
+  struct Ref {
+    glm::vec3 centre;
+    uint32_t index;
+  };
+  thread_local std::vector<Bounds3> boxes;
+  thread_local std::vector<Ref> refs;
+  boxes.resize(n);
+  refs.resize(n);
+  glm::vec3 lo(std::numeric_limits<float>::infinity()), hi(-std::numeric_limits<float>::infinity());
+  for (uint32_t i = 0; i < n; ++i) {
+    const glm::uvec3 t = g.triangle(i);
+    Bounds3& b = boxes[i];
+    b.lo = glm::min(g.P[t.x], glm::min(g.P[t.y], g.P[t.z])) - glm::vec3(padding);
+    b.hi = glm::max(g.P[t.x], glm::max(g.P[t.y], g.P[t.z])) + glm::vec3(padding);
+    refs[i] = {0.5f * (b.lo + b.hi), i};
+    lo = glm::min(lo, b.lo), hi = glm::max(hi, b.hi);
+  }
+  g.bvhOrigin = lo;
+  g.bvhStep = glm::max((hi - lo) / 65535.0f, glm::vec3(std::numeric_limits<float>::min()));
+  auto quantize = [&](VoxelGeometry::BvhNode& node, glm::vec3 a, glm::vec3 b) {
+    for (int k = 0; k < 3; ++k) {
+      const float qa = std::floor((a[k] - g.bvhOrigin[k]) / g.bvhStep[k]) - 1.0f;
+      const float qb = std::ceil((b[k] - g.bvhOrigin[k]) / g.bvhStep[k]) + 1.0f;
+      node.lo[k] = uint16_t(std::clamp(qa, 0.0f, 65535.0f));
+      node.hi[k] = uint16_t(std::clamp(qb, 0.0f, 65535.0f));
+    }
+  };
+  g.bvhNodes.clear();
+  g.bvhNodes.reserve(2 * ((n + kBvhLeafSize - 1) / kBvhLeafSize));
+  g.bvhNodes.emplace_back();
+  struct Task {
+    uint32_t node, begin, end;
+  };
+  thread_local std::vector<Task> tasks;
+  tasks.assign(1, {0, 0, n});
+  while (!tasks.empty()) {
+    const Task task = tasks.back();
+    tasks.pop_back();
+    glm::vec3 blo(std::numeric_limits<float>::infinity()), bhi(-std::numeric_limits<float>::infinity());
+    glm::vec3 clo = blo, chi = bhi;
+    for (uint32_t k = task.begin; k < task.end; ++k) {
+      const Bounds3& b = boxes[refs[k].index];
+      blo = glm::min(blo, b.lo), bhi = glm::max(bhi, b.hi);
+      clo = glm::min(clo, refs[k].centre), chi = glm::max(chi, refs[k].centre);
+    }
+    quantize(g.bvhNodes[task.node], blo, bhi);
+    const uint32_t count = task.end - task.begin;
+    if (count <= kBvhLeafSize) {
+      g.bvhNodes[task.node].data = VoxelGeometry::kBvhLeafFlag | (count << 24) | task.begin;
+      continue;
+    }
+    const glm::vec3 extent = chi - clo;
+    const int axis = extent.x >= extent.y ? (extent.x >= extent.z ? 0 : 2) : (extent.y >= extent.z ? 1 : 2);
+    const uint32_t mid = task.begin + count / 2;
+    std::nth_element(refs.begin() + task.begin, refs.begin() + mid, refs.begin() + task.end,
+                     [axis](const Ref& a, const Ref& b) {
+                       return a.centre[axis] < b.centre[axis] ||
+                              (a.centre[axis] == b.centre[axis] && a.index < b.index);
+                     });
+    const uint32_t child = uint32_t(g.bvhNodes.size());
+    g.bvhNodes.emplace_back(), g.bvhNodes.emplace_back();
+    g.bvhNodes[task.node].data = child;
+    tasks.push_back({child + 1, mid, task.end});
+    tasks.push_back({child, task.begin, mid});
+  }
+  g.bvhNodes.shrink_to_fit();
+  if (n <= 65536) {
+    g.bvhRefs16.resize(n);
+    for (uint32_t k = 0; k < n; ++k) g.bvhRefs16[k] = uint16_t(refs[k].index);
+  } else {
+    g.bvhRefs32.resize(n);
+    for (uint32_t k = 0; k < n; ++k) g.bvhRefs32[k] = refs[k].index;
+  }
+}
+
+// Which dense-voxel structure fills build: the BVH, or with RELIEF_SUBVOXEL=grid the paper's
+// sub-voxel grid (kept to measure one against the other, docs/cache.md).
+bool subVoxelGridRequested() {
+  static const bool grid = [] {
+    const char* env = std::getenv("RELIEF_SUBVOXEL");
+    return env && std::string_view(env) == "grid";
+  }();
+  return grid;
+}
+
 std::atomic<uint64_t> nextAcceleratorSerial{1};
 
 }  // namespace
@@ -309,7 +404,8 @@ std::unique_ptr<VoxelGeometry> GridAccelerator::buildVoxel(uint32_t voxel) {
   g->setBary(bary);
   g->P.shrink_to_fit(), g->indices32.shrink_to_fit();
   g->microLow.shrink_to_fit(), g->segments.shrink_to_fit();
-  buildSubGrid(*g, box, grid_.padding());
+  if (subVoxelGridRequested()) buildSubGrid(*g, box, grid_.padding());
+  else buildBvh(*g, grid_.padding());
   const uint64_t n = g->numTriangles();
   // Contributors whose displaced geometry misses the voxel: later rays skip it without a lookup.
   // Safe to skip at any time, since a refill would be empty again (rule 1).
@@ -362,7 +458,61 @@ void GridAccelerator::intersectVoxel(uint32_t voxel, const WatertightRay& wr, co
     if (!improves(triangleId, microId)) return;
     for (int c = 0; c < 3; ++c) best.p[c] = g->P[tri[c]], best.bary[c] = g->bary(tri[c]);
   };
-  if (g->subResolution.x == 0) {
+  if (!g->bvhNodes.empty()) {
+    // Slab tests against the decoded boxes, as t = base + q * scale per axis. Direction components
+    // too small to invert are made tiny instead, so no 0 * inf appears: the result stays a
+    // conservative test, as the boxes are a lattice step larger than their triangles.
+    glm::vec3 base, scale;
+    bool negative[3];
+    for (int k = 0; k < 3; ++k) {
+      float dk = ray.direction[k];
+      if (std::fabs(dk) < 1e-20f) dk = std::signbit(dk) ? -1e-20f : 1e-20f;
+      const float inv = 1.0f / dk;
+      base[k] = (g->bvhOrigin[k] - ray.origin[k]) * inv;
+      scale[k] = g->bvhStep[k] * inv;
+      negative[k] = inv < 0.0f;
+    }
+    const float tLow = ray.tMin;
+    auto enter = [&](const VoxelGeometry::BvhNode& node, float& tEntry) {
+      float t0 = tLow, t1 = limit;
+      for (int k = 0; k < 3; ++k) {
+        float a = base[k] + float(node.lo[k]) * scale[k], b = base[k] + float(node.hi[k]) * scale[k];
+        if (negative[k]) std::swap(a, b);
+        t0 = std::max(t0, a), t1 = std::min(t1, b);
+      }
+      tEntry = t0;
+      return t0 <= t1;
+    };
+    // Node and entry distance in separate arrays: a pop that reloads both halves of one 8-byte
+    // entry written as two 4-byte stores stalls on store forwarding (12% of this function).
+    uint32_t stackNode[64];
+    float stackT[64];
+    int top = 0;
+    auto push = [&](uint32_t node, float t) { stackNode[top] = node, stackT[top] = t, ++top; };
+    float tRoot;
+    if (enter(g->bvhNodes[0], tRoot)) push(0, tRoot);
+    while (top > 0 && !(anyHit && best.found)) {
+      --top;
+      if (stackT[top] > limit) continue;  // a nearer hit was found since it was pushed
+      const VoxelGeometry::BvhNode& node = g->bvhNodes[stackNode[top]];
+      if (node.data & VoxelGeometry::kBvhLeafFlag) {
+        const uint32_t first = node.data & 0xffffffu, count = (node.data >> 24) & 0x7fu;
+        for (uint32_t k = first; k < first + count && !(anyHit && best.found); ++k) test(g->bvhRef(k));
+        continue;
+      }
+      float ta, tb;
+      const bool hitA = enter(g->bvhNodes[node.data], ta), hitB = enter(g->bvhNodes[node.data + 1], tb);
+      // The nearer child on top; a balanced tree of at most 2^24 triangles stays far below 64.
+      if (hitA && hitB) {
+        if (ta <= tb) push(node.data + 1, tb), push(node.data, ta);
+        else push(node.data, ta), push(node.data + 1, tb);
+      } else if (hitA) {
+        push(node.data, ta);
+      } else if (hitB) {
+        push(node.data + 1, tb);
+      }
+    }
+  } else if (g->subResolution.x == 0) {
     for (uint32_t i = 0; i < g->numTriangles() && !(anyHit && best.found); ++i) test(i);
   } else {
     // Walk the sub-cells along the ray's whole passage through the (padded) voxel box, so every
