@@ -45,11 +45,15 @@ struct AccelOptions {
   // AccelStats::budgetViolations. Also switched on by the environment variable
   // RELIEF_CHECK_BUDGET=1.
   bool checkBudget = false;
-  // Side cache (docs/cache.md): each fill thread keeps the whole subdivisions of the contributors
-  // it subdivided last, up to this many micro-triangles, so that neighbouring voxel fills reuse
-  // them instead of re-subdividing. 0: off (each fill subdivides its contributors culled to the
-  // voxel). Never changes the image: culled and whole subdivisions agree triangle for triangle.
+  // Side cache (docs/cache.md): the fill threads share the whole subdivisions of the contributors
+  // subdivided last, up to this many micro-triangles in all, so that neighbouring voxel fills
+  // reuse them instead of re-subdividing. 0: off (each fill subdivides its contributors culled to
+  // the voxel). Never changes the image: culled and whole subdivisions agree triangle for triangle.
   uint64_t sideCacheTriangles = 0;
+  // Dense voxels get a BVH (default) or, when set, the paper's uniform sub-voxel grid; kept to
+  // measure one against the other (docs/cache.md). Never changes the image. relief sets it from
+  // the environment variable RELIEF_SUBVOXEL=grid.
+  bool subVoxelGrid = false;
 };
 
 struct AccelStats {
@@ -70,7 +74,7 @@ struct AccelStats {
   double intersectSeconds = 0;              // traversal + triangle tests, fills excluded
   glm::ivec3 gridResolution{0};
   uint64_t sideCacheHits = 0, sideCacheMisses = 0;
-  uint64_t sideCachePeakTriangles = 0;      // summed over threads
+  uint64_t sideCachePeakTriangles = 0;
   // Micro-triangles of every subdivision (refills included) before and after the paper's 3.1
   // simplification; equal when nothing is simplified.
   uint64_t trianglesBeforeSimplification = 0, trianglesAfterSimplification = 0;

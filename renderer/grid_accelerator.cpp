@@ -7,6 +7,7 @@
 #include <cstdlib>
 #include <limits>
 #include <list>
+#include <mutex>
 #include <string_view>
 #include <unordered_map>
 
@@ -207,18 +208,6 @@ void buildBvh(VoxelGeometry& g, float padding) {
   }
 }
 
-// Which dense-voxel structure fills build: the BVH, or with RELIEF_SUBVOXEL=grid the paper's
-// sub-voxel grid (kept to measure one against the other, docs/cache.md).
-bool subVoxelGridRequested() {
-  static const bool grid = [] {
-    const char* env = std::getenv("RELIEF_SUBVOXEL");
-    return env && std::string_view(env) == "grid";
-  }();
-  return grid;
-}
-
-std::atomic<uint64_t> nextAcceleratorSerial{1};
-
 }  // namespace
 
 // The nearest hit so far, with what is needed to report it after the voxel is released.
@@ -242,7 +231,7 @@ GridAccelerator::GridAccelerator(const Scene& scene, const AccelOptions& options
       grid_(scene, options),
       voxelCounted_(grid_.numVoxels()),
       knownEmpty_(grid_.numVoxels()),
-      serial_(nextAcceleratorSerial.fetch_add(1)) {
+      side_(std::make_unique<SideCache>()) {
   // Undisplaced scenes go through the cache too: a fill then stores the input triangles whole,
   // and dense voxels get sub-voxel grids. Testing every contributor of a voxel instead made
   // sphere_box's undisplaced baseline (131K triangles in a few voxels of a room-sized grid) 8x
@@ -264,8 +253,6 @@ GridAccelerator::GridAccelerator(const Scene& scene, const AccelOptions& options
   }
 }
 
-GridAccelerator::~GridAccelerator() = default;
-
 void GridAccelerator::addCounters(const SubdivideCounters& counters) {
   shaderPoints_.fetch_add(counters.shaderPoints, std::memory_order_relaxed);
   displaceNanos_.fetch_add(counters.displaceNanos, std::memory_order_relaxed);
@@ -278,62 +265,54 @@ void GridAccelerator::addCounters(const SubdivideCounters& counters) {
   if (counters.status.textureErrors) textureErrors_.fetch_add(counters.status.textureErrors);
 }
 
-namespace {
-
-// The calling thread's side cache of whole (unculled) contributor subdivisions, for one accelerator
-// at a time (`owner`, a serial number: a new accelerator on this thread starts it afresh). Entries
-// sit in a list in recency order (front: most recent) with a hash index, so a lookup, a touch and
-// an eviction cost O(1) even with the 100K+ contributors of a finely tessellated scene.
-struct SideCache {
+// The side cache of whole (unculled) contributor subdivisions, shared by the threads: entries sit
+// in a list in recency order (front: most recent) with a hash index, so a lookup, a touch and an
+// eviction cost O(1) even with the 100K+ contributors of a finely tessellated scene. Entries are
+// immutable once in, and held by shared_ptr, so a fill may go on reading one that is evicted
+// meanwhile. Per-thread caches (the first version) subdivided a contributor once per thread.
+struct GridAccelerator::SideCache {
   struct Entry {
     uint32_t id = 0;
-    MicroMesh mesh;
+    std::shared_ptr<const MicroMesh> mesh;
   };
-  uint64_t owner = 0, triangles = 0;
+  std::mutex mutex;
+  uint64_t triangles = 0;
   std::list<Entry> entries;
   std::unordered_map<uint32_t, std::list<Entry>::iterator> index;
-  std::list<Entry> spare;  // at most one evicted entry, whose buffers the next miss reuses
 };
 
-}  // namespace
+GridAccelerator::~GridAccelerator() = default;
 
-const MicroMesh& GridAccelerator::sideCached(uint32_t id, SubdivideCounters& counters) {
-  thread_local SideCache side;
-  if (side.owner != serial_) {
-    side.entries.clear(), side.index.clear(), side.spare.clear();
-    side.triangles = 0, side.owner = serial_;
+std::shared_ptr<const MicroMesh> GridAccelerator::sideCached(uint32_t id, SubdivideCounters& counters) {
+  SideCache& side = *side_;
+  {
+    std::lock_guard<std::mutex> lock(side.mutex);
+    if (const auto found = side.index.find(id); found != side.index.end()) {
+      side.entries.splice(side.entries.begin(), side.entries, found->second);
+      sideHits_.fetch_add(1, std::memory_order_relaxed);
+      return found->second->mesh;
+    }
   }
-  if (const auto found = side.index.find(id); found != side.index.end()) {
-    side.entries.splice(side.entries.begin(), side.entries, found->second);
-    sideHits_.fetch_add(1, std::memory_order_relaxed);
-    return found->second->mesh;
-  }
+  // Subdivided outside the lock: two threads missing the same contributor at once both do the
+  // work (rare: Hilbert order keeps threads apart), and the first to finish is kept.
   sideMisses_.fetch_add(1, std::memory_order_relaxed);
-  std::list<SideCache::Entry> fresh;
-  if (!side.spare.empty())
-    fresh.splice(fresh.begin(), side.spare);
-  else
-    fresh.emplace_back();
-  SideCache::Entry& entry = fresh.front();
-  const auto [mesh, triangle] = grid_.split(id);
-  subdivideTriangle(scene_.meshes[mesh], triangle, grid_.displacement(mesh), entry.mesh, counters);
-  entry.id = id;
-  const uint64_t n = entry.mesh.numTriangles();
+  auto mesh = std::make_shared<MicroMesh>();
+  const auto [m, triangle] = grid_.split(id);
+  subdivideTriangle(scene_.meshes[m], triangle, grid_.displacement(m), *mesh, counters);
+  const uint64_t n = mesh->numTriangles();
+  std::lock_guard<std::mutex> lock(side.mutex);
+  if (const auto found = side.index.find(id); found != side.index.end()) return found->second->mesh;
   // Evict least recently used entries until the new one fits (it is kept even if it alone is
   // larger than the capacity: it is needed now, and goes at the next miss).
   while (!side.entries.empty() && side.triangles + n > options_.sideCacheTriangles) {
-    SideCache::Entry& victim = side.entries.back();
-    side.triangles -= victim.mesh.numTriangles();
-    sideTriangles_.fetch_sub(victim.mesh.numTriangles(), std::memory_order_relaxed);
-    side.index.erase(victim.id);
-    side.spare.clear();
-    side.spare.splice(side.spare.begin(), side.entries, std::prev(side.entries.end()));
+    side.triangles -= side.entries.back().mesh->numTriangles();
+    side.index.erase(side.entries.back().id);
+    side.entries.pop_back();
   }
   side.triangles += n;
-  const uint64_t total = sideTriangles_.fetch_add(n, std::memory_order_relaxed) + n;
-  uint64_t peak = sidePeak_.load(std::memory_order_relaxed);
-  while (total > peak && !sidePeak_.compare_exchange_weak(peak, total)) {}
-  side.entries.splice(side.entries.begin(), fresh);
+  if (side.triangles > sidePeak_.load(std::memory_order_relaxed))
+    sidePeak_.store(side.triangles, std::memory_order_relaxed);  // written under the mutex only
+  side.entries.push_front({id, std::move(mesh)});
   side.index[id] = side.entries.begin();
   return side.entries.front().mesh;
 }
@@ -362,11 +341,12 @@ std::unique_ptr<VoxelGeometry> GridAccelerator::buildVoxel(uint32_t voxel) {
   for (size_t k = 0; k < contributors.size(); ++k) {
     const uint32_t id = contributors[k];
     const auto [mesh, triangle] = grid_.split(id);
-    const MicroMesh& mm = !sharedContributor_.empty() && sharedContributor_[id]
-                              ? sideCached(id, counters)
-                              : (subdivideTriangle(scene_.meshes[mesh], triangle,
-                                                   grid_.displacement(mesh), culled, counters, &cull),
-                                 culled);
+    std::shared_ptr<const MicroMesh> whole;
+    if (!sharedContributor_.empty() && sharedContributor_[id])
+      whole = sideCached(id, counters);
+    else
+      subdivideTriangle(scene_.meshes[mesh], triangle, grid_.displacement(mesh), culled, counters, &cull);
+    const MicroMesh& mm = whole ? *whole : culled;
     remap.assign(mm.P.size(), UINT32_MAX);
     for (uint32_t i = 0; i < mm.numTriangles(); ++i) {
       const uint32_t* tri = &mm.indices[3 * size_t(i)];
@@ -404,7 +384,7 @@ std::unique_ptr<VoxelGeometry> GridAccelerator::buildVoxel(uint32_t voxel) {
   g->setBary(bary);
   g->P.shrink_to_fit(), g->indices32.shrink_to_fit();
   g->microLow.shrink_to_fit(), g->segments.shrink_to_fit();
-  if (subVoxelGridRequested()) buildSubGrid(*g, box, grid_.padding());
+  if (options_.subVoxelGrid) buildSubGrid(*g, box, grid_.padding());
   else buildBvh(*g, grid_.padding());
   const uint64_t n = g->numTriangles();
   // Contributors whose displaced geometry misses the voxel: later rays skip it without a lookup.

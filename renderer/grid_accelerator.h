@@ -48,8 +48,9 @@ class GridAccelerator final : public Accelerator {
   void intersectVoxel(uint32_t voxel, const struct WatertightRay& wr, const Ray& ray,
                       uint64_t stamp, bool anyHit, Best& best);
   std::unique_ptr<VoxelGeometry> buildVoxel(uint32_t voxel);
-  // The whole micro-mesh of contributor `id` from this thread's side cache, subdividing on a miss.
-  const MicroMesh& sideCached(uint32_t id, SubdivideCounters& counters);
+  struct SideCache;
+  // The whole micro-mesh of contributor `id` from the shared side cache, subdividing on a miss.
+  std::shared_ptr<const MicroMesh> sideCached(uint32_t id, SubdivideCounters& counters);
   void addCounters(const SubdivideCounters& counters);
   void addTraverseTime(std::chrono::steady_clock::time_point start);
 
@@ -65,8 +66,8 @@ class GridAccelerator final : public Accelerator {
   std::atomic<uint64_t> maxVoxelTriangles_{0};
   std::atomic<uint64_t> droppedContributors_{0};
   std::atomic<uint64_t> simplifyBefore_{0}, simplifyAfter_{0};
-  const uint64_t serial_;  // tells this accelerator's side-cache entries from an earlier one's
-  std::atomic<uint64_t> sideHits_{0}, sideMisses_{0}, sideTriangles_{0}, sidePeak_{0};
+  std::unique_ptr<SideCache> side_;
+  std::atomic<uint64_t> sideHits_{0}, sideMisses_{0}, sidePeak_{0};
   // Traversal time per ray, fills included (they are subtracted in stats()), summed per thread
   // shard so that the two clock reads per ray are the only cost on the ray path.
   static constexpr int kTimeShards = 16;

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <string_view>
 #include <cstring>
 #include <exception>
 #include <filesystem>
@@ -34,7 +35,7 @@
 namespace {
 
 constexpr const char* kVersion = "0.1.0";
-// Per-thread side-cache capacity used when the cache budget is unlimited (--side-cache).
+// Side-cache capacity (shared by the threads) used when the cache budget is unlimited (--side-cache).
 constexpr uint64_t kDefaultSideCache = 1000000;
 
 constexpr const char* kUsage =
@@ -59,9 +60,10 @@ constexpr const char* kUsage =
     "  --cache-triangles N       geometry cache budget in displaced triangles, or 'unlimited'\n"
     "  --grid-resolution N       contributor-grid voxels along the longest axis (default: automatic)\n"
     "  --no-refine               keep contributors that reached nothing in their voxels' lists\n"
-    "  --side-cache N            per-thread cache of N micro-triangles of whole subdivisions\n"
-    "                            reused by neighbouring voxel fills (0: off; default: 1000000\n"
-    "                            with an unlimited cache budget, off with a budget)\n"
+    "  --side-cache N            cache of N micro-triangles of whole subdivisions, shared by\n"
+    "                            the threads and reused by neighbouring voxel fills (0: off;\n"
+    "                            default: 1000000 with an unlimited cache budget, off with\n"
+    "                            a budget)\n"
     "  --no-displacement         render the undisplaced surfaces\n"
     "  --edge-length L           target micro-triangle edge length in world units for every\n"
     "                            Displacement (overrides Attribute \"relief\" \"edgelength\")\n"
@@ -724,6 +726,7 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
   // Under a budget the side cache would hold displaced triangles beyond it: off unless asked for.
   accelOptions.sideCacheTriangles =
       cl.sideCache.value_or(accelOptions.cacheBudgetTriangles == UINT64_MAX ? kDefaultSideCache : 0);
+  if (const char* env = std::getenv("RELIEF_SUBVOXEL")) accelOptions.subVoxelGrid = std::string_view(env) == "grid";
   std::unique_ptr<relief::Accelerator> accel;
   if (cl.accel == "grid") {
     accel = relief::makeGridAccelerator(scene, accelOptions);

@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <limits>
+#include <random>
 #include <set>
 
 #include <gtest/gtest.h>
@@ -99,6 +100,74 @@ TEST(GridAccelerator, DisplacedMatchesBruteForceAtEveryResolution) {
     AccelOptions options;
     options.gridResolution = resolution;
     expectMatchesBruteForce(makeSphereScene(o), options, 100, 1.5f);
+  }
+}
+
+// Dense voxels get a BVH by default or the paper's sub-voxel grid: both find exactly the
+// brute-force hits (one voxel holds everything at resolution 1).
+TEST(GridAccelerator, EitherDenseVoxelStructureMatchesBruteForce) {
+  SphereOptions o;
+  o.edgeLength = 0.08f;
+  for (bool subVoxelGrid : {false, true})
+    for (int resolution : {1, 4}) {
+      SCOPED_TRACE(::testing::Message() << "subVoxelGrid " << subVoxelGrid << ", resolution " << resolution);
+      AccelOptions options;
+      options.subVoxelGrid = subVoxelGrid;
+      options.gridResolution = resolution;
+      expectMatchesBruteForce(makeSphereScene(o), options, 150, 1.5f);
+    }
+}
+
+// Flat, axis-aligned geometry gives zero-thickness boxes and rays parallel to box faces: the
+// BVH's quantized boxes must still hold their triangles. A floor of 2048 triangles at z = 0 and
+// a wall at x = 0.25, hit by axis-parallel rays, rays grazing at tiny angles, and rays lying in
+// the floor's plane, each compared with brute force.
+TEST(GridAccelerator, FlatAxisAlignedGeometryMatchesBruteForceForGrazingRays) {
+  Scene scene;
+  Mesh mesh;
+  constexpr int kCells = 32;
+  auto quad = [&](glm::vec3 a, glm::vec3 b, glm::vec3 c, glm::vec3 d) {
+    const uint32_t base = uint32_t(mesh.P.size());
+    mesh.P.insert(mesh.P.end(), {a, b, c, d});
+    mesh.indices.insert(mesh.indices.end(), {base, base + 1, base + 2, base, base + 2, base + 3});
+  };
+  for (int i = 0; i < kCells; ++i)
+    for (int j = 0; j < kCells; ++j) {
+      const float x0 = -1 + 2.0f * float(i) / kCells, x1 = -1 + 2.0f * float(i + 1) / kCells;
+      const float y0 = -1 + 2.0f * float(j) / kCells, y1 = -1 + 2.0f * float(j + 1) / kCells;
+      quad({x0, y0, 0}, {x1, y0, 0}, {x1, y1, 0}, {x0, y1, 0});
+    }
+  for (int j = 0; j < 8; ++j)
+    quad({0.25f, -1, 0.125f * float(j)}, {0.25f, 1, 0.125f * float(j)}, {0.25f, 1, 0.125f * float(j + 1)},
+         {0.25f, -1, 0.125f * float(j + 1)});
+  scene.meshes.push_back(mesh);
+  BruteForce reference(scene);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> pos(-1.2f, 1.2f), tiny(-1e-3f, 1e-3f);
+  std::vector<Ray> rays;
+  for (int i = 0; i < 300; ++i) {
+    const float x = pos(rng), y = pos(rng);
+    rays.push_back(Ray{{x, y, 2}, {0, 0, -1}, 0.0f, 1e30f});                  // straight down
+    rays.push_back(Ray{{-2, y, 0.5f}, {1, 0, 0}, 0.0f, 1e30f});               // into the wall
+    rays.push_back(Ray{{-2, y, 1e-4f}, {1, tiny(rng), -1e-4f}, 0.0f, 1e30f});  // grazing the floor
+    rays.push_back(Ray{{x, -2, 0}, {tiny(rng), 1, 0}, 0.0f, 1e30f});           // in its plane
+  }
+  for (int resolution : {1, 3}) {
+    AccelOptions options;
+    options.gridResolution = resolution;
+    auto accel = makeGridAccelerator(scene, options);
+    int hits = 0;
+    for (const Ray& ray : rays) {
+      const auto hit = accel->intersect(ray);
+      const auto expected = reference.intersect(ray);
+      ASSERT_EQ(hit.has_value(), expected.has_value()) << "from " << ray.origin.x << " " << ray.origin.y << " " << ray.origin.z;
+      EXPECT_EQ(accel->occluded(ray), expected.has_value());
+      if (!hit) continue;
+      ++hits;
+      EXPECT_EQ(hit->t, expected->t);
+      EXPECT_EQ(hit->triangleIndex, expected->triangle);
+    }
+    EXPECT_GT(hits, 600);
   }
 }
 
