@@ -123,12 +123,18 @@ void buildSubGrid(VoxelGeometry& g, const Bounds3& box, float padding) {
   else g.subTriangles32.assign(refs.begin(), refs.end());
 }
 
-// Builds g's BVH (VoxelGeometry::BvhNode): median splits of the triangle boxes' centres along the
-// longest axis, so the tree is balanced (depth at most log2(n / kBvhLeafSize) + 1) and the build
-// is O(n log n) with no surface-area estimates. Boxes are the triangles' grown by `padding` (as
-// the sub-grid's) and then rounded outward by one lattice step, so a decoded box always holds its
-// triangles whatever the float rounding of the decode. Deterministic: the same triangles in the
-// same order give the same tree (ties in the split order by triangle index).
+// SAH bins per split, and the depth below which splits turn to medians: a median split halves the
+// count, so the depth stays below kBvhSahDepth + 24 (< kBvhStack) for fewer than 2^24 triangles.
+constexpr int kBvhBins = 16;
+constexpr uint32_t kBvhSahDepth = 40;
+constexpr int kBvhStack = 96;
+
+// Builds g's BVH (VoxelGeometry::BvhNode): binned surface-area-heuristic splits along the longest
+// axis of the triangle boxes' centres (16 bins, O(n) per level), falling back to a median split
+// where the centres do not spread over the bins or below kBvhSahDepth. Boxes are the triangles'
+// grown by `padding` (as the sub-grid's) and then rounded outward by one lattice step, so a
+// decoded box always holds its triangles whatever the float rounding of the decode.
+// Deterministic: the same triangles in the same order give the same tree.
 void buildBvh(VoxelGeometry& g, float padding) {
   const uint32_t n = g.numTriangles();
   if (n < kSubGridThreshold || n >= (1u << 24)) return;
@@ -164,10 +170,10 @@ void buildBvh(VoxelGeometry& g, float padding) {
   g.bvhNodes.reserve(2 * ((n + kBvhLeafSize - 1) / kBvhLeafSize));
   g.bvhNodes.emplace_back();
   struct Task {
-    uint32_t node, begin, end;
+    uint32_t node, begin, end, depth;
   };
   thread_local std::vector<Task> tasks;
-  tasks.assign(1, {0, 0, n});
+  tasks.assign(1, {0, 0, n, 0});
   while (!tasks.empty()) {
     const Task task = tasks.back();
     tasks.pop_back();
@@ -186,17 +192,71 @@ void buildBvh(VoxelGeometry& g, float padding) {
     }
     const glm::vec3 extent = chi - clo;
     const int axis = extent.x >= extent.y ? (extent.x >= extent.z ? 0 : 2) : (extent.y >= extent.z ? 1 : 2);
-    const uint32_t mid = task.begin + count / 2;
-    std::nth_element(refs.begin() + task.begin, refs.begin() + mid, refs.begin() + task.end,
-                     [axis](const Ref& a, const Ref& b) {
-                       return a.centre[axis] < b.centre[axis] ||
-                              (a.centre[axis] == b.centre[axis] && a.index < b.index);
-                     });
+    // Binned surface-area heuristic along the longest centre axis; a median split where the
+    // centres do not spread over the bins, or deep down (keeps the depth within the stack).
+    uint32_t mid = task.begin + count / 2;
+    bool binned = false;
+    if (extent[axis] > 0.0f && task.depth < kBvhSahDepth) {
+      struct Bin {
+        Bounds3 box{glm::vec3(std::numeric_limits<float>::infinity()), glm::vec3(-std::numeric_limits<float>::infinity())};
+        uint32_t count = 0;
+      };
+      Bin bins[kBvhBins];
+      const float toBin = float(kBvhBins) / extent[axis];
+      auto binOf = [&](const Ref& r) {
+        return std::min(int((r.centre[axis] - clo[axis]) * toBin), kBvhBins - 1);
+      };
+      for (uint32_t k = task.begin; k < task.end; ++k) {
+        Bin& b = bins[binOf(refs[k])];
+        const Bounds3& t = boxes[refs[k].index];
+        b.box.lo = glm::min(b.box.lo, t.lo), b.box.hi = glm::max(b.box.hi, t.hi);
+        ++b.count;
+      }
+      auto area = [](const Bounds3& b) {
+        const glm::vec3 d = b.hi - b.lo;
+        return d.x * d.y + d.y * d.z + d.z * d.x;
+      };
+      // Sweep from the right, then from the left, keeping the cheapest boundary.
+      float rightArea[kBvhBins];
+      uint32_t rightCount[kBvhBins];
+      Bounds3 acc = bins[kBvhBins - 1].box;
+      uint32_t accCount = 0;
+      for (int i = kBvhBins - 1; i > 0; --i) {
+        acc.lo = glm::min(acc.lo, bins[i].box.lo), acc.hi = glm::max(acc.hi, bins[i].box.hi);
+        accCount += bins[i].count;
+        rightArea[i] = accCount ? area(acc) : 0.0f, rightCount[i] = accCount;
+      }
+      acc = bins[0].box;
+      accCount = 0;
+      float bestCost = std::numeric_limits<float>::infinity();
+      int bestSplit = -1;
+      for (int i = 1; i < kBvhBins; ++i) {
+        acc.lo = glm::min(acc.lo, bins[i - 1].box.lo), acc.hi = glm::max(acc.hi, bins[i - 1].box.hi);
+        accCount += bins[i - 1].count;
+        if (accCount == 0 || rightCount[i] == 0) continue;
+        const float cost = area(acc) * float(accCount) + rightArea[i] * float(rightCount[i]);
+        if (cost < bestCost) bestCost = cost, bestSplit = i;
+      }
+      if (bestSplit > 0) {
+        const auto split = std::partition(refs.begin() + task.begin, refs.begin() + task.end,
+                                          [&](const Ref& r) { return binOf(r) < bestSplit; });
+        mid = uint32_t(split - refs.begin());
+        binned = mid > task.begin && mid < task.end;
+      }
+    }
+    if (!binned) {
+      mid = task.begin + count / 2;
+      std::nth_element(refs.begin() + task.begin, refs.begin() + mid, refs.begin() + task.end,
+                       [axis](const Ref& a, const Ref& b) {
+                         return a.centre[axis] < b.centre[axis] ||
+                                (a.centre[axis] == b.centre[axis] && a.index < b.index);
+                       });
+    }
     const uint32_t child = uint32_t(g.bvhNodes.size());
     g.bvhNodes.emplace_back(), g.bvhNodes.emplace_back();
     g.bvhNodes[task.node].data = child;
-    tasks.push_back({child + 1, mid, task.end});
-    tasks.push_back({child, task.begin, mid});
+    tasks.push_back({child + 1, mid, task.end, task.depth + 1});
+    tasks.push_back({child, task.begin, mid, task.depth + 1});
   }
   g.bvhNodes.shrink_to_fit();
   if (n <= 65536) {
@@ -465,8 +525,8 @@ void GridAccelerator::intersectVoxel(uint32_t voxel, const WatertightRay& wr, co
     };
     // Node and entry distance in separate arrays: a pop that reloads both halves of one 8-byte
     // entry written as two 4-byte stores stalls on store forwarding (12% of this function).
-    uint32_t stackNode[64];
-    float stackT[64];
+    uint32_t stackNode[kBvhStack];
+    float stackT[kBvhStack];
     int top = 0;
     auto push = [&](uint32_t node, float t) { stackNode[top] = node, stackT[top] = t, ++top; };
     float tRoot;
@@ -482,7 +542,7 @@ void GridAccelerator::intersectVoxel(uint32_t voxel, const WatertightRay& wr, co
       }
       float ta, tb;
       const bool hitA = enter(g->bvhNodes[node.data], ta), hitB = enter(g->bvhNodes[node.data + 1], tb);
-      // The nearer child on top; a balanced tree of at most 2^24 triangles stays far below 64.
+      // The nearer child on top; the depth bound of buildBvh keeps this within the stack.
       if (hitA && hitB) {
         if (ta <= tb) push(node.data + 1, tb), push(node.data, ta);
         else push(node.data, ta), push(node.data + 1, tb);
