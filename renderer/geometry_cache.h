@@ -133,8 +133,9 @@ struct VoxelGeometry {
 
 // Above this many triangles a voxel gets a sub-voxel grid or BVH (the paper's "more than about 100").
 constexpr uint32_t kSubGridThreshold = 100;
-// Triangles per BVH leaf at most (docs/cache.md: the measured trade of speed against bytes).
-constexpr uint32_t kBvhLeafSize = 4;
+// Triangles per BVH leaf at most (at most 127: the count has 7 bits; docs/cache.md gives the
+// measured trade of speed against bytes).
+constexpr uint32_t kBvhLeafSize = 16;
 
 struct CacheStats {
   uint64_t accesses = 0, hits = 0, compulsoryMisses = 0, capacityMisses = 0;
