@@ -184,12 +184,18 @@ class ShaderCodegen {
     Value* q = b_.CreateFDiv(a.v, safeB);
     Dual r;
     r.v = b_.CreateSelect(zero, cf(0), q);
-    // The lanes share one reciprocal: divisions are the slowest arithmetic there is.
+    // The lanes share one reciprocal: divisions are the slowest arithmetic there is. A denormal
+    // divisor's reciprocal would overflow (and 0 * inf is NaN), so the lanes use FLT_MIN in its
+    // place: a finite, if approximate, derivative of an already degenerate quotient.
     Value* recip = nullptr;
     auto lane = [&](Value* da, Value* db) -> Value* {
       if (!da && !db) return nullptr;
       Value* num = lSub(da, lMul(db, q));
-      if (!recip) recip = b_.CreateFDiv(cf(1), safeB);
+      if (!recip) {
+        Value* tiny = b_.CreateFCmpOLT(intrinsic(llvm::Intrinsic::fabs, {safeB}), cf(1.17549435e-38f));
+        Value* lb = b_.CreateSelect(tiny, intrinsic(llvm::Intrinsic::copysign, {cf(1.17549435e-38f), safeB}), safeB);
+        recip = b_.CreateFDiv(cf(1), lb);
+      }
       return b_.CreateSelect(zero, cf(0), b_.CreateFMul(num ? num : cf(0), recip));
     };
     r.du = lane(a.du, b.du);
@@ -288,18 +294,24 @@ class ShaderCodegen {
                       dsub(dmul(a.c[0], b.c[1]), dmul(a.c[1], b.c[0])));
   }
   Val normalize3(const Val& a) {
-    // One reciprocal of the length for the three components and their lanes; zero stays zero.
+    // One reciprocal r of the length for the three components and their lanes, by the quotient
+    // rule d(a/len) = (da - (a/len) dlen) r, which needs no r² (that overflows for lengths below
+    // 2^-64). A zero vector stays zero, lanes included.
     const Dual len = dsqrtSafe(dot3(a, a));
     Value* zero = b_.CreateFCmpOEQ(len.v, cf(0));
     Value* r = b_.CreateSelect(zero, cf(0), b_.CreateFDiv(cf(1), b_.CreateSelect(zero, cf(1), len.v)));
-    Value* negR2 = nullptr;
-    auto lane = [&](Value* dlen) -> Value* {
-      if (!dlen) return nullptr;
-      if (!negR2) negR2 = b_.CreateFNeg(b_.CreateFMul(r, r));
-      return b_.CreateFMul(dlen, negR2);  // d(1/len) = -dlen / len²
-    };
-    const Dual inv{r, lane(len.du), lane(len.dv)};
-    return makeTriple(a.type, dmul(a.c[0], inv), dmul(a.c[1], inv), dmul(a.c[2], inv));
+    Val n;
+    n.type = a.type;
+    for (int k = 0; k < 3; ++k) {
+      Value* q = b_.CreateFMul(a.c[k].v, r);
+      auto lane = [&](Value* da, Value* dlen) -> Value* {
+        if (!da && !dlen) return nullptr;
+        Value* num = lSub(da, lMul(dlen, q));
+        return b_.CreateSelect(zero, cf(0), b_.CreateFMul(num ? num : cf(0), r));
+      };
+      n.c[k] = {q, lane(a.c[k].du, len.du), lane(a.c[k].dv, len.dv)};
+    }
+    return n;
   }
   template <typename F>
   Val map(Type t, const Val& a, F f) {

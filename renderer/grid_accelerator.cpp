@@ -377,14 +377,18 @@ std::shared_ptr<const MicroMesh> GridAccelerator::sideCached(uint32_t id, Subdiv
   const auto [m, triangle] = grid_.split(id);
   subdivideTriangle(scene_.meshes[m], triangle, grid_.displacement(m), *mesh, counters);
   const uint64_t n = mesh->numTriangles();
+  std::list<SideCache::Entry> victims;  // freed after the mutex is released (declared first)
   std::lock_guard<std::mutex> lock(side.mutex);
-  if (const auto found = side.index.find(id); found != side.index.end()) return found->second->mesh;
+  if (const auto found = side.index.find(id); found != side.index.end()) {
+    side.entries.splice(side.entries.begin(), side.entries, found->second);
+    return found->second->mesh;
+  }
   // Evict least recently used entries until the new one fits (it is kept even if it alone is
   // larger than the capacity: it is needed now, and goes at the next miss).
   while (!side.entries.empty() && side.triangles + n > options_.sideCacheTriangles) {
     side.triangles -= side.entries.back().mesh->numTriangles();
     side.index.erase(side.entries.back().id);
-    side.entries.pop_back();
+    victims.splice(victims.begin(), side.entries, std::prev(side.entries.end()));
   }
   side.triangles += n;
   if (side.triangles > sidePeak_.load(std::memory_order_relaxed))
@@ -515,15 +519,21 @@ void GridAccelerator::intersectVoxel(uint32_t voxel, const WatertightRay& wr, co
     if (!improves(triangleId, microId)) return;
     for (int c = 0; c < 3; ++c) best.p[c] = g->P[tri[c]], best.bary[c] = g->bary(tri[c]);
   };
-  if (!g->bvhNodes.empty()) {
+  const glm::vec3 absDir = glm::abs(ray.direction);
+  const float longestDir = std::max({absDir.x, absDir.y, absDir.z});
+  // A direction too short for the slab arithmetic below (never from the camera or the
+  // integrator, whose directions are unit vectors) is served by testing every triangle.
+  if (!g->bvhNodes.empty() && longestDir >= 1e-15f) {
     // Slab tests against the decoded boxes, as t = base + q * scale per axis. Direction components
-    // too small to invert are made tiny instead, so no 0 * inf appears: the result stays a
-    // conservative test, as the boxes are a lattice step larger than their triangles.
+    // below 1e-20 of the longest are made that small instead, so no 0 * inf appears; within the
+    // grid such a ray moves less than float precision along that axis, so the test stays
+    // conservative, as the boxes are a lattice step larger than their triangles.
+    const float minDir = 1e-20f * longestDir;
     glm::vec3 base, scale;
     bool negative[3];
     for (int k = 0; k < 3; ++k) {
       float dk = ray.direction[k];
-      if (std::fabs(dk) < 1e-20f) dk = std::signbit(dk) ? -1e-20f : 1e-20f;
+      if (std::fabs(dk) < minDir) dk = std::signbit(dk) ? -minDir : minDir;
       const float inv = 1.0f / dk;
       base[k] = (g->bvhOrigin[k] - ray.origin[k]) * inv;
       scale[k] = g->bvhStep[k] * inv;
@@ -569,7 +579,7 @@ void GridAccelerator::intersectVoxel(uint32_t voxel, const WatertightRay& wr, co
         push(node.data + 1, tb);
       }
     }
-  } else if (g->subResolution.x == 0) {
+  } else if (g->subResolution.x == 0 || longestDir < 1e-15f) {
     for (uint32_t i = 0; i < g->numTriangles() && !(anyHit && best.found); ++i) test(i);
   } else {
     // Walk the sub-cells along the ray's whole passage through the (padded) voxel box, so every

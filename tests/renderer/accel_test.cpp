@@ -152,6 +152,11 @@ TEST(GridAccelerator, FlatAxisAlignedGeometryMatchesBruteForceForGrazingRays) {
     rays.push_back(Ray{{-2, y, 1e-4f}, {1, tiny(rng), -1e-4f}, 0.0f, 1e30f});  // grazing the floor
     rays.push_back(Ray{{x, -2, 0}, {tiny(rng), 1, 0}, 0.0f, 1e30f});           // in its plane
   }
+  // Directions far from unit length: the slab arithmetic must not depend on it.
+  for (float length : {1e-22f, 1e-12f, 1e12f}) {
+    rays.push_back(Ray{{-2, 0.3f, 0.5f}, {length, 0, 0}, 0.0f, 1e30f});
+    rays.push_back(Ray{{0.1f, 0.2f, 2}, {0, 0, -length}, 0.0f, 1e30f});
+  }
   for (int resolution : {1, 3}) {
     AccelOptions options;
     options.gridResolution = resolution;
