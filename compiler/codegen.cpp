@@ -2360,7 +2360,8 @@ constexpr int kLanePasses = 4;
 }  // namespace
 
 std::unique_ptr<llvm::Module> generateModule(const TranslationUnit& unit, llvm::LLVMContext& context,
-                                             std::vector<ShaderLayout>& layouts, uint32_t loopLimit) {
+                                             std::vector<ShaderLayout>& layouts, uint32_t loopLimit,
+                                             bool pruneLanes) {
   auto module = std::make_unique<llvm::Module>(unit.fileName, context);
   for (const auto& shader : unit.shaders) {
     LanePlan lanes;
@@ -2373,7 +2374,7 @@ std::unique_ptr<llvm::Module> generateModule(const TranslationUnit& unit, llvm::
       bool converged = true;
       for (uint32_t id = 0; id < lanes.count; ++id)
         converged = converged && lanes.isLive(id) == lanes.allocates(id);
-      if (!lanes.dropped && (converged || pass >= kLanePasses)) {
+      if (!lanes.dropped && (converged || pass >= kLanePasses || !pruneLanes)) {
         layouts.push_back(std::move(layout));
         break;
       }

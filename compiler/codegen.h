@@ -30,8 +30,11 @@ struct ShaderLayout {
 inline constexpr uint32_t kLoopIterationLimit = 1u << 20;
 
 // `loopLimit`: loop iterations allowed per invocation (all loops together) before it aborts.
+// `pruneLanes`: derivative storage only for variables that can hold a non-zero derivative (the
+// lane plan, codegen.cpp); false gives every float/triple variable both lanes.
 std::unique_ptr<llvm::Module> generateModule(const TranslationUnit& unit, llvm::LLVMContext& context,
                                              std::vector<ShaderLayout>& layouts,
-                                             uint32_t loopLimit = kLoopIterationLimit);
+                                             uint32_t loopLimit = kLoopIterationLimit,
+                                             bool pruneLanes = true);
 
 }  // namespace relief::compiler

@@ -59,7 +59,8 @@ void compileBuffer(CompileResult& result, SourceManager::FileId file, const Comp
 
   auto context = std::make_unique<llvm::LLVMContext>();
   std::vector<ShaderLayout> layouts;
-  std::unique_ptr<llvm::Module> module = generateModule(*unit, *context, layouts, options.loopIterationLimit);
+  std::unique_ptr<llvm::Module> module = generateModule(*unit, *context, layouts, options.loopIterationLimit,
+                                                         !flags.everyDerivativeLane);
   if (flags.keepAst) result.ast = std::move(unit);
   if (!optimizeModule(*module, options.optLevel, &result.internalError)) return;
   if (flags.emitLlvm) result.llvmIr = moduleText(*module);

@@ -22,6 +22,9 @@ struct CompileFlags {
   bool emitLlvm = false;   // keep the optimized IR text in CompileResult::llvmIr
   bool keepAst = false;    // keep the checked AST in CompileResult::ast
   unsigned errorLimit = 20;
+  // Give every variable derivative storage (no LanePlan pruning, codegen.h): for tests that check
+  // the pruning changes no result.
+  bool everyDerivativeLane = false;
   std::vector<std::string> disabledWarnings;  // -Wno-<name>, without the "-Wno-"
   // Called with the type-checked AST before codegen (tools that inspect it, tests).
   std::function<void(const TranslationUnit&)> onChecked;

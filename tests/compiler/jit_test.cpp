@@ -2,6 +2,7 @@
 // noise, non-finite results, the loop guard, ShaderLibrary lookup and parameter reflection.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -224,6 +225,52 @@ displacement d(float k = 2)
     EXPECT_NEAR(b.Nout[1][i], 3, 1e-6);
     EXPECT_EQ(b.Nout[2][i], 0);
   }
+}
+
+// The lane plan only removes storage that would hold zeros, so every shader of the repository
+// (the examples, the spec's examples, and the diagnostics cases that compile) gives the same
+// bits with it as with every lane, derivatives included (N comes from calculatenormal).
+TEST(JitTest, LanePlanChangesNoResult) {
+  std::vector<std::string> files = {RELIEF_TEST_DATA_DIR "/spec/examples.disp"};
+  for (const char* dir : {RELIEF_SOURCE_DIR "/examples/shaders", RELIEF_TEST_DATA_DIR "/diagnostics"})
+    for (const auto& entry : std::filesystem::directory_iterator(dir))
+      if (entry.path().extension() == ".disp") files.push_back(entry.path().string());
+  std::sort(files.begin(), files.end());
+  CompileOptions options;
+  options.includeDirs = {RELIEF_TEST_DATA_DIR "/diagnostics"};
+  CompileFlags every;
+  every.everyDerivativeLane = true;
+  size_t compared = 0;
+  for (const std::string& file : files) {
+    const CompileResult pruned = compileFile(file, options);
+    if (!pruned.success()) continue;  // a diagnostics case with errors
+    const CompileResult full = compileFile(file, options, every);
+    ASSERT_TRUE(full.success()) << file << renderDiagnostics(full) << full.internalError;
+    ASSERT_EQ(pruned.shaders.size(), full.shaders.size());
+    for (size_t k = 0; k < pruned.shaders.size(); ++k) {
+      SCOPED_TRACE(file + ": " + pruned.shaders[k]->name());
+      runtime::ShaderInstance a(pruned.shaders[k]), b(full.shaders[k]);
+      TestBatch x(48), y(48);
+      for (size_t i = 0; i < 48; ++i) {
+        const double u = 0.02 + 0.0203 * double(i), v = 0.97 - 0.0191 * double(i);
+        fillSphere(x, i, u, v);
+        fillSphere(y, i, u, v);
+      }
+      RlfStatus sa{}, sb{};
+      RlfShadingBatch va = x.all(), vb = y.all();
+      a.evaluate(va, sa);
+      b.evaluate(vb, sb);
+      for (int c = 0; c < 3; ++c)
+        for (size_t i = 0; i < 48; ++i) {
+          auto same = [](float p, float q) { return p == q || (std::isnan(p) && std::isnan(q)); };
+          EXPECT_TRUE(same(x.Pout[c][i], y.Pout[c][i])) << "P point " << i << ": " << x.Pout[c][i] << " vs " << y.Pout[c][i];
+          EXPECT_TRUE(same(x.Nout[c][i], y.Nout[c][i])) << "N point " << i << ": " << x.Nout[c][i] << " vs " << y.Nout[c][i];
+        }
+      EXPECT_EQ(sa.nonFinite, sb.nonFinite);
+      ++compared;
+    }
+  }
+  EXPECT_GE(compared, 20u);
 }
 
 // Parameters and constants carry no derivative storage, so the optimised code multiplies nothing
