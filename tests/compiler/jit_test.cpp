@@ -228,11 +228,13 @@ displacement d(float k = 2)
 }
 
 // The lane plan only removes storage that would hold zeros, so every shader of the repository
-// (the examples, the spec's examples, and the diagnostics cases that compile) gives the same
+// (the examples, the spec's examples, the diagnostics cases that compile, and lanes/*.disp,
+// written for this) gives the same
 // bits with it as with every lane, derivatives included (N comes from calculatenormal).
 TEST(JitTest, LanePlanChangesNoResult) {
   std::vector<std::string> files = {RELIEF_TEST_DATA_DIR "/spec/examples.disp"};
-  for (const char* dir : {RELIEF_SOURCE_DIR "/examples/shaders", RELIEF_TEST_DATA_DIR "/diagnostics"})
+  for (const char* dir : {RELIEF_SOURCE_DIR "/examples/shaders", RELIEF_TEST_DATA_DIR "/diagnostics",
+                          RELIEF_TEST_DATA_DIR "/lanes"})
     for (const auto& entry : std::filesystem::directory_iterator(dir))
       if (entry.path().extension() == ".disp") files.push_back(entry.path().string());
   std::sort(files.begin(), files.end());
