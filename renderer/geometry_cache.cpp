@@ -16,8 +16,7 @@ uint64_t VoxelGeometry::bytes() const {
   return sizeof(VoxelGeometry) + P.size() * sizeof(glm::vec3) + bary16.size() * 2 +
          baryF.size() * sizeof(glm::vec2) + indices16.size() * 2 + indices32.size() * 4 +
          microLow.size() * 2 + segments.size() * sizeof(Segment) + subOffsets16.size() * 2 + subOffsets32.size() * 4 +
-         subTriangles16.size() * 2 + subTriangles32.size() * 4 + bvhNodes.size() * sizeof(BvhNode) +
-         bvhRefs16.size() * 2 + bvhRefs32.size() * 4;
+         subTriangles16.size() * 2 + subTriangles32.size() * 4 + bvhNodes.size() * sizeof(BvhNode);
 }
 
 std::pair<uint32_t, uint32_t> VoxelGeometry::key(uint32_t i) const {

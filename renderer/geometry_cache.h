@@ -78,20 +78,18 @@ struct VoxelGeometry {
   // Per-voxel BVH over dense voxels (the default; the sub-grid above is the alternative kept for
   // measurement, docs/cache.md): binary nodes whose boxes are 16-bit fixed point on a per-voxel
   // lattice (bvhOrigin + q * bvhStep, rounded outward), children stored side by side, leaves of
-  // at most kBvhLeafSize references to triangles. The references are a permutation of the
-  // voxel's triangles, so the triangle storage order (and its key segments) stays as filled.
+  // at most kBvhLeafSize triangles. The build stores the triangles (indices and keys) in leaf
+  // order, so a leaf is a range of them and needs no references.
   struct BvhNode {
     uint16_t lo[3], hi[3];
-    uint32_t data;  // leaf: kBvhLeafFlag | count << 24 | first reference; else its first child
+    uint32_t data;  // leaf: kBvhLeafFlag | count << 24 | first triangle; else its first child
   };
   static constexpr uint32_t kBvhLeafFlag = 1u << 31;
   std::vector<BvhNode> bvhNodes;
   glm::vec3 bvhOrigin{0}, bvhStep{0};
-  std::vector<uint16_t> bvhRefs16;  // when numTriangles() <= 65536
-  std::vector<uint32_t> bvhRefs32;  // otherwise
 
   uint32_t numTriangles() const { return uint32_t(microLow.size()); }
-  uint32_t bvhRef(uint32_t k) const { return bvhRefs16.empty() ? bvhRefs32[k] : bvhRefs16[k]; }
+
   glm::uvec3 triangle(uint32_t i) const {
     if (!indices16.empty()) return {indices16[3 * i], indices16[3 * i + 1], indices16[3 * i + 2]};
     return {indices32[3 * i], indices32[3 * i + 1], indices32[3 * i + 2]};
