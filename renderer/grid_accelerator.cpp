@@ -305,6 +305,30 @@ void buildBvh(VoxelGeometry& g, float padding) {
 
 }  // namespace
 
+// Per-ray set-up of the BVH's slab tests, shared by every voxel the ray visits. Direction
+// components below 1e-20 of the longest are made that small instead, so no 0 * inf appears;
+// within the grid such a ray moves less than float precision along that axis, so the test stays
+// conservative, as the boxes are a lattice step larger than their triangles. A direction too short
+// for this (never from the camera or the integrator, whose directions are unit vectors) is not
+// `usable`: its voxels test every triangle.
+struct GridAccelerator::SlabRay {
+  explicit SlabRay(const Ray& ray) {
+    const glm::vec3 absDir = glm::abs(ray.direction);
+    const float longest = std::max({absDir.x, absDir.y, absDir.z});
+    usable = longest >= 1e-15f;
+    const float minDir = 1e-20f * longest;
+    for (int k = 0; k < 3; ++k) {
+      float dk = ray.direction[k];
+      if (std::fabs(dk) < minDir) dk = std::signbit(dk) ? -minDir : minDir;
+      inv[k] = usable ? 1.0f / dk : 0.0f;
+      negative[k] = inv[k] < 0.0f;
+    }
+  }
+  glm::vec3 inv;
+  bool negative[3];
+  bool usable;
+};
+
 // The nearest hit so far, with what is needed to report it after the voxel is released.
 struct GridAccelerator::Best {
   bool found = false;
@@ -498,7 +522,7 @@ std::unique_ptr<VoxelGeometry> GridAccelerator::buildVoxel(uint32_t voxel) {
   return g;
 }
 
-void GridAccelerator::intersectVoxel(uint32_t voxel, const WatertightRay& wr, const Ray& ray,
+void GridAccelerator::intersectVoxel(uint32_t voxel, const WatertightRay& wr, const SlabRay& sr, const Ray& ray,
                                      uint64_t stamp, bool anyHit, Best& best) {
   TriangleHit h;
   // Hits up to and including best.t still count (ties go to the smaller key). The limit changes
@@ -537,26 +561,14 @@ void GridAccelerator::intersectVoxel(uint32_t voxel, const WatertightRay& wr, co
     if (!improves(triangleId, microId)) return;
     for (int c = 0; c < 3; ++c) best.p[c] = g->P[tri[c]], best.bary[c] = g->bary(tri[c]);
   };
-  const glm::vec3 absDir = glm::abs(ray.direction);
-  const float longestDir = std::max({absDir.x, absDir.y, absDir.z});
-  // A direction too short for the slab arithmetic below (never from the camera or the
-  // integrator, whose directions are unit vectors) is served by testing every triangle.
-  if (!g->bvhNodes.empty() && longestDir >= 1e-15f) {
-    // Slab tests against the decoded boxes, as t = base + q * scale per axis. Direction components
-    // below 1e-20 of the longest are made that small instead, so no 0 * inf appears; within the
-    // grid such a ray moves less than float precision along that axis, so the test stays
-    // conservative, as the boxes are a lattice step larger than their triangles.
-    const float minDir = 1e-20f * longestDir;
+  if (!g->bvhNodes.empty() && sr.usable) {
+    // Slab tests against the decoded boxes, as t = base + q * scale per axis.
     glm::vec3 base, scale;
-    bool negative[3];
     for (int k = 0; k < 3; ++k) {
-      float dk = ray.direction[k];
-      if (std::fabs(dk) < minDir) dk = std::signbit(dk) ? -minDir : minDir;
-      const float inv = 1.0f / dk;
-      base[k] = (g->bvhOrigin[k] - ray.origin[k]) * inv;
-      scale[k] = g->bvhStep[k] * inv;
-      negative[k] = inv < 0.0f;
+      base[k] = (g->bvhOrigin[k] - ray.origin[k]) * sr.inv[k];
+      scale[k] = g->bvhStep[k] * sr.inv[k];
     }
+    const bool* negative = sr.negative;
     const float tLow = ray.tMin;
     auto enter = [&](const VoxelGeometry::BvhNode& node, float& tEntry) {
       float t0 = tLow, t1 = limit;
@@ -597,7 +609,7 @@ void GridAccelerator::intersectVoxel(uint32_t voxel, const WatertightRay& wr, co
         push(node.data + 1, tb);
       }
     }
-  } else if (g->subResolution.x == 0 || longestDir < 1e-15f) {
+  } else if (g->subResolution.x == 0) {  // sparse, or a BVH voxel for an unusable direction
     for (uint32_t i = 0; i < g->numTriangles() && !(anyHit && best.found); ++i) test(i);
   } else {
     // Walk the sub-cells along the ray's whole passage through the (padded) voxel box, so every
@@ -641,13 +653,14 @@ void GridAccelerator::traverse(const Ray& ray, Best& best) {
   if (!clipToBox(ray.origin, ray.direction, bounds.lo, bounds.hi, t0, t1)) return;
   Dda dda(ray.origin, ray.direction, bounds.lo, grid_.voxelSize(), grid_.resolution(), t0);
   const WatertightRay wr(ray);
+  const SlabRay sr(ray);
   // One stamp per ray, not per voxel step: the only shared write on the ray path.
   const uint64_t stamp = clock_.fetch_add(1, std::memory_order_relaxed);
   for (;;) {
     const float tExit = dda.tExit();
     const uint32_t voxel = grid_.voxelIndex(dda.cell);
     if (grid_.hasContributors(voxel) && !knownEmpty_[voxel].load(std::memory_order_relaxed)) {
-      intersectVoxel(voxel, wr, ray, stamp, kAnyHit, best);
+      intersectVoxel(voxel, wr, sr, ray, stamp, kAnyHit, best);
       if (kAnyHit && best.found) return;
       if (best.found && best.t < tExit) return;
     }

@@ -45,7 +45,8 @@ class GridAccelerator final : public Accelerator {
   struct Best;
   template <bool kAnyHit>
   void traverse(const Ray& ray, Best& best);
-  void intersectVoxel(uint32_t voxel, const struct WatertightRay& wr, const Ray& ray,
+  struct SlabRay;
+  void intersectVoxel(uint32_t voxel, const struct WatertightRay& wr, const SlabRay& sr, const Ray& ray,
                       uint64_t stamp, bool anyHit, Best& best);
   std::unique_ptr<VoxelGeometry> buildVoxel(uint32_t voxel);
   struct SideCache;
