@@ -6,8 +6,10 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <memory>
 #include <random>
 #include <sstream>
+#include <utility>
 
 #include <OpenImageIO/imageio.h>
 
@@ -55,6 +57,24 @@ void fillSphere(TestBatch& b, size_t i, double u, double v) {
   b.dsdu[i] = 1;
   b.dtdv[i] = 1;
   b.du[i] = b.dv[i] = 0.01f;
+}
+
+// Runs `shader` on n points of the sphere at (u, v) = (0.3, 0.4), with u and v themselves
+// replaced by uv(i): for tests of derivatives with respect to the parameters.
+template <typename UV>
+TestBatch evaluateAtUV(const std::shared_ptr<const runtime::CompiledShader>& shader, size_t n, UV uv) {
+  runtime::ShaderInstance instance(shader);
+  TestBatch b(n);
+  for (size_t i = 0; i < n; ++i) {
+    fillSphere(b, i, 0.3, 0.4);
+    const auto [u, v] = uv(i);
+    b.u[i] = float(u);
+    b.v[i] = float(v);
+  }
+  RlfStatus status{};
+  RlfShadingBatch view = b.all();
+  instance.evaluate(view, status);
+  return b;
 }
 
 std::array<double, 3> cross(const std::array<double, 3>& a, const std::array<double, 3>& b) {
@@ -157,18 +177,12 @@ displacement d()
     N = normal(Dv(g), Du(u), Dv(u));
 })");
   ASSERT_TRUE(shader);
-  runtime::ShaderInstance instance(shader);
-  TestBatch b(50);
   std::mt19937 rng(3);
   std::uniform_real_distribution<double> dist(-2, 2);
-  for (size_t i = 0; i < 50; ++i) {
-    fillSphere(b, i, 0.3, 0.4);
-    b.u[i] = float(dist(rng));
-    b.v[i] = float(dist(rng));
-  }
-  RlfStatus status{};
-  RlfShadingBatch view = b.all();
-  instance.evaluate(view, status);
+  const TestBatch b = evaluateAtUV(shader, 50, [&](size_t) {
+    const double u = dist(rng);
+    return std::pair{u, dist(rng)};
+  });
   for (size_t i = 0; i < 50; ++i) {
     const double u = b.u[i], v = b.v[i];
     EXPECT_NEAR(b.Pout[0][i], 2 * u * v + 3, 1e-4);
@@ -206,16 +220,9 @@ displacement d(float k = 2)
     N = normal(Dv(arr[1]), Dv(c3), Du(k));
 })");
   ASSERT_TRUE(shader);
-  runtime::ShaderInstance instance(shader);
-  TestBatch b(8);
-  for (size_t i = 0; i < 8; ++i) {
-    fillSphere(b, i, 0.3, 0.4);
-    b.u[i] = 0.1f * float(i) + 0.05f;
-    b.v[i] = 0.7f - 0.05f * float(i);
-  }
-  RlfStatus status{};
-  RlfShadingBatch view = b.all();
-  instance.evaluate(view, status);
+  const TestBatch b = evaluateAtUV(shader, 8, [](size_t i) {
+    return std::pair{0.1f * float(i) + 0.05f, 0.7f - 0.05f * float(i)};
+  });
   for (size_t i = 0; i < 8; ++i) {
     const double u = b.u[i], v = b.v[i];
     EXPECT_NEAR(b.Pout[0][i], 2 * u, 1e-6);
@@ -373,16 +380,9 @@ displacement d()
     P = point(n, Du(n), Dv(n));
 })");
   ASSERT_TRUE(shader);
-  runtime::ShaderInstance instance(shader);
-  TestBatch b(30);
-  for (size_t i = 0; i < 30; ++i) {
-    fillSphere(b, i, 0.3, 0.4);
-    b.u[i] = 0.031f * float(i) + 0.01f;
-    b.v[i] = 0.027f * float(i) + 0.02f;
-  }
-  RlfStatus status{};
-  RlfShadingBatch view = b.all();
-  instance.evaluate(view, status);
+  const TestBatch b = evaluateAtUV(shader, 30, [](size_t i) {
+    return std::pair{0.031f * float(i) + 0.01f, 0.027f * float(i) + 0.02f};
+  });
   for (size_t i = 0; i < 30; ++i) {
     float g[2];
     const float n = rlf_noise2(b.u[i] * 7.3f, b.v[i] * 5.1f, g);

@@ -41,14 +41,19 @@ Scene sideScene() {
   return testing::makeSphereScene(o);
 }
 
+std::vector<HitKey> hitsOf(GridAccelerator& accel, const std::vector<Ray>& rays) {
+  std::vector<HitKey> keys;
+  for (const Ray& r : rays) keys.push_back(key(accel.intersect(r)));
+  return keys;
+}
+
 TEST(CacheSide, SameHitsWithTheSideCacheAtAnyBudgetAndOnTwoThreads) {
   const Scene scene = sideScene();
   const std::vector<Ray> rays = sweep();
   AccelOptions base;
   base.gridResolution = 12;
   GridAccelerator reference(scene, base);
-  std::vector<HitKey> expected;
-  for (const Ray& r : rays) expected.push_back(key(reference.intersect(r)));
+  const std::vector<HitKey> expected = hitsOf(reference, rays);
   const AccelStats plain = reference.stats();
   ASSERT_GT(plain.uniqueDisplacedTriangles, 10000u);
 
@@ -93,8 +98,8 @@ TEST(CacheSide, ContributorsOfOneVoxelOnlyBypassTheSideCache) {
   AccelOptions withSide = base;
   withSide.sideCacheTriangles = 20000;
   GridAccelerator side(scene, withSide);
-  for (size_t i = 0; i < rays.size(); ++i)
-    ASSERT_EQ(key(side.intersect(rays[i])), key(reference.intersect(rays[i]))) << i;
+  const std::vector<HitKey> expected = hitsOf(reference, rays);
+  for (size_t i = 0; i < rays.size(); ++i) ASSERT_EQ(key(side.intersect(rays[i])), expected[i]) << i;
   const AccelStats s = side.stats();
   EXPECT_EQ(s.sideCacheHits + s.sideCacheMisses, 0u);
   EXPECT_EQ(s.sideCachePeakTriangles, 0u);
