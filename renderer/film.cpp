@@ -1,4 +1,5 @@
-// Image storage and OpenImageIO output (see film.h).
+// Image storage and output (see film.h): PNG and PNM by image_formats.cpp, every other format
+// through the image-library plugin (runtime/image_library.h), loaded only then.
 #include "renderer/film.h"
 
 #include <unistd.h>
@@ -10,7 +11,8 @@
 #include <filesystem>
 #include <system_error>
 
-#include <OpenImageIO/imageio.h>
+#include "renderer/image_formats.h"
+#include "runtime/image_library.h"
 
 namespace relief {
 
@@ -113,26 +115,9 @@ bool Film::writeStaged(const std::string& path, std::string* stagedPath, std::st
     *error = "cannot write '" + path + "': no file extension to choose the image format";
     return false;
   }
-  auto out = OIIO::ImageOutput::create(path);
-  if (!out) {
-    *error = "cannot write '" + path + "': " + OIIO::geterror();
-    return false;
-  }
   const bool floatOutput = extension == ".exr" || extension == ".hdr";
   const int colourChannels = options.channels == 1 ? 1 : 3;
   const int channels = colourChannels + (withAlpha ? 1 : 0);
-  OIIO::ImageSpec spec(width_, height_, channels,
-                       floatOutput ? OIIO::TypeDesc::FLOAT : OIIO::TypeDesc::UINT8);
-  spec.attribute("oiio:ColorSpace", floatOutput || !options.srgb ? "linear" : "sRGB");
-  spec.attribute("Software", "relief");
-  for (const auto& [name, value] : options.metadata) spec.attribute(name, value);
-  if (!options.channelNames.empty() && int(options.channelNames.size()) == channels)
-    spec.channelnames = options.channelNames;
-  if (withAlpha) {
-    spec.alpha_channel = colourChannels;
-    if (!floatOutput) spec.attribute("oiio:UnassociatedAlpha", 1);
-  }
-
   const size_t numPixels = size_t(width_) * size_t(height_);
   std::vector<float> floats;
   std::vector<uint8_t> bytes;
@@ -174,16 +159,35 @@ bool Film::writeStaged(const std::string& path, std::string* stagedPath, std::st
   tempName += std::to_string(stagedCount++);
   tempName += target.extension().string();
   const fs::path temp = target.parent_path() / tempName;
-  if (!out->open(temp.string(), spec)) {
-    *error = "cannot write '" + path + "': " + out->geterror();
-    std::error_code ignored;
-    fs::remove(temp, ignored);
-    return false;
+  std::string writeError;
+  bool ok;
+  const bool pnm = extension == ".ppm" || extension == ".pgm" || extension == ".pnm";
+  if (!floatOutput && (extension == ".png" || (pnm && !withAlpha))) {
+    const Image8 image{width_, height_, channels, bytes.data()};
+    ok = extension == ".png" ? writePng(temp.string(), image, options.srgb, options.metadata, &writeError)
+                             : writePnm(temp.string(), image, &writeError);
+    // The writers name the file they wrote; the user knows only the final name.
+    if (!ok) {
+      const std::string prefix = "cannot write '" + temp.string() + "': ";
+      if (writeError.rfind(prefix, 0) == 0) writeError.erase(0, prefix.size());
+    }
+  } else if (const RlfImageLibrary* library = runtime::imageLibrary(&writeError)) {
+    std::vector<const char*> names, metadata;
+    if (!options.channelNames.empty() && int(options.channelNames.size()) == channels)
+      for (const std::string& n : options.channelNames) names.push_back(n.c_str());
+    for (const auto& [name, value] : options.metadata) metadata.push_back(name.c_str()), metadata.push_back(value.c_str());
+    metadata.push_back(nullptr);
+    char message[1024];
+    message[0] = 0;
+    ok = library->writeImage(temp.string().c_str(), width_, height_, channels, floatOutput ? 1 : 0, pixels,
+                             withAlpha ? colourChannels : -1, withAlpha && !floatOutput ? 1 : 0,
+                             floatOutput || !options.srgb ? "linear" : "sRGB", names.empty() ? nullptr : names.data(),
+                             metadata.data(), message, sizeof message) != 0;
+    writeError = message;
+  } else {
+    ok = false;
   }
-  const bool ok = out->write_image(floatOutput ? OIIO::TypeDesc::FLOAT : OIIO::TypeDesc::UINT8, pixels);
-  std::string writeError = ok ? std::string() : out->geterror();
-  if (!out->close() && ok) writeError = out->geterror();
-  if (!ok || !writeError.empty()) {
+  if (!ok) {
     std::error_code ignored;
     fs::remove(temp, ignored);
     *error = "cannot write '" + path + "': " + (writeError.empty() ? "write failed" : writeError);

@@ -1,4 +1,5 @@
-// The image being rendered: linear float RGB per pixel, written through OpenImageIO. Pixels are
+// The image being rendered: linear float RGB per pixel, written as PNG/PNM by Relief itself and in
+// other formats through OpenImageIO (the image-library plugin, runtime/image_library.h). Pixels are
 // written by exactly one thread each (the render loop owns a pixel until it is done), so the film
 // needs no locking. Used by render.* and tools/relief.
 #pragma once

@@ -1,10 +1,12 @@
 // Texture lookups for JIT-compiled shaders (see builtins_texture.h). The fallback TextureSystem is
-// shared by all threads (OIIO's is thread-safe) and lives for the whole process.
+// the image library's (image_library.h), shared by all threads and alive for the whole process;
+// the first lookup loads that library.
 #include "runtime/builtins_texture.h"
 
-#include <OpenImageIO/texture.h>
+#include "runtime/image_library.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cstdio>
 #include <cstring>
 #include <mutex>
@@ -14,15 +16,6 @@
 #include <vector>
 
 namespace {
-
-OIIO::TextureSystem* textureSystem() {
-  static OIIO::TextureSystem* ts = [] {
-    OIIO::TextureSystem* t = OIIO::TextureSystem::create(true);
-    t->attribute("automip", 1);
-    return t;
-  }();
-  return ts;
-}
 
 // Files that failed to read, each reported once per process (language.md §6.7: one runtime error per
 // file name); `pending` holds those the host has not taken yet.
@@ -43,6 +36,29 @@ void recordFailure(const char* filename, const std::string& why) {
   log.pending.push_back(filename);
   std::fprintf(stderr, "%s: error: cannot read texture '%s'%s%s; using the fill value\n",
                log.program.c_str(), filename, why.empty() ? "" : ": ", why.c_str());
+}
+
+// The texture search path, handed to the library when it is loaded and whenever it changes after.
+struct SearchPath {
+  std::mutex mutex;
+  std::string joined;
+  std::atomic<uint64_t> generation{0};  // bumped by every setTextureSearchPath
+  std::atomic<uint64_t> applied{0};     // the generation the library has
+};
+SearchPath& searchPath() {
+  static SearchPath path;
+  return path;
+}
+
+const RlfImageLibrary* textureLibrary(std::string* why) {
+  const RlfImageLibrary* library = relief::runtime::imageLibrary(why);
+  SearchPath& path = searchPath();
+  if (library && path.applied.load(std::memory_order_acquire) != path.generation.load(std::memory_order_acquire)) {
+    std::lock_guard lock(path.mutex);
+    library->setTextureSearchPath(path.joined.c_str());
+    path.applied.store(path.generation.load(std::memory_order_relaxed), std::memory_order_release);
+  }
+  return library;
 }
 
 void fillMissing(const RlfTextureOptions* o, int32_t n, float* out, float* ds, float* dt) {
@@ -68,34 +84,22 @@ extern "C" int32_t rlf_texture(const RlfHostServices* services, const char* file
     if (!ok) fillMissing(options, nchannels, out, dout_ds, dout_dt);
     return ok ? 1 : 0;
   }
+  // Nothing may unwind through JIT frames. The host counts failures; the first per file is printed.
   try {
-    OIIO::TextureOpt opt;
-    if (options) {
-      opt.sblur = options->sblur;
-      opt.tblur = options->tblur;
-      opt.swidth = options->swidth;
-      opt.twidth = options->twidth;
-      opt.fill = options->fill;
-      opt.firstchannel = options->firstchannel;
-      if (options->swrap) opt.swrap = OIIO::TextureOpt::decode_wrapmode(options->swrap);
-      if (options->twrap) opt.twrap = OIIO::TextureOpt::decode_wrapmode(options->twrap);
+    std::string why;
+    if (const RlfImageLibrary* library = textureLibrary(&why)) {
+      char message[512];
+      message[0] = 0;
+      if (library->texture(filename, s, t, dsdx, dtdx, dsdy, dtdy, options, nchannels, out, dout_ds, dout_dt,
+                           message, sizeof message))
+        return 1;
+      why = message;
     }
-    const bool ok = textureSystem()->texture(OIIO::ustring(filename), opt, s, t, dsdx, dtdx, dsdy, dtdy, nchannels,
-                                             out, dout_ds, dout_dt);
-    if (!ok) {
-      // Clear the per-thread message; the host counts failures, the first one per file is printed.
-      std::string why = textureSystem()->geterror();
-      if (const size_t nl = why.find('\n'); nl != std::string::npos) why.resize(nl);
-      if (!options || !options->hasMissingColor) recordFailure(filename, why);
-      fillMissing(options, nchannels, out, dout_ds, dout_dt);
-      return 0;
-    }
-    return 1;
+    if (!options || !options->hasMissingColor) recordFailure(filename, why);
   } catch (...) {
-    // Nothing may unwind through JIT frames.
-    fillMissing(options, nchannels, out, dout_ds, dout_dt);
-    return 0;
   }
+  fillMissing(options, nchannels, out, dout_ds, dout_dt);
+  return 0;
 }
 
 namespace relief::runtime {
@@ -103,8 +107,12 @@ namespace relief::runtime {
 void setTextureSearchPath(const std::vector<std::string>& dirs) {
   std::string joined;
   for (const std::string& d : dirs) joined += (joined.empty() ? "" : ":") + d;
-  // OIIO tries a relative name against the working directory first, then these directories.
-  textureSystem()->attribute("searchpath", joined);
+  // OpenImageIO tries a relative name against the working directory first, then these directories.
+  // The library may not be loaded yet (it is on the first lookup): the next lookup hands it over.
+  SearchPath& path = searchPath();
+  std::lock_guard lock(path.mutex);
+  path.joined = joined;
+  path.generation.fetch_add(1, std::memory_order_release);
 }
 
 void setTextureMessageProgram(const std::string& name) {

@@ -6,7 +6,8 @@ set -euo pipefail
 RELIEF_PACKAGES=(
   cmake make g++ pkg-config
   llvm-19-dev libzstd-dev          # the shader JIT (libzstd-dev: LLVM's CMake targets reference it)
-  libopenimageio-dev               # image output and the texture() builtin's TextureSystem
+  libopenimageio-dev               # texture() lookups and image formats other than PNG/PNM (a plugin)
+  zlib1g-dev                       # PNG output, written by Relief itself
   libglm-dev                       # vector math
   googletest libgtest-dev          # unit tests
   libbenchmark-dev                 # bench/

@@ -91,6 +91,8 @@ constexpr const char* kUsage =
     "  RELIEF_SUBVOXEL=grid      dense voxels get the paper's sub-voxel grid instead of a BVH\n"
     "                            (for measurements; the image is the same)\n"
     "  RELIEF_CHECK_BUDGET=1     check the cache budget after every fill (debug)\n"
+    "  RELIEF_IMAGE_LIBRARY=FILE the OpenImageIO plugin (textures, formats other than png/ppm),\n"
+    "                            loaded on first use (default: ../lib/relief/ beside relief)\n"
     "\n"
     "The shader search path is the scene's Option \"searchpath\" \"shader\" if given ('@' in it\n"
     "stands for the default path, '&' for the previous value), otherwise the default: the -I directories, then the\n"

@@ -511,7 +511,7 @@ unset multiplot
     w("Threads: Tables 1 and 2 and Figure 3 render with **%d thread%s** (the paper's runs were "
       "single-processor); the Embree comparison and the street use **%d threads** for both renderers. "
       "Memory is the peak resident set size of the whole `relief` process (GNU time), which includes "
-      "about %s of code and libraries (LLVM for the shader JIT, OpenImageIO) that the paper's 10.9 MB "
+      "about %s of code and libraries (LLVM for the shader JIT, Embree) that the paper's 10.9 MB "
       "undisplaced figure had no counterpart for; compare *increases* over the undisplaced run.\n"
       % (cache_threads, "" if cache_threads == 1 else "s", base_threads, mb(undisp["rss"])))
 

@@ -299,6 +299,24 @@ TEST(Relief, FiltersAndDepthFlagsRender) {
   }
 }
 
+// PNG output is Relief's own: a scene without textures renders to PNG even when OpenImageIO's
+// plugin cannot be loaded (so it is never loaded), and a format that needs it fails with the reason.
+TEST(Relief, PngNeedsNoImageLibraryOtherFormatsSayWhyTheyFail) {
+  const fs::path dir = scratchDir();
+  const fs::path scene = smallScene(dir, "");
+  const std::string noLibrary = "RELIEF_IMAGE_LIBRARY=" + (dir / "missing.so").string() + " ";
+  RunResult png = run(noLibrary + kRelief + " " + scene.string() + " --quiet -o " + (dir / "a.png").string());
+  EXPECT_EQ(png.exitCode, 0) << png.err;
+  EXPECT_TRUE(fs::exists(dir / "a.png"));
+  RunResult exr = run(noLibrary + kRelief + " " + scene.string() + " --quiet -o " + (dir / "a.exr").string());
+  EXPECT_NE(exr.exitCode, 0);
+  EXPECT_NE(exr.err.find("cannot write '" + (dir / "a.exr").string() + "': cannot load the image library"),
+            std::string::npos)
+      << exr.err;
+  EXPECT_NE(exr.err.find("missing.so"), std::string::npos) << exr.err;
+  EXPECT_FALSE(fs::exists(dir / "a.exr"));
+}
+
 TEST(Relief, ExrHasRenderMetadata) {
   const fs::path dir = scratchDir();
   const fs::path scene = smallScene(dir, "");

@@ -3,7 +3,10 @@
 // nothing behind on failure.
 #include <unistd.h>
 
+#include <algorithm>
+#include <cmath>
 #include <filesystem>
+#include <fstream>
 
 #include <OpenImageIO/imageio.h>
 #include <gtest/gtest.h>
@@ -115,6 +118,7 @@ TEST(FilmOutput, FailedWriteLeavesNoFile) {
   std::string error;
   EXPECT_FALSE(testFilm().write((dir / "missing" / "out.png").string(), &error));
   EXPECT_NE(error.find("out.png"), std::string::npos) << error;
+  EXPECT_EQ(error.find(".tmp"), std::string::npos) << error;  // the staged name means nothing to users
   EXPECT_FALSE(testFilm().write((dir / "out.nosuchformat").string(), &error));
   EXPECT_FALSE(testFilm().write((dir / "noextension").string(), &error));
   EXPECT_TRUE(fs::is_empty(dir));
@@ -165,6 +169,89 @@ TEST(FilmOutput, LinearEightBitForData) {
   ASSERT_TRUE(film.write(path.string(), &error, options)) << error;
   int channels = 0;
   EXPECT_EQ(readBack(path, OIIO::TypeDesc::UINT8, &channels)[0], 128.0f);  // not 188
+}
+
+// PNG and PNM are written by Relief (renderer/image_formats.cpp), not OpenImageIO; OpenImageIO
+// reads them back here as an independent decoder. The film is large enough, and varied enough,
+// for every PNG row filter to be chosen somewhere.
+Film patternFilm(int width, int height, bool partialAlpha) {
+  Film film(width, height);
+  for (int y = 0; y < height; ++y)
+    for (int x = 0; x < width; ++x) {
+      const float a = partialAlpha ? float((x + 2 * y) % 5) / 4.0f : 1.0f;
+      const glm::vec3 rgb(float(x) / float(width), float((x * y) % 7) / 6.0f, y % 3 == 0 ? 0.9f : float(y) / float(height));
+      film.setPixel(x, y, rgb * a, a);
+    }
+  return film;
+}
+
+uint8_t expectedByte(float v, bool srgb) {
+  const float encoded = srgb ? linearToSrgb(v) : std::clamp(v, 0.0f, 1.0f);
+  return uint8_t(std::lround(encoded * 255.0f));
+}
+
+TEST(FilmOutput, PngAndPnmHoldEveryChannelLayoutExactly) {
+  const fs::path dir = scratch();
+  const int width = 37, height = 23;
+  struct Case {
+    const char* name;
+    int channels;
+    bool alpha, srgb;
+  };
+  for (const Case& c : {Case{"rgb.png", 3, false, true}, Case{"rgba.png", 3, true, true},
+                        Case{"grey.png", 1, false, false}, Case{"greya.png", 1, true, true},
+                        Case{"rgb.ppm", 3, false, true}, Case{"grey.pgm", 1, false, false}}) {
+    SCOPED_TRACE(c.name);
+    const Film film = patternFilm(width, height, c.alpha);
+    ImageWriteOptions options;
+    options.channels = c.channels;
+    options.alpha = c.alpha;
+    options.srgb = c.srgb;
+    std::string error;
+    ASSERT_TRUE(film.write((dir / c.name).string(), &error, options)) << error;
+    int channels = 0;
+    const std::vector<float> px = readBack(dir / c.name, OIIO::TypeDesc::UINT8, &channels);
+    const int stored = c.channels + (c.alpha ? 1 : 0);
+    ASSERT_EQ(channels, stored);
+    ASSERT_EQ(px.size(), size_t(width * height * stored));
+    int wrong = 0;
+    for (int y = 0; y < height; ++y)
+      for (int x = 0; x < width; ++x) {
+        const float a = film.alpha(x, y);
+        const glm::vec3 straight = film.pixel(x, y) * (c.alpha && a > 0.0f ? 1.0f / a : 1.0f);
+        const float* p = &px[size_t(y * width + x) * size_t(stored)];
+        for (int k = 0; k < c.channels; ++k) wrong += p[k] != expectedByte(straight[k], c.srgb);
+        if (c.alpha) wrong += p[c.channels] != float(std::lround(a * 255.0f));
+      }
+    EXPECT_EQ(wrong, 0);
+  }
+}
+
+TEST(FilmOutput, PngCarriesMetadataAndItsColourSpace) {
+  const fs::path path = scratch() / "m.png";
+  ImageWriteOptions options;
+  options.metadata = {{"relief:scene", "scenes/x.rib"}, {"relief:cacheHits", "42"}, {" bad keyword", "skipped"}};
+  std::string error;
+  ASSERT_TRUE(testFilm().write(path.string(), &error, options)) << error;
+  auto in = OIIO::ImageInput::open(path.string());
+  ASSERT_TRUE(in) << OIIO::geterror();
+  const OIIO::ImageSpec& spec = in->spec();
+  EXPECT_EQ(spec.get_string_attribute("relief:scene"), "scenes/x.rib");
+  EXPECT_EQ(spec.get_string_attribute("relief:cacheHits"), "42");
+  EXPECT_EQ(spec.get_string_attribute("Software"), "relief");
+  EXPECT_EQ(spec.get_string_attribute("oiio:ColorSpace"), "sRGB");
+}
+
+TEST(FilmOutput, PpmIsBinaryP6) {
+  const fs::path dir = scratch();
+  std::string error;
+  ASSERT_TRUE(testFilm().write((dir / "a.ppm").string(), &error)) << error;
+  std::ifstream in(dir / "a.ppm", std::ios::binary);
+  std::string magic, size;
+  std::getline(in, magic);
+  std::getline(in, size);
+  EXPECT_EQ(magic, "P6");
+  EXPECT_EQ(size, "3 2");
 }
 
 TEST(FilmOutput, AovDisplayMappings) {

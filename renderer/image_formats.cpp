@@ -1,0 +1,198 @@
+// PNG and PNM writers (see image_formats.h). PNG per the W3C PNG specification: signature, IHDR,
+// optional sRGB and tEXt, IDAT holding the zlib stream of filtered scanlines, IEND; each chunk
+// carries a CRC-32 of its type and data.
+#include "renderer/image_formats.h"
+
+#include <zlib.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+
+namespace relief {
+namespace {
+
+// Closes the file on every path; close() reports the error a buffered write may only show there.
+class OutFile {
+ public:
+  OutFile(const std::string& path) : path_(path), file_(std::fopen(path.c_str(), "wb")) {
+    if (!file_) failure_ = std::strerror(errno);
+  }
+  ~OutFile() {
+    if (file_) std::fclose(file_);
+  }
+  bool ok() const { return failure_.empty(); }
+  void write(const void* data, size_t size) {
+    if (ok() && size && std::fwrite(data, 1, size, file_) != size) failure_ = std::strerror(errno);
+  }
+  bool close(std::string* error) {
+    if (file_ && std::fclose(file_) != 0 && ok()) failure_ = std::strerror(errno);
+    file_ = nullptr;
+    if (ok()) return true;
+    *error = "cannot write '" + path_ + "': " + failure_;
+    return false;
+  }
+
+ private:
+  std::string path_;
+  FILE* file_;
+  std::string failure_;
+};
+
+void putU32(std::vector<uint8_t>& out, uint32_t v) {
+  out.push_back(uint8_t(v >> 24)), out.push_back(uint8_t(v >> 16));
+  out.push_back(uint8_t(v >> 8)), out.push_back(uint8_t(v));
+}
+
+void writeChunk(OutFile& file, const char type[4], const uint8_t* data, size_t size) {
+  std::vector<uint8_t> head;
+  putU32(head, uint32_t(size));
+  head.insert(head.end(), type, type + 4);
+  uLong crc = crc32(0L, reinterpret_cast<const Bytef*>(type), 4);
+  if (size) crc = crc32(crc, data, uInt(size));
+  std::vector<uint8_t> tail;
+  putU32(tail, uint32_t(crc));
+  file.write(head.data(), head.size());
+  file.write(data, size);
+  file.write(tail.data(), tail.size());
+}
+
+// PNG keywords: 1-79 printable Latin-1 characters, no leading, trailing or doubled spaces.
+bool validKeyword(const std::string& k) {
+  if (k.empty() || k.size() > 79 || k.front() == ' ' || k.back() == ' ') return false;
+  for (size_t i = 0; i < k.size(); ++i) {
+    const unsigned char c = static_cast<unsigned char>(k[i]);
+    if (!((c >= 32 && c <= 126) || c >= 161)) return false;
+    if (c == ' ' && i > 0 && k[i - 1] == ' ') return false;
+  }
+  return true;
+}
+
+uint8_t paeth(int a, int b, int c) {
+  const int p = a + b - c;
+  const int pa = std::abs(p - a), pb = std::abs(p - b), pc = std::abs(p - c);
+  return uint8_t(pa <= pb && pa <= pc ? a : pb <= pc ? b : c);
+}
+
+// One scanline filtered with each of the five filters; keeps the one with the smallest sum of
+// absolute signed bytes (the heuristic the PNG specification suggests). out: filter byte + row.
+void filterRow(const uint8_t* row, const uint8_t* prev, size_t size, int bpp, std::vector<uint8_t>& out,
+               std::vector<uint8_t>& trial) {
+  trial.resize(size);
+  uint64_t best = UINT64_MAX;
+  size_t start = out.size();
+  for (uint8_t filter = 0; filter < 5; ++filter) {
+    uint64_t cost = 0;
+    for (size_t i = 0; i < size; ++i) {
+      const int a = i >= size_t(bpp) ? row[i - bpp] : 0;
+      const int b = prev ? prev[i] : 0;
+      const int c = prev && i >= size_t(bpp) ? prev[i - bpp] : 0;
+      uint8_t predicted = 0;
+      switch (filter) {
+        case 1: predicted = uint8_t(a); break;
+        case 2: predicted = uint8_t(b); break;
+        case 3: predicted = uint8_t((a + b) / 2); break;
+        case 4: predicted = paeth(a, b, c); break;
+        default: break;
+      }
+      trial[i] = uint8_t(row[i] - predicted);
+      cost += uint64_t(std::abs(int(int8_t(trial[i]))));
+    }
+    if (cost < best) {
+      best = cost;
+      out.resize(start);
+      out.push_back(filter);
+      out.insert(out.end(), trial.begin(), trial.end());
+    }
+  }
+}
+
+}  // namespace
+
+bool writePng(const std::string& path, const Image8& image, bool srgb,
+              const std::vector<std::pair<std::string, std::string>>& text, std::string* error) {
+  static const uint8_t kColourType[5] = {0, 0, 4, 2, 6};
+  if (image.channels < 1 || image.channels > 4 || image.width <= 0 || image.height <= 0) {
+    *error = "cannot write '" + path + "': unsupported image shape for PNG";
+    return false;
+  }
+  const size_t rowBytes = size_t(image.width) * size_t(image.channels);
+
+  // The zlib stream of all filtered rows, compressed as they are produced.
+  z_stream z{};
+  if (deflateInit(&z, 6) != Z_OK) {
+    *error = "cannot write '" + path + "': zlib initialisation failed";
+    return false;
+  }
+  std::vector<uint8_t> compressed, filtered, trial;
+  uint8_t buffer[1 << 16];
+  bool zlibOk = true;
+  auto pump = [&](const uint8_t* data, size_t size, int flush) {
+    z.next_in = const_cast<Bytef*>(data);
+    z.avail_in = uInt(size);
+    do {
+      z.next_out = buffer;
+      z.avail_out = sizeof buffer;
+      const int status = deflate(&z, flush);
+      if (status == Z_STREAM_ERROR) zlibOk = false;
+      compressed.insert(compressed.end(), buffer, buffer + (sizeof buffer - z.avail_out));
+    } while (zlibOk && (z.avail_out == 0 || (flush == Z_FINISH && z.avail_in > 0)));
+  };
+  for (int y = 0; y < image.height && zlibOk; ++y) {
+    const uint8_t* row = image.pixels + size_t(y) * rowBytes;
+    filtered.clear();
+    filterRow(row, y > 0 ? row - rowBytes : nullptr, rowBytes, image.channels, filtered, trial);
+    pump(filtered.data(), filtered.size(), Z_NO_FLUSH);
+  }
+  if (zlibOk) pump(nullptr, 0, Z_FINISH);
+  deflateEnd(&z);
+  if (!zlibOk) {
+    *error = "cannot write '" + path + "': zlib compression failed";
+    return false;
+  }
+
+  OutFile file(path);
+  static const uint8_t kSignature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
+  file.write(kSignature, sizeof kSignature);
+  std::vector<uint8_t> header;
+  putU32(header, uint32_t(image.width));
+  putU32(header, uint32_t(image.height));
+  header.insert(header.end(), {8, kColourType[image.channels], 0, 0, 0});
+  writeChunk(file, "IHDR", header.data(), header.size());
+  if (srgb) {
+    const uint8_t perceptual = 0;
+    writeChunk(file, "sRGB", &perceptual, 1);
+  }
+  std::vector<std::pair<std::string, std::string>> chunks = {{"Software", "relief"}};
+  chunks.insert(chunks.end(), text.begin(), text.end());
+  for (const auto& [keyword, value] : chunks) {
+    if (!validKeyword(keyword)) continue;
+    std::vector<uint8_t> data(keyword.begin(), keyword.end());
+    data.push_back(0);
+    for (char c : value)
+      if (c != '\0') data.push_back(uint8_t(c));
+    writeChunk(file, "tEXt", data.data(), data.size());
+  }
+  constexpr size_t kIdatBytes = size_t(1) << 20;
+  for (size_t at = 0; at < compressed.size(); at += kIdatBytes)
+    writeChunk(file, "IDAT", compressed.data() + at, std::min(kIdatBytes, compressed.size() - at));
+  writeChunk(file, "IEND", nullptr, 0);
+  return file.close(error);
+}
+
+bool writePnm(const std::string& path, const Image8& image, std::string* error) {
+  if ((image.channels != 1 && image.channels != 3) || image.width <= 0 || image.height <= 0) {
+    *error = "cannot write '" + path + "': PNM holds 1 or 3 channels";
+    return false;
+  }
+  OutFile file(path);
+  const std::string header = std::string(image.channels == 1 ? "P5\n" : "P6\n") + std::to_string(image.width) +
+                             " " + std::to_string(image.height) + "\n255\n";
+  file.write(header.data(), header.size());
+  file.write(image.pixels, size_t(image.width) * size_t(image.height) * size_t(image.channels));
+  return file.close(error);
+}
+
+}  // namespace relief

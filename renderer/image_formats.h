@@ -1,0 +1,29 @@
+// Image formats Relief writes itself: PNG (the default output) and binary PNM. Every other format
+// goes through the image-library plugin (runtime/image_library.h), so that rendering a scene to
+// PNG never loads OpenImageIO. Used by film.cpp.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace relief {
+
+// 8-bit interleaved pixels, rows top to bottom.
+struct Image8 {
+  int width = 0, height = 0;
+  int channels = 3;  // 1 grey, 2 grey + alpha, 3 RGB, 4 RGBA (alpha unassociated, as PNG wants)
+  const uint8_t* pixels = nullptr;
+};
+
+// PNG with zlib compression and per-row adaptive filters. `srgb` adds an sRGB chunk (colour
+// images); without it the values are data and no colour chunk is written. `text` pairs become
+// tEXt chunks (keywords PNG cannot store are skipped). Returns false with *error set.
+bool writePng(const std::string& path, const Image8& image, bool srgb,
+              const std::vector<std::pair<std::string, std::string>>& text, std::string* error);
+
+// Binary PGM (1 channel) or PPM (3 channels); PNM has no alpha.
+bool writePnm(const std::string& path, const Image8& image, std::string* error);
+
+}  // namespace relief

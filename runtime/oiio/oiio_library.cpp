@@ -1,0 +1,115 @@
+// The image-library plugin (librelief_oiio.so): everything Relief asks of OpenImageIO, behind the C
+// table of runtime/image_library.h. The only file of the project that includes OpenImageIO
+// headers outside tests and benchmarks. Exceptions never leave it.
+#include <algorithm>
+#include <cstdio>
+#include <cstring>
+#include <string>
+
+#include <OpenImageIO/imageio.h>
+#include <OpenImageIO/texture.h>
+
+#include "runtime/image_library.h"
+
+namespace {
+
+OIIO::TextureSystem* textureSystem() {
+  static OIIO::TextureSystem* ts = [] {
+    OIIO::TextureSystem* t = OIIO::TextureSystem::create(true);
+    t->attribute("automip", 1);
+    return t;
+  }();
+  return ts;
+}
+
+void copyMessage(const std::string& message, char* buffer, size_t size) {
+  if (!buffer || size == 0) return;
+  std::snprintf(buffer, size, "%s", message.c_str());
+}
+
+int32_t texture(const char* filename, float s, float t, float dsdx, float dtdx, float dsdy, float dtdy,
+                const RlfTextureOptions* options, int32_t nchannels, float* out, float* dout_ds, float* dout_dt,
+                char* why, size_t whySize) {
+  try {
+    OIIO::TextureOpt opt;
+    if (options) {
+      opt.sblur = options->sblur;
+      opt.tblur = options->tblur;
+      opt.swidth = options->swidth;
+      opt.twidth = options->twidth;
+      opt.fill = options->fill;
+      opt.firstchannel = options->firstchannel;
+      if (options->swrap) opt.swrap = OIIO::TextureOpt::decode_wrapmode(options->swrap);
+      if (options->twrap) opt.twrap = OIIO::TextureOpt::decode_wrapmode(options->twrap);
+    }
+    if (textureSystem()->texture(OIIO::ustring(filename), opt, s, t, dsdx, dtdx, dsdy, dtdy, nchannels, out, dout_ds,
+                                 dout_dt))
+      return 1;
+    // Taking the message also clears it from this thread's error state.
+    std::string message = textureSystem()->geterror();
+    if (const size_t nl = message.find('\n'); nl != std::string::npos) message.resize(nl);
+    copyMessage(message, why, whySize);
+    return 0;
+  } catch (const std::exception& e) {
+    copyMessage(e.what(), why, whySize);
+    return 0;
+  } catch (...) {
+    copyMessage("internal error in OpenImageIO", why, whySize);
+    return 0;
+  }
+}
+
+void setTextureSearchPath(const char* joined) {
+  try {
+    textureSystem()->attribute("searchpath", std::string(joined ? joined : ""));
+  } catch (...) {
+  }
+}
+
+int32_t writeImage(const char* path, int32_t width, int32_t height, int32_t channels, int32_t floatPixels,
+                   const void* pixels, int32_t alphaChannel, int32_t unassociatedAlpha, const char* colorSpace,
+                   const char* const* channelNames, const char* const* metadata, char* error, size_t errorSize) {
+  try {
+    auto out = OIIO::ImageOutput::create(path);
+    if (!out) {
+      copyMessage(OIIO::geterror(), error, errorSize);
+      return 0;
+    }
+    const OIIO::TypeDesc format = floatPixels ? OIIO::TypeDesc::FLOAT : OIIO::TypeDesc::UINT8;
+    OIIO::ImageSpec spec(width, height, channels, format);
+    spec.attribute("oiio:ColorSpace", colorSpace ? colorSpace : "sRGB");
+    spec.attribute("Software", "relief");
+    for (const char* const* m = metadata; m && m[0]; m += 2) spec.attribute(m[0], m[1] ? m[1] : "");
+    if (channelNames) spec.channelnames.assign(channelNames, channelNames + channels);
+    if (alphaChannel >= 0) {
+      spec.alpha_channel = alphaChannel;
+      if (unassociatedAlpha) spec.attribute("oiio:UnassociatedAlpha", 1);
+    }
+    if (!out->open(path, spec)) {
+      copyMessage(out->geterror(), error, errorSize);
+      return 0;
+    }
+    const bool ok = out->write_image(format, pixels);
+    std::string message = ok ? std::string() : out->geterror();
+    if (!out->close() && ok) message = out->geterror();
+    if (!ok || !message.empty()) {
+      copyMessage(message.empty() ? "write failed" : message, error, errorSize);
+      return 0;
+    }
+    return 1;
+  } catch (const std::exception& e) {
+    copyMessage(e.what(), error, errorSize);
+    return 0;
+  } catch (...) {
+    copyMessage("internal error in OpenImageIO", error, errorSize);
+    return 0;
+  }
+}
+
+const RlfImageLibrary kTable = {
+    RLF_IMAGE_LIBRARY_VERSION, sizeof(RlfImageLibrary), texture, setTextureSearchPath, writeImage,
+};
+
+}  // namespace
+
+extern "C" __attribute__((visibility("default"))) const RlfImageLibrary* rlf_image_library(void) { return &kTable; }
