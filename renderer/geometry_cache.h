@@ -76,13 +76,14 @@ struct VoxelGeometry {
   std::vector<uint32_t> subTriangles32;  // otherwise
 
   // Per-voxel BVH over dense voxels (the default; the sub-grid above is the alternative kept for
-  // measurement, docs/cache.md): binary nodes whose boxes are 16-bit fixed point on a per-voxel
-  // lattice (bvhOrigin + q * bvhStep, rounded outward), children stored side by side, leaves of
-  // at most kBvhLeafSize triangles. The build stores the triangles (indices and keys) in leaf
-  // order, so a leaf is a range of them and needs no references.
+  // measurement, docs/cache.md): a binary SAH tree collapsed into 4-wide nodes, each holding its
+  // children's boxes in 16-bit fixed point on a per-voxel lattice (bvhOrigin + q * bvhStep,
+  // rounded outward), laid out per axis so one SIMD slab test covers all four. Leaves hold at
+  // most kBvhLeafSize triangles. The build stores the triangles (indices and keys) in leaf order,
+  // so a leaf is a range of them and needs no references. Node 0 is the root.
   struct BvhNode {
-    uint16_t lo[3], hi[3];
-    uint32_t data;  // leaf: kBvhLeafFlag | count << 24 | first triangle; else its first child
+    uint16_t lo[3][4], hi[3][4];  // [axis][child]; an unused slot is lo 65535 > hi 0: never entered
+    uint32_t child[4];            // leaf: kBvhLeafFlag | count << 24 | first triangle; else a node
   };
   static constexpr uint32_t kBvhLeafFlag = 1u << 31;
   std::vector<BvhNode> bvhNodes;

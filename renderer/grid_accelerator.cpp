@@ -13,6 +13,10 @@
 
 #include "renderer/intersect.h"
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 namespace relief {
 namespace {
 
@@ -124,10 +128,11 @@ void buildSubGrid(VoxelGeometry& g, const Bounds3& box, float padding) {
 }
 
 // SAH bins per split, and the depth below which splits turn to medians: a median split halves the
-// count, so the depth stays below kBvhSahDepth + 24 (< kBvhStack) for fewer than 2^24 triangles.
+// count, so the binary tree's depth stays below kBvhSahDepth + 24 for fewer than 2^24 triangles.
+// The 4-wide tree is no deeper, and a visit adds at most three entries to the traversal stack.
 constexpr int kBvhBins = 16;
 constexpr uint32_t kBvhSahDepth = 40;
-constexpr int kBvhStack = 96;
+constexpr int kBvhStack = 3 * (int(kBvhSahDepth) + 24) + 4;
 // Leaves: nodes of at most kBvhMinLeaf triangles always are, nodes of up to kBvhLeafSize are where
 // the heuristic, charging a node visit kBvhTraverseCost triangle tests, finds no cheaper split.
 // The costs are deliberately high: on the facade (docs/cache.md) they keep the BVH at the sub-grid's
@@ -165,7 +170,13 @@ void buildBvh(VoxelGeometry& g, float padding) {
   }
   g.bvhOrigin = lo;
   g.bvhStep = glm::max((hi - lo) / 65535.0f, glm::vec3(std::numeric_limits<float>::min()));
-  auto quantize = [&](VoxelGeometry::BvhNode& node, glm::vec3 a, glm::vec3 b) {
+  // The binary tree first (children side by side), collapsed into 4-wide nodes below.
+  struct BinaryNode {
+    uint16_t lo[3], hi[3];
+    uint32_t data;  // leaf: kBvhLeafFlag | count << 24 | first triangle; else its first child
+  };
+  thread_local std::vector<BinaryNode> bin;
+  auto quantize = [&](BinaryNode& node, glm::vec3 a, glm::vec3 b) {
     for (int k = 0; k < 3; ++k) {
       const float qa = std::floor((a[k] - g.bvhOrigin[k]) / g.bvhStep[k]) - 1.0f;
       const float qb = std::ceil((b[k] - g.bvhOrigin[k]) / g.bvhStep[k]) + 1.0f;
@@ -173,9 +184,9 @@ void buildBvh(VoxelGeometry& g, float padding) {
       node.hi[k] = uint16_t(std::clamp(qb, 0.0f, 65535.0f));
     }
   };
-  g.bvhNodes.clear();
-  g.bvhNodes.reserve(2 * ((n + kBvhLeafSize - 1) / kBvhLeafSize));
-  g.bvhNodes.emplace_back();
+  bin.clear();
+  bin.reserve(2 * ((n + kBvhLeafSize - 1) / kBvhLeafSize));
+  bin.emplace_back();
   struct Task {
     uint32_t node, begin, end, depth;
   };
@@ -191,9 +202,9 @@ void buildBvh(VoxelGeometry& g, float padding) {
       blo = glm::min(blo, b.lo), bhi = glm::max(bhi, b.hi);
       clo = glm::min(clo, refs[k].centre), chi = glm::max(chi, refs[k].centre);
     }
-    quantize(g.bvhNodes[task.node], blo, bhi);
+    quantize(bin[task.node], blo, bhi);
     const uint32_t count = task.end - task.begin;
-    auto makeLeaf = [&] { g.bvhNodes[task.node].data = VoxelGeometry::kBvhLeafFlag | (count << 24) | task.begin; };
+    auto makeLeaf = [&] { bin[task.node].data = VoxelGeometry::kBvhLeafFlag | (count << 24) | task.begin; };
     if (count <= kBvhMinLeaf) {
       makeLeaf();
       continue;
@@ -270,11 +281,62 @@ void buildBvh(VoxelGeometry& g, float padding) {
                                 (a.centre[axis] == b.centre[axis] && a.index < b.index);
                        });
     }
-    const uint32_t child = uint32_t(g.bvhNodes.size());
-    g.bvhNodes.emplace_back(), g.bvhNodes.emplace_back();
-    g.bvhNodes[task.node].data = child;
+    const uint32_t child = uint32_t(bin.size());
+    bin.emplace_back(), bin.emplace_back();
+    bin[task.node].data = child;
     tasks.push_back({child + 1, mid, task.end, task.depth + 1});
     tasks.push_back({child, task.begin, mid, task.depth + 1});
+  }
+  // Collapse: each wide node takes its binary node's two children, then keeps opening the inner
+  // child of largest surface area until it holds four (or only leaves). Leaves sit in their
+  // parent's slots; the tree keeps the binary one's boxes, so it is exactly as conservative.
+  auto area = [](const BinaryNode& b) {
+    const float dx = float(b.hi[0] - b.lo[0]), dy = float(b.hi[1] - b.lo[1]), dz = float(b.hi[2] - b.lo[2]);
+    return dx * dy + dy * dz + dz * dx;
+  };
+  // The root always splits: it holds at least kSubGridThreshold triangles, more than a leaf may.
+  static_assert(kSubGridThreshold > kBvhLeafSize);
+  g.bvhNodes.assign(1, VoxelGeometry::BvhNode{});
+  g.bvhNodes.reserve(bin.size() / 3 + 1);
+  struct Job {
+    uint32_t binary, wide;
+  };
+  thread_local std::vector<Job> jobs;
+  jobs.assign(1, {0, 0});
+  while (!jobs.empty()) {
+    const Job job = jobs.back();
+    jobs.pop_back();
+    uint32_t kids[4] = {bin[job.binary].data, bin[job.binary].data + 1};
+    int count = 2;
+    while (count < 4) {
+      int open = -1;
+      float largest = -1.0f;
+      for (int i = 0; i < count; ++i)
+        if (!(bin[kids[i]].data & VoxelGeometry::kBvhLeafFlag) && area(bin[kids[i]]) > largest)
+          open = i, largest = area(bin[kids[i]]);
+      if (open < 0) break;
+      const uint32_t first = bin[kids[open]].data;
+      kids[open] = first, kids[count++] = first + 1;
+    }
+    for (int i = 0; i < 4; ++i) {
+      uint32_t ref = VoxelGeometry::kBvhLeafFlag;  // an empty leaf in an unused slot
+      if (i < count) {
+        const BinaryNode& b = bin[kids[i]];
+        if (b.data & VoxelGeometry::kBvhLeafFlag) {
+          ref = b.data;
+        } else {
+          ref = uint32_t(g.bvhNodes.size());
+          g.bvhNodes.emplace_back();
+          jobs.push_back({kids[i], ref});
+        }
+      }
+      VoxelGeometry::BvhNode& node = g.bvhNodes[job.wide];
+      node.child[i] = ref;
+      for (int k = 0; k < 3; ++k) {
+        node.lo[k][i] = i < count ? bin[kids[i]].lo[k] : uint16_t(65535);
+        node.hi[k][i] = i < count ? bin[kids[i]].hi[k] : uint16_t(0);
+      }
+    }
   }
   g.bvhNodes.shrink_to_fit();
   // The triangles move into leaf order, so leaves address them directly: their indices and keys
@@ -568,46 +630,68 @@ void GridAccelerator::intersectVoxel(uint32_t voxel, const WatertightRay& wr, co
       base[k] = (g->bvhOrigin[k] - ray.origin[k]) * sr.inv[k];
       scale[k] = g->bvhStep[k] * sr.inv[k];
     }
-    const bool* negative = sr.negative;
     const float tLow = ray.tMin;
-    auto enter = [&](const VoxelGeometry::BvhNode& node, float& tEntry) {
-      float t0 = tLow, t1 = limit;
-      for (int k = 0; k < 3; ++k) {
-        float a = base[k] + float(node.lo[k]) * scale[k], b = base[k] + float(node.hi[k]) * scale[k];
-        if (negative[k]) std::swap(a, b);
-        t0 = std::max(t0, a), t1 = std::min(t1, b);
-      }
-      tEntry = t0;
-      return t0 <= t1;
-    };
     // Node and entry distance in separate arrays: a pop that reloads both halves of one 8-byte
-    // entry written as two 4-byte stores stalls on store forwarding (12% of this function).
+    // entry written as two 4-byte stores stalls on store forwarding. Entries are node indices or
+    // leaves (kBvhLeafFlag), so leaves too are visited nearest first.
     uint32_t stackNode[kBvhStack];
     float stackT[kBvhStack];
     int top = 0;
-    auto push = [&](uint32_t node, float t) { stackNode[top] = node, stackT[top] = t, ++top; };
-    float tRoot;
-    if (enter(g->bvhNodes[0], tRoot)) push(0, tRoot);
+    stackNode[top] = 0, stackT[top] = tLow, ++top;
     while (top > 0 && !(anyHit && best.found)) {
       --top;
       if (stackT[top] > limit) continue;  // a nearer hit was found since it was pushed
-      const VoxelGeometry::BvhNode& node = g->bvhNodes[stackNode[top]];
-      if (node.data & VoxelGeometry::kBvhLeafFlag) {
-        const uint32_t first = node.data & 0xffffffu, count = (node.data >> 24) & 0x7fu;
+      const uint32_t ref = stackNode[top];
+      if (ref & VoxelGeometry::kBvhLeafFlag) {
+        const uint32_t first = ref & 0xffffffu, count = (ref >> 24) & 0x7fu;
         for (uint32_t k = first; k < first + count && !(anyHit && best.found); ++k) test(k);
         continue;
       }
-      float ta, tb;
-      const bool hitA = enter(g->bvhNodes[node.data], ta), hitB = enter(g->bvhNodes[node.data + 1], tb);
-      // The nearer child on top; the depth bound of buildBvh keeps this within the stack.
-      if (hitA && hitB) {
-        if (ta <= tb) push(node.data + 1, tb), push(node.data, ta);
-        else push(node.data, ta), push(node.data + 1, tb);
-      } else if (hitA) {
-        push(node.data, ta);
-      } else if (hitB) {
-        push(node.data + 1, tb);
+      const VoxelGeometry::BvhNode& node = g->bvhNodes[ref];
+      // The four children's slab tests at once: per axis, the near and far planes' distances
+      // t = base + q * scale (near is the low plane for a positive direction).
+      float tNear[4], tFar[4];
+#if defined(__SSE2__)
+      __m128 vNear = _mm_set1_ps(tLow), vFar = _mm_set1_ps(limit);
+      const __m128i zero = _mm_setzero_si128();
+      for (int k = 0; k < 3; ++k) {
+        const uint16_t* nearQ = sr.negative[k] ? node.hi[k] : node.lo[k];
+        const uint16_t* farQ = sr.negative[k] ? node.lo[k] : node.hi[k];
+        const __m128 qn = _mm_cvtepi32_ps(
+            _mm_unpacklo_epi16(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(nearQ)), zero));
+        const __m128 qf = _mm_cvtepi32_ps(
+            _mm_unpacklo_epi16(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(farQ)), zero));
+        const __m128 b = _mm_set1_ps(base[k]), s = _mm_set1_ps(scale[k]);
+        vNear = _mm_max_ps(vNear, _mm_add_ps(b, _mm_mul_ps(qn, s)));
+        vFar = _mm_min_ps(vFar, _mm_add_ps(b, _mm_mul_ps(qf, s)));
       }
+      const int mask = _mm_movemask_ps(_mm_cmple_ps(vNear, vFar));
+      _mm_storeu_ps(tNear, vNear);
+      (void)tFar;
+#else
+      int mask = 0;
+      for (int i = 0; i < 4; ++i) {
+        tNear[i] = tLow, tFar[i] = limit;
+        for (int k = 0; k < 3; ++k) {
+          const float a = base[k] + float(sr.negative[k] ? node.hi[k][i] : node.lo[k][i]) * scale[k];
+          const float b = base[k] + float(sr.negative[k] ? node.lo[k][i] : node.hi[k][i]) * scale[k];
+          tNear[i] = std::max(tNear[i], a), tFar[i] = std::min(tFar[i], b);
+        }
+        mask |= int(tNear[i] <= tFar[i]) << i;
+      }
+#endif
+      if (!mask) continue;
+      // Push the entered children farthest first, so the nearest is popped next.
+      uint32_t hitRef[4];
+      float hitT[4];
+      int hits = 0;
+      for (int i = 0; i < 4; ++i) {
+        if (!(mask >> i & 1)) continue;
+        int j = hits++;
+        for (; j > 0 && hitT[j - 1] < tNear[i]; --j) hitRef[j] = hitRef[j - 1], hitT[j] = hitT[j - 1];
+        hitRef[j] = node.child[i], hitT[j] = tNear[i];
+      }
+      for (int j = 0; j < hits; ++j) stackNode[top] = hitRef[j], stackT[top] = hitT[j], ++top;
     }
   } else if (g->subResolution.x == 0) {  // sparse, or a BVH voxel for an unusable direction
     for (uint32_t i = 0; i < g->numTriangles() && !(anyHit && best.found); ++i) test(i);
