@@ -127,7 +127,10 @@ struct Scratch {
   std::vector<Look> looks, nextLooks;
   std::vector<int64_t> centre;  // per active triangle: its centre vertex when split 1-to-3, or -1
   struct Interior {
-    uint32_t triangle, firstProbe, numProbes;
+    uint32_t triangle;
+    int depth;         // samples on the uniform subdivision with 2^depth steps per edge
+    bool flat;         // every sample evaluated so far lies within the flatness
+    uint32_t firstProbe, numProbes;  // this stage's samples
   };
   std::vector<Interior> interiors;
   EdgeMap edges;  // (min, max) vertex pair -> midpoint, or -1: kept
@@ -531,9 +534,17 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
         const int level = std::max({vs.level[a], vs.level[b], vs.level[c]});
         if (level + 1 > maxDepth) continue;
         centre[k / 3] = addInteriorPoint(vs, a, b, c, 1.0f / 3, 1.0f / 3, 1.0f / 3, level + 1);
-        interiors.push_back({uint32_t(k / 3), 0, 0});
+        interiors.push_back({uint32_t(k / 3), 0, true, 0, 0});
       }
+      // The samples come in stages, coarse to fine: the lattice of 2^s steps per edge holds the
+      // one of 2^(s-1), so stage s evaluates only the points new at s, for the triangles still
+      // flat. A triangle that is not flat usually shows it at the centre or the first stages, and
+      // the stages of finer samples it would have failed anyway are never evaluated. The decision
+      // (every sample of the finest lattice and the centre within `flatness`) is the same as
+      // evaluating them all at once: the points are the same bits (dyadic weights), and each is
+      // displaced on its own.
       const uint32_t firstSample = vs.size();
+      int deepest = 0;
       for (Scratch::Interior& in : interiors) {
         const uint32_t a = active[3 * in.triangle], b = active[3 * in.triangle + 1],
                        c = active[3 * in.triangle + 2];
@@ -545,26 +556,50 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
         while (depth < kMaxInteriorDepth && depth < maxDepth - level &&
                longest > disp.edgeLength * float(1 << depth))
           ++depth;
-        const int steps = 1 << depth;
-        in.firstProbe = vs.size();
-        for (int i = 1; i < steps; ++i)
-          for (int j = 1; i + j < steps; ++j)
-            addInteriorPoint(vs, a, b, c, float(steps - i - j) / float(steps), float(i) / float(steps),
-                             float(j) / float(steps), level + depth);
-        in.numProbes = vs.size() - in.firstProbe;
+        in.depth = depth;
+        deepest = std::max(deepest, depth);
+        // The unsimplified mesh has every point of the finest lattice, evaluated or not.
+        const uint64_t steps = uint64_t(1) << depth;
+        samplePoints += (steps - 1) * (steps - 2) / 2;
       }
       displace(disp, frame, vs, firstCentre, scratch.batch, counters);
-      for (const Scratch::Interior& in : interiors) {
+      for (Scratch::Interior& in : interiors) {
         const uint32_t a = active[3 * in.triangle], b = active[3 * in.triangle + 1],
                        c = active[3 * in.triangle + 2];
-        const glm::vec3 A = vs.displaced[a], B = vs.displaced[b], C = vs.displaced[c];
-        bool flat = nearTriangle(A, B, C, vs.displaced[size_t(centre[in.triangle])], disp.flatness);
-        for (uint32_t i = 0; flat && i < in.numProbes; ++i)
-          flat = nearTriangle(A, B, C, vs.displaced[in.firstProbe + i], disp.flatness);
-        if (flat) centre[in.triangle] = -1;  // final: the centre stays unreferenced
+        in.flat = nearTriangle(vs.displaced[a], vs.displaced[b], vs.displaced[c],
+                               vs.displaced[size_t(centre[in.triangle])], disp.flatness);
       }
-      samplePoints += vs.size() - firstSample;
-      vs.truncate(firstSample);  // samples are never referenced; centres may be
+      // Two steps per edge have no interior point; stages start at four.
+      for (int stage = 2; stage <= deepest; ++stage) {
+        const int steps = 1 << stage;
+        for (Scratch::Interior& in : interiors) {
+          in.numProbes = 0;
+          if (!in.flat || in.depth < stage) continue;
+          const uint32_t a = active[3 * in.triangle], b = active[3 * in.triangle + 1],
+                         c = active[3 * in.triangle + 2];
+          const int level = std::max({vs.level[a], vs.level[b], vs.level[c]});
+          in.firstProbe = vs.size();
+          for (int i = 1; i < steps; ++i)
+            for (int j = 1; i + j < steps; ++j)
+              if ((i | j) & 1)  // not on the previous stage's lattice
+                addInteriorPoint(vs, a, b, c, float(steps - i - j) / float(steps), float(i) / float(steps),
+                                 float(j) / float(steps), level + in.depth);
+          in.numProbes = vs.size() - in.firstProbe;
+        }
+        if (vs.size() == firstSample) break;  // nothing left flat at this depth
+        displace(disp, frame, vs, firstSample, scratch.batch, counters);
+        for (Scratch::Interior& in : interiors) {
+          if (in.numProbes == 0) continue;
+          const uint32_t a = active[3 * in.triangle], b = active[3 * in.triangle + 1],
+                         c = active[3 * in.triangle + 2];
+          const glm::vec3 A = vs.displaced[a], B = vs.displaced[b], C = vs.displaced[c];
+          for (uint32_t i = 0; in.flat && i < in.numProbes; ++i)
+            in.flat = nearTriangle(A, B, C, vs.displaced[in.firstProbe + i], disp.flatness);
+        }
+        vs.truncate(firstSample);  // samples are never referenced; centres may be
+      }
+      for (const Scratch::Interior& in : interiors)
+        if (in.flat) centre[in.triangle] = -1;  // final: the centre stays unreferenced
     };
     // A finished triangle's id: its own path code while rounds < kCullRounds, else its ancestor's
     // code and its rank among that ancestor's finished descendants.

@@ -49,6 +49,22 @@ void runawayEntry(const RlfShadingBatch* b, const void*, RlfStatus*) {
   }
 }
 
+// A narrow bump (height p0, width p1) along N around (15/32, 6/32, 0): on makeQuad's triangle 0
+// that is the point with barycentric weights (17, 9, 6) / 32, a sample of the finest interior
+// lattice (32 steps) that no coarser lattice has, and far from the triangle's edges and centre.
+void narrowBumpEntry(const RlfShadingBatch* b, const void* params, RlfStatus*) {
+  float height, width;
+  std::memcpy(&height, params, 4);
+  std::memcpy(&width, static_cast<const char*>(params) + 4, 4);
+  for (uint32_t i = 0; i < b->count; ++i) {
+    const glm::vec3 p(b->P.x[i], b->P.y[i], b->P.z[i]), n(b->N.x[i], b->N.y[i], b->N.z[i]);
+    const glm::vec3 d = p - glm::vec3(15.0f / 32, 6.0f / 32, 0.0f);
+    const glm::vec3 out = p + n * (height * std::exp(-glm::dot(d, d) / (width * width)));
+    b->Pout.x[i] = out.x, b->Pout.y[i] = out.y, b->Pout.z[i] = out.z;
+    b->Nout.x[i] = n.x, b->Nout.y[i] = n.y, b->Nout.z[i] = n.z;
+  }
+}
+
 // The 12 triangles of the cube [-1, 1]^3, wound outward, corners shared between faces.
 Mesh makeCube() {
   Mesh mesh;
@@ -129,6 +145,21 @@ TEST(Simplify, RemovedVerticesLieWithinTolerance) {
       EXPECT_LE(worst, flatness * 1.001f + 1e-6f) << "flatness " << flatness << " freq " << freq;
     }
   }
+}
+
+// Interior flatness is judged on every point of the finest sampling lattice: a bump that only
+// one of those points sees (the coarser lattices, the centre and the edges miss it) keeps the
+// triangle from being final. Without the bump the same triangle merges back into one.
+TEST(Simplify, InteriorDetailSeenByOneFineSampleIsKept) {
+  const Mesh quad = makeQuad();
+  MicroMesh mm;
+  SubdivideCounters counters;
+  const Displacement flat = makeDisplacement(narrowBumpEntry, 0.0f, 0.008f, 0.03f, 10, 0.002f);
+  subdivideTriangle(quad, 0, &flat, mm, counters);
+  EXPECT_EQ(mm.numTriangles(), 1u);
+  const Displacement bump = makeDisplacement(narrowBumpEntry, 0.1f, 0.008f, 0.03f, 10, 0.002f);
+  subdivideTriangle(quad, 0, &bump, mm, counters);
+  EXPECT_GT(mm.numTriangles(), 1u);
 }
 
 // The paper's bevelled box: flat faces merge back to their input triangles; only the bevels keep
