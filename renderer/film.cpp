@@ -30,10 +30,21 @@ float linearToSrgb(float v) {
   return v <= 0.0031308f ? 12.92f * v : 1.055f * std::pow(v, 1.0f / 2.4f) - 0.055f;
 }
 
-bool isFloatFormat(const std::string& path) {
+namespace {
+std::string lowerExtension(const std::string& path) {
   std::string extension = fs::path(path).extension().string();
   std::transform(extension.begin(), extension.end(), extension.begin(),
                  [](unsigned char c) { return char(std::tolower(c)); });
+  return extension;
+}
+// PNG and PNM are written here (image_formats.cpp), everything else by the image library.
+bool ownFormat(const std::string& extension) {
+  return extension == ".png" || extension == ".ppm" || extension == ".pgm" || extension == ".pnm";
+}
+}  // namespace
+
+bool isFloatFormat(const std::string& path) {
+  const std::string extension = lowerExtension(path);
   return extension == ".exr" || extension == ".hdr";
 }
 
@@ -84,6 +95,22 @@ Film heatMapForDisplay(const Film& counts) {
   return out;
 }
 
+bool canWriteFormat(const std::string& path, std::string* error) {
+  const std::string extension = lowerExtension(path);
+  if (extension.empty()) {
+    *error = "cannot write '" + path + "': no file extension to choose the image format";
+    return false;
+  }
+  if (ownFormat(extension)) return true;
+  std::string why;
+  const RlfImageLibrary* library = runtime::imageLibrary(&why);
+  char message[1024];
+  message[0] = 0;
+  if (library && library->canWrite(path.c_str(), message, sizeof message)) return true;
+  *error = "cannot write '" + path + "': " + (library ? std::string(message) : why);
+  return false;
+}
+
 bool Film::write(const std::string& path, std::string* error, bool withAlpha) const {
   ImageWriteOptions options;
   options.alpha = withAlpha;
@@ -108,9 +135,7 @@ bool commitStagedImage(const std::string& stagedPath, const std::string& path, s
 bool Film::writeStaged(const std::string& path, std::string* stagedPath, std::string* error,
                        const ImageWriteOptions& options) const {
   const bool withAlpha = options.alpha;
-  std::string extension = fs::path(path).extension().string();
-  std::transform(extension.begin(), extension.end(), extension.begin(),
-                 [](unsigned char c) { return char(std::tolower(c)); });
+  const std::string extension = lowerExtension(path);
   if (extension.empty()) {
     *error = "cannot write '" + path + "': no file extension to choose the image format";
     return false;
@@ -161,8 +186,7 @@ bool Film::writeStaged(const std::string& path, std::string* stagedPath, std::st
   const fs::path temp = target.parent_path() / tempName;
   std::string writeError;
   bool ok;
-  const bool pnm = extension == ".ppm" || extension == ".pgm" || extension == ".pnm";
-  if (!floatOutput && (extension == ".png" || (pnm && !withAlpha))) {
+  if (!floatOutput && ownFormat(extension) && (extension == ".png" || !withAlpha)) {
     const Image8 image{width_, height_, channels, bytes.data()};
     ok = extension == ".png" ? writePng(temp.string(), image, options.srgb, options.metadata, &writeError)
                              : writePnm(temp.string(), image, &writeError);
@@ -184,6 +208,9 @@ bool Film::writeStaged(const std::string& path, std::string* stagedPath, std::st
                              floatOutput || !options.srgb ? "linear" : "sRGB", names.empty() ? nullptr : names.data(),
                              metadata.data(), message, sizeof message) != 0;
     writeError = message;
+    // OpenImageIO names the file it was given, the staged one; the user knows the final name.
+    for (size_t at = 0; (at = writeError.find(temp.string(), at)) != std::string::npos; at += path.size())
+      writeError.replace(at, temp.string().size(), path);
   } else {
     ok = false;
   }

@@ -76,6 +76,11 @@ bool commitStagedImage(const std::string& stagedPath, const std::string& path, s
 // True for formats written as linear floats (exr, hdr), judged by the extension.
 bool isFloatFormat(const std::string& path);
 
+// Whether write() can produce `path`'s format, checked before a render so that a mistyped
+// extension fails at once rather than after the render. Loads the image library for formats
+// other than PNG and PNM. Returns false with *error set ("cannot write 'path': ...").
+bool canWriteFormat(const std::string& path, std::string* error);
+
 // Arbitrary output variables mapped for viewing in 8-bit formats (float formats keep raw values):
 // depth as grey, near white to far black over the range of hits (misses black); normals as
 // 0.5 + 0.5 N; cache misses as a black-red-yellow-white heat map scaled to the largest count.

@@ -714,6 +714,14 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
     }
   }
   written->paths.insert(outputKeys.begin(), outputKeys.end());
+  // A format nothing can write fails now, not after the render.
+  for (const std::string& path : outputs) {
+    std::string error;
+    if (!relief::canWriteFormat(path, &error)) {
+      std::cerr << "relief: error: " << error << "\n";
+      return 1;
+    }
+  }
 
   uint64_t inputTriangles = 0;
   for (const relief::Mesh& m : scene.meshes) inputTriangles += m.numTriangles();

@@ -106,8 +106,20 @@ int32_t writeImage(const char* path, int32_t width, int32_t height, int32_t chan
   }
 }
 
+int32_t canWrite(const char* path, char* error, size_t errorSize) {
+  try {
+    if (OIIO::ImageOutput::create(path)) return 1;
+    copyMessage(OIIO::geterror(), error, errorSize);
+  } catch (const std::exception& e) {
+    copyMessage(e.what(), error, errorSize);
+  } catch (...) {
+    copyMessage("internal error in OpenImageIO", error, errorSize);
+  }
+  return 0;
+}
+
 const RlfImageLibrary kTable = {
-    RLF_IMAGE_LIBRARY_VERSION, sizeof(RlfImageLibrary), texture, setTextureSearchPath, writeImage,
+    RLF_IMAGE_LIBRARY_VERSION, sizeof(RlfImageLibrary), texture, setTextureSearchPath, writeImage, canWrite,
 };
 
 }  // namespace

@@ -520,6 +520,23 @@ TEST(Relief, FailedOutputLeavesNoImage) {
   }
 }
 
+// A format nothing can write is an error before the render starts (no progress is printed), and
+// the message names the file the user asked for, not the temporary it would have been staged in.
+TEST(Relief, AnUnwritableFormatFailsBeforeTheRender) {
+  const fs::path dir = scratchDir();
+  const fs::path scene = smallScene(dir, "");
+  const fs::path image = dir / "a.unknownformat";
+  RunResult r = run(kRelief + " " + scene.string() + " -o " + image.string());
+  EXPECT_EQ(r.exitCode, 1);
+  EXPECT_NE(r.err.find("relief: error: cannot write '" + image.string() + "'"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find(".tmp"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("rendering"), std::string::npos) << r.err;
+  r = run(kRelief + " " + scene.string() + " -o " + (dir / "noextension").string());
+  EXPECT_EQ(r.exitCode, 1);
+  EXPECT_NE(r.err.find("no file extension"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("rendering"), std::string::npos) << r.err;
+}
+
 // Displays are all-or-nothing: when a later one cannot be written, the earlier ones (complete by
 // then) are not left behind either, nor any temporary file; the exit status says the render failed.
 TEST(Relief, FailedDisplayLeavesNoneOfTheOthers) {
