@@ -95,13 +95,17 @@ Film heatMapForDisplay(const Film& counts) {
   return out;
 }
 
-bool canWriteFormat(const std::string& path, std::string* error) {
+bool canWriteFormat(const std::string& path, bool alpha, std::string* error) {
   const std::string extension = lowerExtension(path);
   if (extension.empty()) {
     *error = "cannot write '" + path + "': no file extension to choose the image format";
     return false;
   }
-  if (ownFormat(extension)) return true;
+  if (ownFormat(extension)) {
+    if (!alpha || extension == ".png") return true;
+    *error = "cannot write '" + path + "': PNM has no alpha channel (use png, tif or exr for \"rgba\")";
+    return false;
+  }
   std::string why;
   const RlfImageLibrary* library = runtime::imageLibrary(&why);
   char message[1024];
@@ -186,15 +190,10 @@ bool Film::writeStaged(const std::string& path, std::string* stagedPath, std::st
   const fs::path temp = target.parent_path() / tempName;
   std::string writeError;
   bool ok;
-  if (!floatOutput && ownFormat(extension) && (extension == ".png" || !withAlpha)) {
+  if (ownFormat(extension)) {
     const Image8 image{width_, height_, channels, bytes.data()};
     ok = extension == ".png" ? writePng(temp.string(), image, options.srgb, options.metadata, &writeError)
                              : writePnm(temp.string(), image, &writeError);
-    // The writers name the file they wrote; the user knows only the final name.
-    if (!ok) {
-      const std::string prefix = "cannot write '" + temp.string() + "': ";
-      if (writeError.rfind(prefix, 0) == 0) writeError.erase(0, prefix.size());
-    }
   } else if (const RlfImageLibrary* library = runtime::imageLibrary(&writeError)) {
     std::vector<const char*> names, metadata;
     if (!options.channelNames.empty() && int(options.channelNames.size()) == channels)

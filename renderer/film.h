@@ -79,7 +79,8 @@ bool isFloatFormat(const std::string& path);
 // Whether write() can produce `path`'s format, checked before a render so that a mistyped
 // extension fails at once rather than after the render. Loads the image library for formats
 // other than PNG and PNM. Returns false with *error set ("cannot write 'path': ...").
-bool canWriteFormat(const std::string& path, std::string* error);
+// `alpha`: the image would have a coverage channel (mode "rgba").
+bool canWriteFormat(const std::string& path, bool alpha, std::string* error);
 
 // Arbitrary output variables mapped for viewing in 8-bit formats (float formats keep raw values):
 // depth as grey, near white to far black over the range of hits (misses black); normals as

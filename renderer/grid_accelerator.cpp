@@ -650,7 +650,7 @@ void GridAccelerator::intersectVoxel(uint32_t voxel, const WatertightRay& wr, co
       const VoxelGeometry::BvhNode& node = g->bvhNodes[ref];
       // The four children's slab tests at once: per axis, the near and far planes' distances
       // t = base + q * scale (near is the low plane for a positive direction).
-      float tNear[4], tFar[4];
+      float tNear[4];
 #if defined(__SSE2__)
       __m128 vNear = _mm_set1_ps(tLow), vFar = _mm_set1_ps(limit);
       const __m128i zero = _mm_setzero_si128();
@@ -662,13 +662,15 @@ void GridAccelerator::intersectVoxel(uint32_t voxel, const WatertightRay& wr, co
         const __m128 qf = _mm_cvtepi32_ps(
             _mm_unpacklo_epi16(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(farQ)), zero));
         const __m128 b = _mm_set1_ps(base[k]), s = _mm_set1_ps(scale[k]);
-        vNear = _mm_max_ps(vNear, _mm_add_ps(b, _mm_mul_ps(qn, s)));
-        vFar = _mm_min_ps(vFar, _mm_add_ps(b, _mm_mul_ps(qf, s)));
+        // Operands in this order, a NaN plane is ignored (SSE max/min return the second
+        // operand then), as std::max/min ignore it in the scalar code: the test stays conservative.
+        vNear = _mm_max_ps(_mm_add_ps(b, _mm_mul_ps(qn, s)), vNear);
+        vFar = _mm_min_ps(_mm_add_ps(b, _mm_mul_ps(qf, s)), vFar);
       }
       const int mask = _mm_movemask_ps(_mm_cmple_ps(vNear, vFar));
       _mm_storeu_ps(tNear, vNear);
-      (void)tFar;
 #else
+      float tFar[4];
       int mask = 0;
       for (int i = 0; i < 4; ++i) {
         tNear[i] = tLow, tFar[i] = limit;

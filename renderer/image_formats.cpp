@@ -17,7 +17,7 @@ namespace {
 // Closes the file on every path; close() reports the error a buffered write may only show there.
 class OutFile {
  public:
-  OutFile(const std::string& path) : path_(path), file_(std::fopen(path.c_str(), "wb")) {
+  explicit OutFile(const std::string& path) : file_(std::fopen(path.c_str(), "wb")) {
     if (!file_) failure_ = std::strerror(errno);
   }
   ~OutFile() {
@@ -31,12 +31,11 @@ class OutFile {
     if (file_ && std::fclose(file_) != 0 && ok()) failure_ = std::strerror(errno);
     file_ = nullptr;
     if (ok()) return true;
-    *error = "cannot write '" + path_ + "': " + failure_;
+    *error = failure_;
     return false;
   }
 
  private:
-  std::string path_;
   FILE* file_;
   std::string failure_;
 };
@@ -115,7 +114,7 @@ bool writePng(const std::string& path, const Image8& image, bool srgb,
               const std::vector<std::pair<std::string, std::string>>& text, std::string* error) {
   static const uint8_t kColourType[5] = {0, 0, 4, 2, 6};
   if (image.channels < 1 || image.channels > 4 || image.width <= 0 || image.height <= 0) {
-    *error = "cannot write '" + path + "': unsupported image shape for PNG";
+    *error = "PNG holds 1 to 4 channels";
     return false;
   }
   const size_t rowBytes = size_t(image.width) * size_t(image.channels);
@@ -123,7 +122,7 @@ bool writePng(const std::string& path, const Image8& image, bool srgb,
   // The zlib stream of all filtered rows, compressed as they are produced.
   z_stream z{};
   if (deflateInit(&z, 6) != Z_OK) {
-    *error = "cannot write '" + path + "': zlib initialisation failed";
+    *error = "zlib initialisation failed";
     return false;
   }
   std::vector<uint8_t> compressed, filtered, trial;
@@ -149,7 +148,7 @@ bool writePng(const std::string& path, const Image8& image, bool srgb,
   if (zlibOk) pump(nullptr, 0, Z_FINISH);
   deflateEnd(&z);
   if (!zlibOk) {
-    *error = "cannot write '" + path + "': zlib compression failed";
+    *error = "zlib compression failed";
     return false;
   }
 
@@ -161,10 +160,18 @@ bool writePng(const std::string& path, const Image8& image, bool srgb,
   putU32(header, uint32_t(image.height));
   header.insert(header.end(), {8, kColourType[image.channels], 0, 0, 0});
   writeChunk(file, "IHDR", header.data(), header.size());
+  // Colour: sRGB, with the gAMA and cHRM the PNG specification recommends beside it for readers
+  // that do not know sRGB. Data (already mapped to [0, 1]): gamma 1, so nothing re-encodes it.
+  std::vector<uint8_t> gamma;
+  putU32(gamma, srgb ? 45455 : 100000);
   if (srgb) {
     const uint8_t perceptual = 0;
     writeChunk(file, "sRGB", &perceptual, 1);
+    std::vector<uint8_t> chromaticities;
+    for (uint32_t v : {31270u, 32900u, 64000u, 33000u, 30000u, 60000u, 15000u, 6000u}) putU32(chromaticities, v);
+    writeChunk(file, "cHRM", chromaticities.data(), chromaticities.size());
   }
+  writeChunk(file, "gAMA", gamma.data(), gamma.size());
   std::vector<std::pair<std::string, std::string>> chunks = {{"Software", "relief"}};
   chunks.insert(chunks.end(), text.begin(), text.end());
   for (const auto& [keyword, value] : chunks) {
@@ -184,7 +191,7 @@ bool writePng(const std::string& path, const Image8& image, bool srgb,
 
 bool writePnm(const std::string& path, const Image8& image, std::string* error) {
   if ((image.channels != 1 && image.channels != 3) || image.width <= 0 || image.height <= 0) {
-    *error = "cannot write '" + path + "': PNM holds 1 or 3 channels";
+    *error = "PNM holds 1 or 3 channels, no alpha";
     return false;
   }
   OutFile file(path);

@@ -17,13 +17,13 @@ struct Image8 {
   const uint8_t* pixels = nullptr;
 };
 
-// PNG with zlib compression and per-row adaptive filters. `srgb` adds an sRGB chunk (colour
-// images); without it the values are data and no colour chunk is written. `text` pairs become
-// tEXt chunks (keywords PNG cannot store are skipped). Returns false with *error set.
+// PNG with zlib compression and per-row adaptive filters. `srgb`: a colour image (sRGB, gAMA and
+// cHRM chunks); otherwise data values (gAMA 1: linear). `text` pairs become
+// tEXt chunks (keywords PNG cannot store are skipped). Returns false with the reason in *error.
 bool writePng(const std::string& path, const Image8& image, bool srgb,
               const std::vector<std::pair<std::string, std::string>>& text, std::string* error);
 
-// Binary PGM (1 channel) or PPM (3 channels); PNM has no alpha.
+// Binary PGM (1 channel) or PPM (3 channels); PNM has no alpha. False with the reason in *error.
 bool writePnm(const std::string& path, const Image8& image, std::string* error);
 
 }  // namespace relief

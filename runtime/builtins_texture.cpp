@@ -55,8 +55,11 @@ const RlfImageLibrary* textureLibrary(std::string* why) {
   SearchPath& path = searchPath();
   if (library && path.applied.load(std::memory_order_acquire) != path.generation.load(std::memory_order_acquire)) {
     std::lock_guard lock(path.mutex);
-    library->setTextureSearchPath(path.joined.c_str());
-    path.applied.store(path.generation.load(std::memory_order_relaxed), std::memory_order_release);
+    const uint64_t generation = path.generation.load(std::memory_order_relaxed);
+    if (path.applied.load(std::memory_order_relaxed) != generation) {  // another thread may have
+      library->setTextureSearchPath(path.joined.c_str());
+      path.applied.store(generation, std::memory_order_release);
+    }
   }
   return library;
 }

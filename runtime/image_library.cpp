@@ -22,7 +22,12 @@ struct Loaded {
 std::atomic<bool> loadedFlag{false};
 
 std::vector<std::string> candidates() {
-  if (const char* env = std::getenv("RELIEF_IMAGE_LIBRARY"); env && *env) return {env};
+  // Absolute: dlopen would look a bare name up on the library path, not in the working directory.
+  if (const char* env = std::getenv("RELIEF_IMAGE_LIBRARY"); env && *env) {
+    std::error_code ec;
+    const fs::path absolute = fs::absolute(env, ec);
+    return {ec ? std::string(env) : absolute.string()};
+  }
   std::vector<std::string> paths;
   std::error_code ec;
   const fs::path exe = fs::read_symlink("/proc/self/exe", ec);

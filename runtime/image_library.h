@@ -53,7 +53,8 @@ const RlfImageLibrary* rlf_image_library(void);
 namespace relief::runtime {
 // Loads the plugin once per process (thread-safe) and returns its table, or null with *why set
 // (on every call) when it cannot be loaded. Looked for at $RELIEF_IMAGE_LIBRARY if set, else
-// beside the executable as installed (<bindir>/../lib/relief/), else in the build tree.
+// where `cmake --install` puts it relative to the executable (<libdir>/relief/), else in the
+// build tree.
 const RlfImageLibrary* imageLibrary(std::string* why = nullptr);
 // Whether imageLibrary() has loaded it (tests: a PNG render must not).
 bool imageLibraryLoaded();

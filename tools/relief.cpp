@@ -91,8 +91,8 @@ constexpr const char* kUsage =
     "  RELIEF_SUBVOXEL=grid      dense voxels get the paper's sub-voxel grid instead of a BVH\n"
     "                            (for measurements; the image is the same)\n"
     "  RELIEF_CHECK_BUDGET=1     check the cache budget after every fill (debug)\n"
-    "  RELIEF_IMAGE_LIBRARY=FILE the OpenImageIO plugin (textures, formats other than png/ppm),\n"
-    "                            loaded on first use (default: ../lib/relief/ beside relief)\n"
+    "  RELIEF_IMAGE_LIBRARY=FILE the OpenImageIO plugin (textures, formats other than\n"
+    "                            png/ppm/pgm), loaded on first use (default: <libdir>/relief/)\n"
     "\n"
     "The shader search path is the scene's Option \"searchpath\" \"shader\" if given ('@' in it\n"
     "stands for the default path, '&' for the previous value), otherwise the default: the -I directories, then the\n"
@@ -715,9 +715,9 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
   }
   written->paths.insert(outputKeys.begin(), outputKeys.end());
   // A format nothing can write fails now, not after the render.
-  for (const std::string& path : outputs) {
+  for (size_t i = 0; i < outputs.size(); ++i) {
     std::string error;
-    if (!relief::canWriteFormat(path, &error)) {
+    if (!relief::canWriteFormat(outputs[i], modes[i] == "rgba", &error)) {
       std::cerr << "relief: error: " << error << "\n";
       return 1;
     }

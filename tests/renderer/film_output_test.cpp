@@ -7,9 +7,11 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 
 #include <OpenImageIO/imageio.h>
 #include <gtest/gtest.h>
+#include <zlib.h>
 
 #include "renderer/film.h"
 
@@ -120,6 +122,9 @@ TEST(FilmOutput, FailedWriteLeavesNoFile) {
   EXPECT_NE(error.find("out.png"), std::string::npos) << error;
   EXPECT_EQ(error.find(".tmp"), std::string::npos) << error;  // the staged name means nothing to users
   EXPECT_FALSE(testFilm().write((dir / "out.nosuchformat").string(), &error));
+  // OpenImageIO's message names the staged temporary; the user sees the name they asked for.
+  EXPECT_NE(error.find("out.nosuchformat"), std::string::npos) << error;
+  EXPECT_EQ(error.find(".tmp"), std::string::npos) << error;
   EXPECT_FALSE(testFilm().write((dir / "noextension").string(), &error));
   EXPECT_TRUE(fs::is_empty(dir));
 }
@@ -172,8 +177,7 @@ TEST(FilmOutput, LinearEightBitForData) {
 }
 
 // PNG and PNM are written by Relief (renderer/image_formats.cpp), not OpenImageIO; OpenImageIO
-// reads them back here as an independent decoder. The film is large enough, and varied enough,
-// for every PNG row filter to be chosen somewhere.
+// reads them back here as an independent decoder.
 Film patternFilm(int width, int height, bool partialAlpha) {
   Film film(width, height);
   for (int y = 0; y < height; ++y)
@@ -225,6 +229,52 @@ TEST(FilmOutput, PngAndPnmHoldEveryChannelLayoutExactly) {
       }
     EXPECT_EQ(wrong, 0);
   }
+}
+
+// The filter byte of each row of a PNG file (the IDAT stream inflated).
+std::vector<int> pngRowFilters(const fs::path& path, int rowBytes) {
+  std::ifstream in(path, std::ios::binary);
+  const std::string file((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::string idat;
+  for (size_t at = 8; at + 12 <= file.size();) {
+    const auto byte = [&](size_t i) { return uint32_t(uint8_t(file[i])); };
+    const uint32_t length = byte(at) << 24 | byte(at + 1) << 16 | byte(at + 2) << 8 | byte(at + 3);
+    if (file.compare(at + 4, 4, "IDAT") == 0) idat += file.substr(at + 8, length);
+    at += 12 + length;
+  }
+  std::vector<uint8_t> raw(1 << 16);
+  uLongf size = uLongf(raw.size());
+  EXPECT_EQ(uncompress(raw.data(), &size, reinterpret_cast<const Bytef*>(idat.data()), uLong(idat.size())), Z_OK);
+  std::vector<int> filters;
+  for (size_t row = 0; row * size_t(rowBytes + 1) < size; ++row) filters.push_back(raw[row * size_t(rowBytes + 1)]);
+  return filters;
+}
+
+// Rows built so that each of PNG's five row filters is the writer's choice once (none for zeros,
+// sub for a ramp, up for a repeated row, average for a row that is the mean of its left and upper
+// neighbours, paeth for a sloped plane), and every one decodes back to the exact bytes.
+TEST(FilmOutput, PngUsesAndDecodesEveryRowFilter) {
+  const int width = 16;
+  std::vector<std::vector<int>> rows(6, std::vector<int>(width, 0));
+  for (int x = 0; x < width; ++x) rows[1][x] = rows[2][x] = 10 * x;
+  for (int x = 0; x < width; ++x) rows[3][x] = ((x ? rows[3][x - 1] : 0) + rows[2][x]) / 2;
+  for (int x = 0; x < width; ++x) rows[4][x] = 3 * x + 5, rows[5][x] = 3 * x + 10;
+  Film film(width, int(rows.size()));
+  for (int y = 0; y < film.height(); ++y)
+    for (int x = 0; x < width; ++x) film.setPixel(x, y, glm::vec3(float(rows[y][x]) / 255.0f));
+  ImageWriteOptions options;
+  options.channels = 1;
+  options.srgb = false;
+  const fs::path path = scratch() / "filters.png";
+  std::string error;
+  ASSERT_TRUE(film.write(path.string(), &error, options)) << error;
+  const std::vector<int> filters = pngRowFilters(path, width);
+  EXPECT_EQ(filters, (std::vector<int>{0, 1, 2, 3, 1, 4}));
+  int channels = 0;
+  const std::vector<float> px = readBack(path, OIIO::TypeDesc::UINT8, &channels);
+  ASSERT_EQ(px.size(), size_t(width) * rows.size());
+  for (int y = 0; y < film.height(); ++y)
+    for (int x = 0; x < width; ++x) EXPECT_EQ(px[size_t(y * width + x)], float(rows[y][x])) << x << "," << y;
 }
 
 TEST(FilmOutput, PngCarriesMetadataAndItsColourSpace) {

@@ -2,6 +2,8 @@
 // flatness tolerance of the simplified surface, the bevelled box loses most of its triangles, the
 // saved-fraction counters agree with the meshes, and runaway shaders stop at maxDepth.
 #include <algorithm>
+#include <array>
+#include <map>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -62,6 +64,16 @@ void narrowBumpEntry(const RlfShadingBatch* b, const void* params, RlfStatus*) {
     const glm::vec3 out = p + n * (height * std::exp(-glm::dot(d, d) / (width * width)));
     b->Pout.x[i] = out.x, b->Pout.y[i] = out.y, b->Pout.z[i] = out.z;
     b->Nout.x[i] = n.x, b->Nout.y[i] = n.y, b->Nout.z[i] = n.z;
+  }
+}
+
+// Records (u, v, du) of every point it is asked to displace, and displaces nothing.
+std::vector<std::array<float, 3>> recordedPoints;
+void recordingEntry(const RlfShadingBatch* b, const void*, RlfStatus*) {
+  for (uint32_t i = 0; i < b->count; ++i) {
+    recordedPoints.push_back({b->u[i], b->v[i], b->du[i]});
+    b->Pout.x[i] = b->P.x[i], b->Pout.y[i] = b->P.y[i], b->Pout.z[i] = b->P.z[i];
+    b->Nout.x[i] = b->N.x[i], b->Nout.y[i] = b->N.y[i], b->Nout.z[i] = b->N.z[i];
   }
 }
 
@@ -160,6 +172,44 @@ TEST(Simplify, InteriorDetailSeenByOneFineSampleIsKept) {
   const Displacement bump = makeDisplacement(narrowBumpEntry, 0.1f, 0.008f, 0.03f, 10, 0.002f);
   subdivideTriangle(quad, 0, &bump, mm, counters);
   EXPECT_GT(mm.numTriangles(), 1u);
+}
+
+// A flat triangle is only final once every point of its finest interior lattice was found flat:
+// the coarse-to-fine stages together evaluate each of those points exactly once, seen by the
+// shader with the finest lattice's spacing (du), as a single batch of them all would be.
+TEST(Simplify, FlatInteriorIsSampledOnEveryPointOfTheFinestLatticeOnce) {
+  const Mesh quad = makeQuad();
+  recordedPoints.clear();
+  MicroMesh mm;
+  SubdivideCounters counters;
+  const Displacement flat = makeDisplacement(recordingEntry, 0.0f, 0.0f, 0.03f, 10, 0.002f);
+  subdivideTriangle(quad, 0, &flat, mm, counters);
+  ASSERT_EQ(mm.numTriangles(), 1u);
+  // Triangle 0 is (0, 1, 2) with uv (0,0), (1,0), (1,1); its longest edge (1.41) asks for the
+  // deepest lattice, 32 steps, sampled at level 5 (du = 1/32 of its u extent, 1).
+  const glm::vec2 uv[3] = {quad.uv[0], quad.uv[1], quad.uv[2]};
+  std::map<std::pair<float, float>, std::vector<float>> seen;
+  for (const auto& r : recordedPoints) seen[{r[0], r[1]}].push_back(r[2]);
+  const int steps = 32;
+  int missing = 0, repeated = 0, wrongSpacing = 0, expected = 0;
+  for (int i = 1; i < steps; ++i)
+    for (int j = 1; i + j < steps; ++j) {
+      ++expected;
+      const float wa = float(steps - i - j) / float(steps), wb = float(i) / float(steps),
+                  wc = float(j) / float(steps);
+      const glm::vec2 p = wa * uv[0] + wb * uv[1] + wc * uv[2];  // as the subdivider computes it
+      const auto found = seen.find({p.x, p.y});
+      if (found == seen.end()) {
+        ++missing;
+        continue;
+      }
+      repeated += found->second.size() > 1;
+      wrongSpacing += found->second[0] != 1.0f / 32;
+    }
+  EXPECT_EQ(expected, 465);
+  EXPECT_EQ(missing, 0);
+  EXPECT_EQ(repeated, 0);
+  EXPECT_EQ(wrongSpacing, 0);
 }
 
 // The paper's bevelled box: flat faces merge back to their input triangles; only the bevels keep
