@@ -535,6 +535,12 @@ TEST(Relief, AnUnwritableFormatFailsBeforeTheRender) {
   EXPECT_EQ(r.exitCode, 1);
   EXPECT_NE(r.err.find("no file extension"), std::string::npos) << r.err;
   EXPECT_EQ(r.err.find("rendering"), std::string::npos) << r.err;
+  // PNM has no alpha: an "rgba" display in it is refused before the render too.
+  const fs::path rgba = smallScene(dir, "Display \"" + (dir / "a.ppm").string() + "\" \"file\" \"rgba\"\n");
+  r = run(kRelief + " " + rgba.string());
+  EXPECT_EQ(r.exitCode, 1);
+  EXPECT_NE(r.err.find("PNM has no alpha channel"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("rendering"), std::string::npos) << r.err;
 }
 
 // Displays are all-or-nothing: when a later one cannot be written, the earlier ones (complete by
