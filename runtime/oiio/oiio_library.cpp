@@ -27,10 +27,24 @@ void copyMessage(const std::string& message, char* buffer, size_t size) {
   std::snprintf(buffer, size, "%s", message.c_str());
 }
 
+// Runs `body` (which returns 1 or 0), turning any exception into 0 and its message: none may
+// cross the C table into the host.
+template <typename Body>
+int32_t guarded(char* error, size_t errorSize, Body&& body) {
+  try {
+    return body();
+  } catch (const std::exception& e) {
+    copyMessage(e.what(), error, errorSize);
+  } catch (...) {
+    copyMessage("internal error in OpenImageIO", error, errorSize);
+  }
+  return 0;
+}
+
 int32_t texture(const char* filename, float s, float t, float dsdx, float dtdx, float dsdy, float dtdy,
                 const RlfTextureOptions* options, int32_t nchannels, float* out, float* dout_ds, float* dout_dt,
                 char* why, size_t whySize) {
-  try {
+  return guarded(why, whySize, [&]() -> int32_t {
     OIIO::TextureOpt opt;
     if (options) {
       opt.sblur = options->sblur;
@@ -50,13 +64,7 @@ int32_t texture(const char* filename, float s, float t, float dsdx, float dtdx, 
     if (const size_t nl = message.find('\n'); nl != std::string::npos) message.resize(nl);
     copyMessage(message, why, whySize);
     return 0;
-  } catch (const std::exception& e) {
-    copyMessage(e.what(), why, whySize);
-    return 0;
-  } catch (...) {
-    copyMessage("internal error in OpenImageIO", why, whySize);
-    return 0;
-  }
+  });
 }
 
 void setTextureSearchPath(const char* joined) {
@@ -69,7 +77,7 @@ void setTextureSearchPath(const char* joined) {
 int32_t writeImage(const char* path, int32_t width, int32_t height, int32_t channels, int32_t floatPixels,
                    const void* pixels, int32_t alphaChannel, int32_t unassociatedAlpha, const char* colorSpace,
                    const char* const* channelNames, const char* const* metadata, char* error, size_t errorSize) {
-  try {
+  return guarded(error, errorSize, [&]() -> int32_t {
     auto out = OIIO::ImageOutput::create(path);
     if (!out) {
       copyMessage(OIIO::geterror(), error, errorSize);
@@ -97,25 +105,15 @@ int32_t writeImage(const char* path, int32_t width, int32_t height, int32_t chan
       return 0;
     }
     return 1;
-  } catch (const std::exception& e) {
-    copyMessage(e.what(), error, errorSize);
-    return 0;
-  } catch (...) {
-    copyMessage("internal error in OpenImageIO", error, errorSize);
-    return 0;
-  }
+  });
 }
 
 int32_t canWrite(const char* path, char* error, size_t errorSize) {
-  try {
+  return guarded(error, errorSize, [&]() -> int32_t {
     if (OIIO::ImageOutput::create(path)) return 1;
     copyMessage(OIIO::geterror(), error, errorSize);
-  } catch (const std::exception& e) {
-    copyMessage(e.what(), error, errorSize);
-  } catch (...) {
-    copyMessage("internal error in OpenImageIO", error, errorSize);
-  }
-  return 0;
+    return 0;
+  });
 }
 
 const RlfImageLibrary kTable = {
