@@ -139,12 +139,9 @@ bool commitStagedImage(const std::string& stagedPath, const std::string& path, s
 bool Film::writeStaged(const std::string& path, std::string* stagedPath, std::string* error,
                        const ImageWriteOptions& options) const {
   const bool withAlpha = options.alpha;
+  if (!canWriteFormat(path, withAlpha, error)) return false;
   const std::string extension = lowerExtension(path);
-  if (extension.empty()) {
-    *error = "cannot write '" + path + "': no file extension to choose the image format";
-    return false;
-  }
-  const bool floatOutput = extension == ".exr" || extension == ".hdr";
+  const bool floatOutput = isFloatFormat(path);
   const int colourChannels = options.channels == 1 ? 1 : 3;
   const int channels = colourChannels + (withAlpha ? 1 : 0);
   const size_t numPixels = size_t(width_) * size_t(height_);
