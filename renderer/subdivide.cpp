@@ -127,9 +127,11 @@ struct Scratch {
   std::vector<Look> looks, nextLooks;
   std::vector<int64_t> centre;  // per active triangle: its centre vertex when split 1-to-3, or -1
   struct Interior {
-    uint32_t triangle;
-    int depth;         // samples on the uniform subdivision with 2^depth steps per edge
-    bool flat;         // every sample evaluated so far lies within the flatness
+    uint32_t triangle;  // its index in the active list
+    uint32_t v[3];      // its corners
+    int depth;          // samples on the uniform subdivision with 2^depth steps per edge
+    int sampleLevel;    // the samples' vertex level (their du, dv): the corners' deepest + depth
+    bool flat;          // every sample evaluated so far lies within the flatness
     uint32_t firstProbe, numProbes;  // this stage's samples
   };
   std::vector<Interior> interiors;
@@ -534,7 +536,17 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
         const int level = std::max({vs.level[a], vs.level[b], vs.level[c]});
         if (level + 1 > maxDepth) continue;
         centre[k / 3] = addInteriorPoint(vs, a, b, c, 1.0f / 3, 1.0f / 3, 1.0f / 3, level + 1);
-        interiors.push_back({uint32_t(k / 3), 0, true, 0, 0});
+        const float longest = std::sqrt(std::max({glm::dot(vs.displaced[a] - vs.displaced[b], vs.displaced[a] - vs.displaced[b]),
+                                                  glm::dot(vs.displaced[b] - vs.displaced[c], vs.displaced[b] - vs.displaced[c]),
+                                                  glm::dot(vs.displaced[c] - vs.displaced[a], vs.displaced[c] - vs.displaced[a])}));
+        int depth = 1;
+        while (depth < kMaxInteriorDepth && depth < maxDepth - level &&
+               longest > disp.edgeLength * float(1 << depth))
+          ++depth;
+        interiors.push_back({uint32_t(k / 3), {a, b, c}, depth, level + depth, true, 0, 0});
+        // The unsimplified mesh has every point of the finest lattice, evaluated or not.
+        const uint64_t steps = uint64_t(1) << depth;
+        samplePoints += (steps - 1) * (steps - 2) / 2;
       }
       // The samples come in stages, coarse to fine: the lattice of 2^s steps per edge holds the
       // one of 2^(s-1), so stage s evaluates only the points new at s, for the triangles still
@@ -544,30 +556,12 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
       // evaluating them all at once: the points are the same bits (dyadic weights), and each is
       // displaced on its own.
       const uint32_t firstSample = vs.size();
+      displace(disp, frame, vs, firstCentre, scratch.batch, counters);
       int deepest = 0;
       for (Scratch::Interior& in : interiors) {
-        const uint32_t a = active[3 * in.triangle], b = active[3 * in.triangle + 1],
-                       c = active[3 * in.triangle + 2];
-        const float longest = std::sqrt(std::max({glm::dot(vs.displaced[a] - vs.displaced[b], vs.displaced[a] - vs.displaced[b]),
-                                                  glm::dot(vs.displaced[b] - vs.displaced[c], vs.displaced[b] - vs.displaced[c]),
-                                                  glm::dot(vs.displaced[c] - vs.displaced[a], vs.displaced[c] - vs.displaced[a])}));
-        const int level = std::max({vs.level[a], vs.level[b], vs.level[c]});
-        int depth = 1;
-        while (depth < kMaxInteriorDepth && depth < maxDepth - level &&
-               longest > disp.edgeLength * float(1 << depth))
-          ++depth;
-        in.depth = depth;
-        deepest = std::max(deepest, depth);
-        // The unsimplified mesh has every point of the finest lattice, evaluated or not.
-        const uint64_t steps = uint64_t(1) << depth;
-        samplePoints += (steps - 1) * (steps - 2) / 2;
-      }
-      displace(disp, frame, vs, firstCentre, scratch.batch, counters);
-      for (Scratch::Interior& in : interiors) {
-        const uint32_t a = active[3 * in.triangle], b = active[3 * in.triangle + 1],
-                       c = active[3 * in.triangle + 2];
-        in.flat = nearTriangle(vs.displaced[a], vs.displaced[b], vs.displaced[c],
+        in.flat = nearTriangle(vs.displaced[in.v[0]], vs.displaced[in.v[1]], vs.displaced[in.v[2]],
                                vs.displaced[size_t(centre[in.triangle])], disp.flatness);
+        if (in.flat) deepest = std::max(deepest, in.depth);
       }
       // Two steps per edge have no interior point; stages start at four.
       for (int stage = 2; stage <= deepest; ++stage) {
@@ -575,24 +569,18 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
         for (Scratch::Interior& in : interiors) {
           in.numProbes = 0;
           if (!in.flat || in.depth < stage) continue;
-          const uint32_t a = active[3 * in.triangle], b = active[3 * in.triangle + 1],
-                         c = active[3 * in.triangle + 2];
-          const int level = std::max({vs.level[a], vs.level[b], vs.level[c]});
           in.firstProbe = vs.size();
           for (int i = 1; i < steps; ++i)
             for (int j = 1; i + j < steps; ++j)
               if ((i | j) & 1)  // not on the previous stage's lattice
-                addInteriorPoint(vs, a, b, c, float(steps - i - j) / float(steps), float(i) / float(steps),
-                                 float(j) / float(steps), level + in.depth);
+                addInteriorPoint(vs, in.v[0], in.v[1], in.v[2], float(steps - i - j) / float(steps),
+                                 float(i) / float(steps), float(j) / float(steps), in.sampleLevel);
           in.numProbes = vs.size() - in.firstProbe;
         }
         if (vs.size() == firstSample) break;  // nothing left flat at this depth
         displace(disp, frame, vs, firstSample, scratch.batch, counters);
         for (Scratch::Interior& in : interiors) {
-          if (in.numProbes == 0) continue;
-          const uint32_t a = active[3 * in.triangle], b = active[3 * in.triangle + 1],
-                         c = active[3 * in.triangle + 2];
-          const glm::vec3 A = vs.displaced[a], B = vs.displaced[b], C = vs.displaced[c];
+          const glm::vec3 A = vs.displaced[in.v[0]], B = vs.displaced[in.v[1]], C = vs.displaced[in.v[2]];
           for (uint32_t i = 0; in.flat && i < in.numProbes; ++i)
             in.flat = nearTriangle(A, B, C, vs.displaced[in.firstProbe + i], disp.flatness);
         }
