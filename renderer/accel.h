@@ -50,6 +50,14 @@ struct AccelOptions {
   // reuse them instead of re-subdividing. 0: off (each fill subdivides its contributors culled to
   // the voxel). Never changes the image: culled and whole subdivisions agree triangle for triangle.
   uint64_t sideCacheTriangles = 0;
+  // Subtree boxes (subdivide.h, SubtreeBoxes): culled fills learn the exact displaced box of every
+  // subtree they keep whole, so later fills skip subtrees that miss their voxel. Never changes the
+  // image; costs kSubtreeSlots words per subdivided input triangle.
+  bool learnSubtrees = true;
+  // Voxel proxies: a voxel's BVH root (88 bytes) is kept when the voxel is evicted, and rays that
+  // enter none of its children pass the voxel without the cache (a refill avoided). Never
+  // changes the image.
+  bool voxelProxies = true;
   // Dense voxels get a BVH (default) or, when set, the paper's uniform sub-voxel grid; kept to
   // measure one against the other (docs/cache.md). Never changes the image. relief sets it from
   // the environment variable RELIEF_SUBVOXEL=grid.
@@ -75,6 +83,9 @@ struct AccelStats {
   glm::ivec3 gridResolution{0};
   uint64_t sideCacheHits = 0, sideCacheMisses = 0;
   uint64_t sideCachePeakTriangles = 0;
+  // Voxel visits decided on a voxel proxy alone (no cache access), and the bytes of the subtree
+  // memos and voxel proxies, which outlive the voxels (outside the budget and bytes per triangle).
+  uint64_t proxySkips = 0, memoBytes = 0;
   // Micro-triangles of every subdivision (refills included) before and after the paper's 3.1
   // simplification; equal when nothing is simplified.
   uint64_t trianglesBeforeSimplification = 0, trianglesAfterSimplification = 0;

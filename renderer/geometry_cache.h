@@ -193,6 +193,7 @@ class GeometryCache {
   uint64_t budget_;
   mutable std::mutex mutex_;  // guards resident_, the eviction scan and the budget counters
   std::vector<uint32_t> resident_;
+  std::vector<std::pair<uint64_t, uint32_t>> evictionOrder_;  // scratch of the eviction scan (lastUse, voxel)
   uint64_t residentTriangles_ = 0, peakResidentTriangles_ = 0;
   uint64_t residentBytes_ = 0, peakResidentBytes_ = 0;
   uint64_t evictions_ = 0;

@@ -391,6 +391,59 @@ struct GridAccelerator::SlabRay {
   bool usable;
 };
 
+namespace {
+
+// The four children's slab tests of a BVH node at once: a bit per child the ray enters within
+// [tLow, limit], and its entry distance. Per axis, the near and far planes' distances are
+// t = base + q * scale (near is the low plane for a positive direction).
+int enterChildren(const VoxelGeometry::BvhNode& node, const GridAccelerator::SlabRay& sr, const glm::vec3& base,
+                  const glm::vec3& scale, float tLow, float limit, float tNear[4]) {
+#if defined(__SSE2__)
+  __m128 vNear = _mm_set1_ps(tLow), vFar = _mm_set1_ps(limit);
+  const __m128i zero = _mm_setzero_si128();
+  for (int k = 0; k < 3; ++k) {
+    const uint16_t* nearQ = sr.negative[k] ? node.hi[k] : node.lo[k];
+    const uint16_t* farQ = sr.negative[k] ? node.lo[k] : node.hi[k];
+    const __m128 qn = _mm_cvtepi32_ps(
+        _mm_unpacklo_epi16(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(nearQ)), zero));
+    const __m128 qf = _mm_cvtepi32_ps(
+        _mm_unpacklo_epi16(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(farQ)), zero));
+    const __m128 b = _mm_set1_ps(base[k]), s = _mm_set1_ps(scale[k]);
+    // Operands in this order, a NaN plane is ignored (SSE max/min return the second operand
+    // then), as std::max/min ignore it in the scalar code: the test stays conservative.
+    vNear = _mm_max_ps(_mm_add_ps(b, _mm_mul_ps(qn, s)), vNear);
+    vFar = _mm_min_ps(_mm_add_ps(b, _mm_mul_ps(qf, s)), vFar);
+  }
+  _mm_storeu_ps(tNear, vNear);
+  return _mm_movemask_ps(_mm_cmple_ps(vNear, vFar));
+#else
+  int mask = 0;
+  for (int i = 0; i < 4; ++i) {
+    float tFar = limit;
+    tNear[i] = tLow;
+    for (int k = 0; k < 3; ++k) {
+      const float a = base[k] + float(sr.negative[k] ? node.hi[k][i] : node.lo[k][i]) * scale[k];
+      const float b = base[k] + float(sr.negative[k] ? node.lo[k][i] : node.hi[k][i]) * scale[k];
+      tNear[i] = std::max(tNear[i], a), tFar = std::min(tFar, b);
+    }
+    mask |= int(tNear[i] <= tFar) << i;
+  }
+  return mask;
+#endif
+}
+
+// The slab set-up of a voxel's BVH lattice for one ray (the same arithmetic for a resident voxel
+// and for its proxy, so both take the same decision).
+void lattice(const glm::vec3& origin, const glm::vec3& step, const Ray& ray, const GridAccelerator::SlabRay& sr,
+             glm::vec3& base, glm::vec3& scale) {
+  for (int k = 0; k < 3; ++k) {
+    base[k] = (origin[k] - ray.origin[k]) * sr.inv[k];
+    scale[k] = step[k] * sr.inv[k];
+  }
+}
+
+}  // namespace
+
 // The nearest hit so far, with what is needed to report it after the voxel is released.
 struct GridAccelerator::Best {
   bool found = false;
@@ -412,7 +465,9 @@ GridAccelerator::GridAccelerator(const Scene& scene, const AccelOptions& options
       grid_(scene, options),
       voxelCounted_(grid_.numVoxels()),
       knownEmpty_(grid_.numVoxels()),
-      side_(std::make_unique<SideCache>()) {
+      side_(std::make_unique<SideCache>()),
+      subtreeMemos_(options.learnSubtrees ? grid_.numTriangles() : 0),
+      proxies_(options.voxelProxies ? grid_.numVoxels() : 0) {
   // Undisplaced scenes go through the cache too: a fill then stores the input triangles whole,
   // and dense voxels get sub-voxel grids. Testing every contributor of a voxel instead made
   // sphere_box's undisplaced baseline (131K triangles in a few voxels of a room-sized grid) 8x
@@ -420,10 +475,11 @@ GridAccelerator::GridAccelerator(const Scene& scene, const AccelOptions& options
   cache_ = std::make_unique<GeometryCache>(grid_.numVoxels(), options.cacheBudgetTriangles);
   const char* env = std::getenv("RELIEF_CHECK_BUDGET");
   cache_->setCheckBudget(options.checkBudget || (env && std::string_view(env) == "1"));
-  if (grid_.anyDisplaced() && options.sideCacheTriangles) {
+  if (grid_.anyDisplaced() && (options.sideCacheTriangles || options.learnSubtrees)) {
     // A contributor listed in one voxel only is subdivided by that voxel's fills alone: keeping
-    // its whole subdivision would only cost memory (sphere_box: 131K such small triangles, about
-    // 60 MB of side cache for no time saved).
+    // its whole subdivision, or a memo, would only cost memory (sphere_box: 131K such small
+    // triangles, about 60 MB of side cache or 200 MB of memos for no time saved; culling never
+    // drops any of its parts, so only refills of its voxel could use the memo's decisions).
     std::vector<uint8_t> seen(grid_.numTriangles(), 0);
     sharedContributor_.assign(grid_.numTriangles(), 0);
     for (uint32_t v = 0; v < grid_.numVoxels(); ++v)
@@ -462,7 +518,33 @@ struct GridAccelerator::SideCache {
   std::unordered_map<uint32_t, std::list<Entry>::iterator> index;
 };
 
-GridAccelerator::~GridAccelerator() = default;
+GridAccelerator::~GridAccelerator() {
+  for (std::atomic<const VoxelProxy*>& p : proxies_) delete p.load(std::memory_order_relaxed);
+  for (std::atomic<SubtreeMemo*>& b : subtreeMemos_) delete b.load(std::memory_order_relaxed);
+}
+
+SubtreeMemo& GridAccelerator::subtreeMemo(uint32_t id, int rounds) {
+  SubtreeMemo* boxes = subtreeMemos_[id].load(std::memory_order_acquire);
+  if (boxes) return *boxes;
+  // The lattice spans the reach the contributor grid assumes: the input triangle grown by its
+  // displacement bound (a subtree reaching beyond it, against its shader's bound, is not learnt).
+  const auto [m, triangle] = grid_.split(id);
+  const Mesh& mesh = scene_.meshes[m];
+  const Displacement* d = grid_.displacement(m);
+  const float grow = d ? std::max(0.0f, d->boundWorld) : 0.0f;
+  CullBox reference{glm::vec3(std::numeric_limits<float>::infinity()),
+                    glm::vec3(-std::numeric_limits<float>::infinity())};
+  for (int c = 0; c < 3; ++c) {
+    const glm::vec3 p = mesh.P[mesh.indices[3 * size_t(triangle) + c]];
+    reference.lo = glm::min(reference.lo, p - grow), reference.hi = glm::max(reference.hi, p + grow);
+  }
+  auto made = std::make_unique<SubtreeMemo>(reference, rounds);
+  if (subtreeMemos_[id].compare_exchange_strong(boxes, made.get(), std::memory_order_acq_rel)) {
+    subtreeBytes_.fetch_add(made->bytes(), std::memory_order_relaxed);
+    return *made.release();
+  }
+  return *boxes;  // another thread's, made meanwhile
+}
 
 std::shared_ptr<const MicroMesh> GridAccelerator::sideCached(uint32_t id, SubdivideCounters& counters) {
   SideCache& side = *side_;
@@ -518,6 +600,7 @@ std::unique_ptr<VoxelGeometry> GridAccelerator::buildVoxel(uint32_t voxel) {
   thread_local std::vector<uint32_t> remap;
   thread_local std::vector<uint8_t> reached;  // per contributor: some micro-triangle kept here
   thread_local std::vector<glm::vec2> bary;
+  thread_local std::vector<LearntSubtree> learnt;
   bary.clear();
   std::vector<uint32_t> indices;
   SubdivideCounters counters;
@@ -527,10 +610,24 @@ std::unique_ptr<VoxelGeometry> GridAccelerator::buildVoxel(uint32_t voxel) {
     const uint32_t id = contributors[k];
     const auto [mesh, triangle] = grid_.split(id);
     std::shared_ptr<const MicroMesh> whole;
-    if (!sharedContributor_.empty() && sharedContributor_[id])
+    const bool shared = !sharedContributor_.empty() && sharedContributor_[id];
+    if (shared && options_.sideCacheTriangles)
       whole = sideCached(id, counters);
-    else
+    else if (subtreeMemos_.empty() || !shared)
       subdivideTriangle(scene_.meshes[mesh], triangle, grid_.displacement(mesh), culled, counters, &cull);
+    else {
+      const SubtreeMemo* known = subtreeMemos_[id].load(std::memory_order_acquire);
+      subdivideTriangle(scene_.meshes[mesh], triangle, grid_.displacement(mesh), culled, counters, &cull,
+                        known, &learnt);
+      if (!learnt.empty()) {
+        // Sized by the deepest subtree this fill learnt (a subdivision reaching round r anywhere
+        // keeps some subtree of round r whole, unless culling cut them all).
+        uint32_t deepest = 0;
+        for (const LearntSubtree& l : learnt) deepest = std::max(deepest, l.code);
+        SubtreeMemo& memo = subtreeMemo(id, (31 - __builtin_clz(deepest)) / 2);
+        for (const LearntSubtree& l : learnt) memo.learn(l.code, l.box, l.decisions);
+      }
+    }
     const MicroMesh& mm = whole ? *whole : culled;
     remap.assign(mm.P.size(), UINT32_MAX);
     for (uint32_t i = 0; i < mm.numTriangles(); ++i) {
@@ -571,6 +668,16 @@ std::unique_ptr<VoxelGeometry> GridAccelerator::buildVoxel(uint32_t voxel) {
   g->microLow.shrink_to_fit(), g->segments.shrink_to_fit();
   if (options_.subVoxelGrid) buildSubGrid(*g, box, grid_.padding());
   else buildBvh(*g, grid_.padding());
+  if (!proxies_.empty() && !g->bvhNodes.empty() && !proxies_[voxel].load(std::memory_order_acquire)) {
+    // Every fill of a voxel builds the same BVH (rule 1), so whichever fill publishes it, the
+    // proxy is the root a resident voxel would have.
+    auto proxy = std::make_unique<VoxelProxy>(VoxelProxy{g->bvhOrigin, g->bvhStep, g->bvhNodes[0]});
+    const VoxelProxy* expected = nullptr;
+    if (proxies_[voxel].compare_exchange_strong(expected, proxy.get(), std::memory_order_acq_rel)) {
+      proxy.release();
+      proxyBytes_.fetch_add(sizeof(VoxelProxy), std::memory_order_relaxed);
+    }
+  }
   const uint64_t n = g->numTriangles();
   // Contributors whose displaced geometry misses the voxel: later rays skip it without a lookup.
   // Safe to skip at any time, since a refill would be empty again (rule 1).
@@ -615,6 +722,19 @@ void GridAccelerator::intersectVoxel(uint32_t voxel, const WatertightRay& wr, co
     }
     return;
   }
+  // A voxel's BVH root outlives the voxel (VoxelProxy): a ray entering none of the root's
+  // children would test no triangle, so it need not touch the cache, nor bring the voxel back.
+  if (sr.usable && !proxies_.empty()) {
+    if (const VoxelProxy* p = proxies_[voxel].load(std::memory_order_acquire)) {
+      glm::vec3 base, scale;
+      lattice(p->origin, p->step, ray, sr, base, scale);
+      float tNear[4];
+      if (!enterChildren(p->root, sr, base, scale, ray.tMin, limit, tNear)) {
+        traverseNanos_[cacheThreadShard() % kTimeShards].proxySkips.fetch_add(1, std::memory_order_relaxed);
+        return;
+      }
+    }
+  }
   const VoxelGeometry* g = cache_->acquire(voxel, stamp, [this](uint32_t v) { return buildVoxel(v); });
   auto test = [&](uint32_t i) {
     const glm::uvec3 tri = g->triangle(i);
@@ -626,10 +746,7 @@ void GridAccelerator::intersectVoxel(uint32_t voxel, const WatertightRay& wr, co
   if (!g->bvhNodes.empty() && sr.usable) {
     // Slab tests against the decoded boxes, as t = base + q * scale per axis.
     glm::vec3 base, scale;
-    for (int k = 0; k < 3; ++k) {
-      base[k] = (g->bvhOrigin[k] - ray.origin[k]) * sr.inv[k];
-      scale[k] = g->bvhStep[k] * sr.inv[k];
-    }
+    lattice(g->bvhOrigin, g->bvhStep, ray, sr, base, scale);
     const float tLow = ray.tMin;
     // Node and entry distance in separate arrays: a pop that reloads both halves of one 8-byte
     // entry written as two 4-byte stores stalls on store forwarding. Entries are node indices or
@@ -648,40 +765,8 @@ void GridAccelerator::intersectVoxel(uint32_t voxel, const WatertightRay& wr, co
         continue;
       }
       const VoxelGeometry::BvhNode& node = g->bvhNodes[ref];
-      // The four children's slab tests at once: per axis, the near and far planes' distances
-      // t = base + q * scale (near is the low plane for a positive direction).
       float tNear[4];
-#if defined(__SSE2__)
-      __m128 vNear = _mm_set1_ps(tLow), vFar = _mm_set1_ps(limit);
-      const __m128i zero = _mm_setzero_si128();
-      for (int k = 0; k < 3; ++k) {
-        const uint16_t* nearQ = sr.negative[k] ? node.hi[k] : node.lo[k];
-        const uint16_t* farQ = sr.negative[k] ? node.lo[k] : node.hi[k];
-        const __m128 qn = _mm_cvtepi32_ps(
-            _mm_unpacklo_epi16(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(nearQ)), zero));
-        const __m128 qf = _mm_cvtepi32_ps(
-            _mm_unpacklo_epi16(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(farQ)), zero));
-        const __m128 b = _mm_set1_ps(base[k]), s = _mm_set1_ps(scale[k]);
-        // Operands in this order, a NaN plane is ignored (SSE max/min return the second
-        // operand then), as std::max/min ignore it in the scalar code: the test stays conservative.
-        vNear = _mm_max_ps(_mm_add_ps(b, _mm_mul_ps(qn, s)), vNear);
-        vFar = _mm_min_ps(_mm_add_ps(b, _mm_mul_ps(qf, s)), vFar);
-      }
-      const int mask = _mm_movemask_ps(_mm_cmple_ps(vNear, vFar));
-      _mm_storeu_ps(tNear, vNear);
-#else
-      float tFar[4];
-      int mask = 0;
-      for (int i = 0; i < 4; ++i) {
-        tNear[i] = tLow, tFar[i] = limit;
-        for (int k = 0; k < 3; ++k) {
-          const float a = base[k] + float(sr.negative[k] ? node.hi[k][i] : node.lo[k][i]) * scale[k];
-          const float b = base[k] + float(sr.negative[k] ? node.lo[k][i] : node.hi[k][i]) * scale[k];
-          tNear[i] = std::max(tNear[i], a), tFar[i] = std::min(tFar[i], b);
-        }
-        mask |= int(tNear[i] <= tFar[i]) << i;
-      }
-#endif
+      const int mask = enterChildren(node, sr, base, scale, tLow, limit, tNear);
       if (!mask) continue;
       // Push the entered children farthest first, so the nearest is popped next.
       uint32_t hitRef[4];
@@ -820,6 +905,9 @@ AccelStats GridAccelerator::stats() const {
   s.sideCacheHits = sideHits_.load(std::memory_order_relaxed);
   s.sideCacheMisses = sideMisses_.load(std::memory_order_relaxed);
   s.sideCachePeakTriangles = sidePeak_.load(std::memory_order_relaxed);
+  for (const TimeShard& shard : traverseNanos_) s.proxySkips += shard.proxySkips.load(std::memory_order_relaxed);
+  s.memoBytes = subtreeBytes_.load(std::memory_order_relaxed) + proxyBytes_.load(std::memory_order_relaxed) +
+                subtreeMemos_.size() * sizeof(subtreeMemos_[0]) + proxies_.size() * sizeof(proxies_[0]);
   s.uniqueDisplacedTriangles = uniqueTriangles_.load(std::memory_order_relaxed);
   s.shaderPoints = shaderPoints_.load(std::memory_order_relaxed);
   s.trianglesBeforeSimplification = simplifyBefore_.load(std::memory_order_relaxed);

@@ -41,17 +41,20 @@ class GridAccelerator final : public Accelerator {
   // Shader problems summed over all fills (for one-time warnings by the caller).
   RlfStatus shaderStatus() const;
 
+  struct SlabRay;  // a ray's slab-test set-up, shared by the voxel BVHs and their proxies
+
  private:
   struct Best;
   template <bool kAnyHit>
   void traverse(const Ray& ray, Best& best);
-  struct SlabRay;
   void intersectVoxel(uint32_t voxel, const struct WatertightRay& wr, const SlabRay& sr, const Ray& ray,
                       uint64_t stamp, bool anyHit, Best& best);
   std::unique_ptr<VoxelGeometry> buildVoxel(uint32_t voxel);
   struct SideCache;
   // The whole micro-mesh of contributor `id` from the shared side cache, subdividing on a miss.
   std::shared_ptr<const MicroMesh> sideCached(uint32_t id, SubdivideCounters& counters);
+  // The subtree memo of contributor `id`, created on first use with slots for `rounds` rounds.
+  SubtreeMemo& subtreeMemo(uint32_t id, int rounds);
   void addCounters(const SubdivideCounters& counters);
   void addTraverseTime(std::chrono::steady_clock::time_point start);
 
@@ -62,18 +65,28 @@ class GridAccelerator final : public Accelerator {
   std::atomic<uint64_t> clock_{1};
   std::vector<std::atomic<uint8_t>> voxelCounted_;  // per voxel: its unique triangles counted
   std::vector<std::atomic<uint8_t>> knownEmpty_;    // per voxel: filled once with no triangles
-  std::vector<uint8_t> sharedContributor_;  // per input triangle: listed in 2+ voxels (side cache)
+  std::vector<uint8_t> sharedContributor_;  // per input triangle: listed in 2+ voxels (side cache, memo)
   std::atomic<uint64_t> uniqueTriangles_{0}, shaderPoints_{0}, fillNanos_{0}, displaceNanos_{0};
   std::atomic<uint64_t> maxVoxelTriangles_{0};
   std::atomic<uint64_t> droppedContributors_{0};
   std::atomic<uint64_t> simplifyBefore_{0}, simplifyAfter_{0};
   std::unique_ptr<SideCache> side_;
+  std::vector<std::atomic<SubtreeMemo*>> subtreeMemos_;  // per input triangle, owned; or null
+  std::atomic<uint64_t> subtreeBytes_{0};
+  // Per voxel, once filled with a BVH: its root node and lattice, kept when the voxel is evicted.
+  struct VoxelProxy {
+    glm::vec3 origin, step;
+    VoxelGeometry::BvhNode root;
+  };
+  std::vector<std::atomic<const VoxelProxy*>> proxies_;  // owned; null until the first fill
+  std::atomic<uint64_t> proxyBytes_{0};
   std::atomic<uint64_t> sideHits_{0}, sideMisses_{0}, sidePeak_{0};
   // Traversal time per ray, fills included (they are subtracted in stats()), summed per thread
   // shard so that the two clock reads per ray are the only cost on the ray path.
   static constexpr int kTimeShards = 16;
   struct alignas(64) TimeShard {
     std::atomic<uint64_t> nanos{0};
+    std::atomic<uint64_t> proxySkips{0};  // voxels a ray passed on their proxy alone
   };
   TimeShard traverseNanos_[kTimeShards];
   std::atomic<uint32_t> nonFinite_{0}, loopLimit_{0}, indexClamped_{0}, unknownSpace_{0},

@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <tuple>
 
 namespace relief {
@@ -119,6 +120,7 @@ struct Scratch {
     uint64_t key;  // not a pointer into `edges`: the table may grow while probes are collected
     uint32_t a, b, mid;
     bool flat;
+    bool known;  // decided by the memo: no lookahead
   };
   std::vector<ProbeSlot> probes;
   struct Look {
@@ -136,6 +138,13 @@ struct Scratch {
   };
   std::vector<Interior> interiors;
   EdgeMap edges;  // (min, max) vertex pair -> midpoint, or -1: kept
+  std::vector<uint32_t> culledCodes;  // subtrees culled by this subdivision
+  std::vector<CullBox> subtreeBoxes;  // per subtree slot: the box of its kept micro-triangles
+  std::vector<uint8_t> subtreeCut;    // per subtree slot: some part of it was culled
+  std::vector<uint64_t> subtreeDecisions;  // per subtree slot: interior decisions as in SubtreeMemo
+  std::vector<uint32_t> candidates;        // this round's interior candidates (active triangle)
+  std::vector<std::pair<uint32_t, uint64_t>> edgeCalls;  // this round's split edges: slot, key
+  std::vector<uint32_t> decisionIndex;     // per subtree slot: interior decisions made so far
 };
 
 // Frame of the input triangle shared by all its vertices: geometric normal, dP/du and dP/dv of its
@@ -390,10 +399,94 @@ bool mayReach(const Vertices& vs, uint32_t a, uint32_t b, uint32_t c, float boun
          lo.z <= box.hi.z && box.lo.z <= hi.z;
 }
 
+bool boxesOverlap(const CullBox& a, const CullBox& b) {
+  return a.lo.x <= b.hi.x && b.lo.x <= a.hi.x && a.lo.y <= b.hi.y && b.lo.y <= a.hi.y &&
+         a.lo.z <= b.hi.z && b.lo.z <= a.hi.z;
+}
+
+// The boxes of the subtrees `out` holds whole (no part culled), those `known` lacks.
+void learnSubtrees(const MicroMesh& out, const std::vector<glm::vec3>& P, Scratch& scratch,
+                   const SubtreeMemo* known, std::vector<LearntSubtree>& learnt) {
+  constexpr float kInf = std::numeric_limits<float>::infinity();
+  // Only the rounds this subdivision reached (most input triangles of a fine mesh stop early).
+  uint32_t deepest = 1;
+  for (uint32_t id : out.ids) deepest = std::max(deepest, id >> kMicroRankBits);
+  for (uint32_t code : scratch.culledCodes) deepest = std::max(deepest, code);
+  const int rounds = (31 - __builtin_clz(deepest)) / 2;
+  const uint32_t slots = subtreeSlots(rounds);
+  scratch.subtreeBoxes.assign(slots, CullBox{glm::vec3(kInf), glm::vec3(-kInf)});
+  scratch.subtreeCut.assign(slots, 0);
+  for (uint32_t code : scratch.culledCodes)
+    for (uint32_t c = code; c != 0; c >>= 2) scratch.subtreeCut[subtreeSlot(c)] = 1;
+  for (size_t i = 0; i < out.ids.size(); ++i) {
+    const uint32_t* tri = &out.indices[3 * i];
+    const glm::vec3 lo = glm::min(P[tri[0]], glm::min(P[tri[1]], P[tri[2]]));
+    const glm::vec3 hi = glm::max(P[tri[0]], glm::max(P[tri[1]], P[tri[2]]));
+    for (uint32_t c = out.ids[i] >> kMicroRankBits; c != 0; c >>= 2) {
+      CullBox& b = scratch.subtreeBoxes[subtreeSlot(c)];
+      b.lo = glm::min(b.lo, lo), b.hi = glm::max(b.hi, hi);
+    }
+  }
+  CullBox ignored;
+  for (int round = 0; round <= rounds; ++round)
+    for (uint32_t code = 1u << (2 * round); code < 2u << (2 * round); ++code) {
+      const uint32_t slot = subtreeSlot(code);
+      const CullBox& b = scratch.subtreeBoxes[slot];
+      if (scratch.subtreeCut[slot] || !(b.lo.x <= b.hi.x)) continue;  // cut, or no such subtree
+      if (known && known->box(code, ignored)) continue;
+      const uint64_t decisions = scratch.subtreeDecisions[slot];
+      learnt.push_back({code, b, decisions == ~uint64_t(0) ? 0 : decisions});
+    }
+}
+
 }  // namespace
 
+SubtreeMemo::SubtreeMemo(const CullBox& reference, int rounds)
+    : lo_(reference.lo),
+      step_((reference.hi - reference.lo) / 255.0f),
+      slots_(subtreeSlots(std::clamp(rounds, 0, kCullRounds))),
+      boxes_(std::make_unique<std::atomic<uint64_t>[]>(slots_)),
+      decisions_(std::make_unique<std::atomic<uint64_t>[]>(slots_)) {
+  for (uint32_t i = 0; i < slots_; ++i) {
+    boxes_[i].store(0, std::memory_order_relaxed);
+    decisions_[i].store(0, std::memory_order_relaxed);
+  }
+}
+
+bool SubtreeMemo::box(uint32_t code, CullBox& box) const {
+  const uint32_t slot = subtreeSlot(code);
+  const uint64_t w = slot < slots_ ? boxes_[slot].load(std::memory_order_relaxed) : 0;
+  if (w == 0) return false;
+  for (int a = 0; a < 3; ++a) {
+    box.lo[a] = decode(a, uint32_t(w >> (8 * a)) & 255u);
+    box.hi[a] = decode(a, uint32_t(w >> (8 * (a + 3))) & 255u);
+  }
+  return true;
+}
+
+void SubtreeMemo::learn(uint32_t code, const CullBox& box, uint64_t decisions) {
+  const uint32_t slot = subtreeSlot(code);
+  if (slot >= slots_) return;
+  if (decisions) decisions_[slot].store(decisions, std::memory_order_relaxed);
+  uint64_t w = uint64_t(1) << 63;
+  for (int a = 0; a < 3; ++a) {
+    // The lattice point at or below lo, and the one at or above hi; a box the lattice cannot hold
+    // (outside the reference, or not finite) is not kept.
+    if (!(box.lo[a] >= decode(a, 0)) || !(box.hi[a] <= decode(a, 255))) return;
+    const float scale = step_[a] > 0.0f ? 1.0f / step_[a] : 0.0f;
+    uint32_t qlo = uint32_t(std::clamp((box.lo[a] - lo_[a]) * scale, 0.0f, 255.0f));
+    while (qlo > 0 && decode(a, qlo) > box.lo[a]) --qlo;
+    uint32_t qhi = uint32_t(std::clamp(std::ceil((box.hi[a] - lo_[a]) * scale), 0.0f, 255.0f));
+    while (qhi < 255 && decode(a, qhi) < box.hi[a]) ++qhi;
+    if (decode(a, qlo) > box.lo[a] || decode(a, qhi) < box.hi[a]) return;
+    w |= uint64_t(qlo) << (8 * a) | uint64_t(qhi) << (8 * (a + 3));
+  }
+  boxes_[slot].store(w, std::memory_order_relaxed);
+}
+
 void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* displacement,
-                       MicroMesh& out, SubdivideCounters& counters, const CullBox* cull) {
+                       MicroMesh& out, SubdivideCounters& counters, const CullBox* cull,
+                       const SubtreeMemo* known, std::vector<LearntSubtree>* learnt) {
   thread_local Scratch scratch;
   scratch.batch.constCount = 0;  // a new triangle: its uniform fields must be filled again
   Vertices& vs = scratch.vertices;
@@ -423,6 +516,13 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
   const bool displaced = displacement != nullptr && displacement->shader != nullptr;
   out.indices.clear();
   out.ids.clear();
+  if (learnt) learnt->clear();
+  scratch.culledCodes.clear();
+  scratch.edgeCalls.clear();
+  if (learnt) scratch.subtreeDecisions.assign(kSubtreeSlots, 0);
+  // Interior decisions are numbered per subtree when they may be read from or written to a memo.
+  const bool memoize = known || learnt;
+  if (memoize) scratch.decisionIndex.assign(kSubtreeSlots, 0);
   if (displaced) {
     const Displacement& disp = *displacement;
     const TriangleFrame frame = makeFrame(p, n, uv, st, mesh.N.size() == mesh.P.size());
@@ -463,11 +563,37 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
     };
     // A triangle's edge: as expand, and with simplification the first sight of a split edge
     // queues its flatness decision (the midpoint may already exist from a lookahead).
-    auto midpoint = [&](uint32_t a, uint32_t b) -> int64_t {
+    // Each subtree's simplification decisions (edges as its triangles ask for them, then its
+    // interior candidates, round by round) are numbered for the memo; a decision the memo holds
+    // is taken from it (applied with the round's others, so later asks see the same edge map).
+    auto memoDecision = [&](uint32_t code, bool& flat) {
+      const uint32_t index = scratch.decisionIndex[subtreeSlot(code)]++;
+      const uint64_t memo = known ? known->decisions(code) : 0;
+      if (!memo || index >= ((memo >> 56) & 127u)) return false;
+      flat = (memo >> index) & 1u;
+      return true;
+    };
+    auto recordDecision = [&](uint32_t code, bool flat) {
+      uint64_t& w = scratch.subtreeDecisions[subtreeSlot(code)];
+      const uint32_t count = uint32_t(w >> 56) & 127u;
+      if (count >= uint32_t(SubtreeMemo::kMaxDecisions)) {
+        w = ~uint64_t(0);  // overflowed: not memoized
+        return;
+      }
+      w = (w & ((uint64_t(1) << 56) - 1)) | (uint64_t(flat) << count) | (uint64_t(count + 1) << 56) |
+          (uint64_t(1) << 63);
+    };
+    auto midpoint = [&](uint32_t a, uint32_t b, uint32_t code) -> int64_t {
       const int64_t mid = expand(a, b);
-      if (simplify && mid >= 0 && !vs.decided[size_t(mid)]) {
-        vs.decided[size_t(mid)] = 1;
-        probes.push_back({(uint64_t(std::min(a, b)) << 32) | std::max(a, b), a, b, uint32_t(mid), true});
+      if (simplify && mid >= 0) {
+        const uint64_t key = (uint64_t(std::min(a, b)) << 32) | std::max(a, b);
+        bool flat = false;
+        const bool memoized = memoize && memoDecision(code, flat);
+        if (learnt) scratch.edgeCalls.push_back({code, key});
+        if (!vs.decided[size_t(mid)]) {
+          vs.decided[size_t(mid)] = 1;
+          probes.push_back({key, a, b, uint32_t(mid), memoized ? flat : true, memoized});
+        }
       }
       return mid;
     };
@@ -484,11 +610,12 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
       looks.clear();
       for (uint32_t i = 0; i < probes.size(); ++i) {
         const Probe& pr = probes[i];
-        looks.push_back({i, pr.a, pr.mid, 0}), looks.push_back({i, pr.mid, pr.b, 0});
+        if (!pr.known) looks.push_back({i, pr.a, pr.mid, 0}), looks.push_back({i, pr.mid, pr.b, 0});
       }
       // The first wave checks the probes' own midpoints (already displaced).
       for (Probe& pr : probes)
-        pr.flat = nearChord(vs.displaced[pr.a], vs.displaced[pr.b], vs.displaced[pr.mid], disp.flatness);
+        if (!pr.known)
+          pr.flat = nearChord(vs.displaced[pr.a], vs.displaced[pr.b], vs.displaced[pr.mid], disp.flatness);
       while (!looks.empty()) {
         const uint32_t first = vs.size();
         nextLooks.clear();
@@ -525,6 +652,7 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
       auto& interiors = scratch.interiors;
       centre.assign(active.size() / 3, -1);
       interiors.clear();
+      scratch.candidates.clear();
       const uint32_t firstCentre = vs.size();
       for (size_t k = 0; k < active.size(); k += 3) {
         const uint32_t a = active[k], b = active[k + 1], c = active[k + 2];
@@ -535,7 +663,6 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
         if (m[0] != kFlat && m[1] != kFlat && m[2] != kFlat) continue;
         const int level = std::max({vs.level[a], vs.level[b], vs.level[c]});
         if (level + 1 > maxDepth) continue;
-        centre[k / 3] = addInteriorPoint(vs, a, b, c, 1.0f / 3, 1.0f / 3, 1.0f / 3, level + 1);
         const float longest = std::sqrt(std::max({glm::dot(vs.displaced[a] - vs.displaced[b], vs.displaced[a] - vs.displaced[b]),
                                                   glm::dot(vs.displaced[b] - vs.displaced[c], vs.displaced[b] - vs.displaced[c]),
                                                   glm::dot(vs.displaced[c] - vs.displaced[a], vs.displaced[c] - vs.displaced[a])}));
@@ -543,10 +670,23 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
         while (depth < kMaxInteriorDepth && depth < maxDepth - level &&
                longest > disp.edgeLength * float(1 << depth))
           ++depth;
-        interiors.push_back({uint32_t(k / 3), {a, b, c}, depth, level + depth, true, 0, 0});
         // The unsimplified mesh has every point of the finest lattice, evaluated or not.
         const uint64_t steps = uint64_t(1) << depth;
         samplePoints += (steps - 1) * (steps - 2) / 2;
+        scratch.candidates.push_back(uint32_t(k / 3));
+        // Decided by the memo: flat (final, its centre never evaluated) or split at its centre,
+        // with no samples either way.
+        bool flat = false;
+        if (memoize && memoDecision(activeCodes[k / 3], flat)) {
+          if (flat) {
+            ++samplePoints;  // the centre, unevaluated
+            continue;
+          }
+          centre[k / 3] = addInteriorPoint(vs, a, b, c, 1.0f / 3, 1.0f / 3, 1.0f / 3, level + 1);
+          continue;
+        }
+        centre[k / 3] = addInteriorPoint(vs, a, b, c, 1.0f / 3, 1.0f / 3, 1.0f / 3, level + 1);
+        interiors.push_back({uint32_t(k / 3), {a, b, c}, depth, level + depth, true, 0, 0});
       }
       // The samples come in stages, coarse to fine: the lattice of 2^s steps per edge holds the
       // one of 2^(s-1), so stage s evaluates only the points new at s, for the triangles still
@@ -588,6 +728,8 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
       }
       for (const Scratch::Interior& in : interiors)
         if (in.flat) centre[in.triangle] = -1;  // final: the centre stays unreferenced
+      if (learnt)
+        for (uint32_t t : scratch.candidates) recordDecision(activeCodes[t], centre[t] < 0);
     };
     // A finished triangle's id: its own path code while rounds < kCullRounds, else its ancestor's
     // code and its rank among that ancestor's finished descendants.
@@ -604,7 +746,14 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
         // Drop whole subtrees that cannot reach the box; ids of the kept ones do not change.
         size_t kept = 0;
         for (size_t k = 0; k < active.size(); k += 3) {
-          if (!mayReach(vs, active[k], active[k + 1], active[k + 2], cullGrow, *cull)) continue;
+          CullBox exact;
+          const bool reach = known && known->box(activeCodes[k / 3], exact)
+                                 ? boxesOverlap(exact, *cull)
+                                 : mayReach(vs, active[k], active[k + 1], active[k + 2], cullGrow, *cull);
+          if (!reach) {
+            if (learnt) scratch.culledCodes.push_back(activeCodes[k / 3]);
+            continue;
+          }
           for (int c = 0; c < 3; ++c) active[kept * 3 + c] = active[k + c];
           activeCodes[kept++] = activeCodes[k / 3];
         }
@@ -617,10 +766,13 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
       std::vector<int64_t>& mids = scratch.mids;
       mids.resize(active.size());
       for (size_t k = 0; k < active.size(); k += 3)
-        for (int e = 0; e < 3; ++e) mids[k + size_t(e)] = midpoint(active[k + e], active[k + (e + 1) % 3]);
+        for (int e = 0; e < 3; ++e)
+          mids[k + size_t(e)] = midpoint(active[k + e], active[k + (e + 1) % 3], activeCodes[k / 3]);
       displace(disp, frame, vs, firstNew, scratch.batch, counters);
       if (simplify) {
         decideFlatEdges();
+        for (const auto& [code, key] : scratch.edgeCalls) recordDecision(code, edges.find(key) == kFlat);
+        scratch.edgeCalls.clear();
         decideInteriors();
       }
       next.clear();
@@ -693,6 +845,7 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
     }
     counters.trianglesBeforeSimplification += before;
     counters.trianglesAfterSimplification += after;
+    if (learnt) learnSubtrees(out, vs.displaced, scratch, known, *learnt);
   } else {
     push(out.indices, 0, 1, 2);
     out.ids.push_back(kWholeTriangleId);

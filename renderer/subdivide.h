@@ -33,7 +33,9 @@
 // exactly.
 #pragma once
 
+#include <atomic>
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include <glm/glm.hpp>
@@ -50,6 +52,63 @@ constexpr uint32_t kWholeTriangleId = 1u << kMicroRankBits;
 // An axis-aligned world box restricting a subdivision (see culling above).
 struct CullBox {
   glm::vec3 lo, hi;
+};
+
+// Culling subtrees are the triangles of rounds 0..kCullRounds, named by their path codes; slot
+// numbering packs the codes of each round after those of the rounds before it.
+constexpr uint32_t subtreeSlots(int rounds) { return ((1u << (2 * (rounds + 1))) - 1) / 3; }
+constexpr uint32_t kSubtreeSlots = subtreeSlots(kCullRounds);
+inline uint32_t subtreeSlot(uint32_t code) {
+  const int round = (31 - __builtin_clz(code)) / 2;
+  const uint32_t first = 1u << (2 * round);
+  return (first - 1) / 3 + code - first;
+}
+
+// What earlier subdivisions of one input triangle learnt about its culling subtrees, so that
+// per-voxel fills stop repeating work (docs/cache.md, "Subtree memo"):
+// - the exact box of every subtree a subdivision kept whole. A culled subdivision must otherwise
+//   keep each subtree whose undisplaced box grown by the displacement bound reaches the cull box,
+//   and that margin is most of what per-voxel fills repeat; once a subtree's displaced box is
+//   known, fills of voxels it does not reach skip it.
+// - its interior flatness decisions (simplification), in the order the subdivision makes them:
+//   proving a triangle's interior flat takes up to hundreds of shader samples, and a refill would
+//   take them all again to reach the same answer.
+// Both are pure functions of the input triangle and its settings (determinism rule 1): culling
+// keeps or drops whole subtrees, and a kept subtree is processed identically whatever else is
+// kept. So the memo never changes the micro-triangles, only the work of finding them. Boxes are
+// bytes on a lattice over `reference`, rounded outwards; each slot is one atomic word, and a word,
+// once set, is the same whichever thread sets it, so relaxed order suffices.
+class SubtreeMemo {
+ public:
+  // The most interior decisions one subtree's word holds (a subtree with more is not memoized).
+  static constexpr int kMaxDecisions = 56;
+  // Slots for the subtrees of rounds 0..rounds (at most kCullRounds): a triangle that subdivides
+  // only a few rounds deep needs only a few (what deeper subdivisions learn is then not kept).
+  SubtreeMemo(const CullBox& reference, int rounds = kCullRounds);
+  // The box of subtree `code`, if learnt.
+  bool box(uint32_t code, CullBox& box) const;
+  // The interior decisions of subtree `code`: 0 if not learnt, else bit 63, the count in bits
+  // 56..62 and decision i (1: flat) in bit i.
+  uint64_t decisions(uint32_t code) const {
+    const uint32_t slot = subtreeSlot(code);
+    return slot < slots_ ? decisions_[slot].load(std::memory_order_relaxed) : 0;
+  }
+  // Keeps `box` for subtree `code` when the lattice can hold it conservatively, and its decisions.
+  void learn(uint32_t code, const CullBox& box, uint64_t decisions);
+  size_t bytes() const { return sizeof(SubtreeMemo) + 2 * size_t(slots_) * sizeof(uint64_t); }
+
+ private:
+  float decode(int axis, uint32_t q) const { return lo_[axis] + float(q) * step_[axis]; }
+  glm::vec3 lo_, step_;
+  uint32_t slots_;
+  std::unique_ptr<std::atomic<uint64_t>[]> boxes_, decisions_;
+};
+
+// What one subdivision learnt about a subtree it kept whole (SubtreeMemo::learn's arguments).
+struct LearntSubtree {
+  uint32_t code;
+  CullBox box;
+  uint64_t decisions;
 };
 
 // The displaced micro-mesh of one input triangle (or of its part reaching a CullBox).
@@ -75,8 +134,12 @@ struct SubdivideCounters {
 
 // Subdivides and displaces triangle `triangle` of `mesh` with `displacement` (null, or a null
 // shader: the triangle itself, one micro-triangle). `out` is overwritten. With `cull`, parts that
-// cannot reach the box are skipped (the result then also holds some triangles outside it).
+// cannot reach the box are skipped (the result then also holds some triangles outside it). `known`
+// is what earlier subdivisions of this triangle learnt (it may be learning concurrently), and
+// `learnt` (cleared) receives what this one found about the subtrees it kept whole and `known`
+// lacks.
 void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* displacement,
-                       MicroMesh& out, SubdivideCounters& counters, const CullBox* cull = nullptr);
+                       MicroMesh& out, SubdivideCounters& counters, const CullBox* cull = nullptr,
+                       const SubtreeMemo* known = nullptr, std::vector<LearntSubtree>* learnt = nullptr);
 
 }  // namespace relief

@@ -90,6 +90,9 @@ constexpr const char* kUsage =
     "  RELIEF_SHADER_PATH        ':'-separated shader directories, searched after -I\n"
     "  RELIEF_SUBVOXEL=grid      dense voxels get the paper's sub-voxel grid instead of a BVH\n"
     "                            (for measurements; the image is the same)\n"
+    "  RELIEF_SUBTREES=0         no subtree memos (exact boxes and simplification decisions\n"
+    "                            kept per input triangle), RELIEF_PROXIES=0 no voxel proxies\n"
+    "                            (kept BVH roots): for measurements; the image is the same\n"
     "  RELIEF_CHECK_BUDGET=1     check the cache budget after every fill (debug)\n"
     "  RELIEF_IMAGE_LIBRARY=FILE the OpenImageIO plugin (textures, formats other than\n"
     "                            png/ppm/pgm), loaded on first use (default: <libdir>/relief/)\n"
@@ -386,6 +389,8 @@ StatList collectStats(const CommandLine& cl, const relief::Scene& scene,
       {"cache.side_cache_hits", u(a.sideCacheHits)},
       {"cache.side_cache_misses", u(a.sideCacheMisses)},
       {"cache.side_cache_peak_triangles", u(a.sideCachePeakTriangles)},
+      {"cache.proxy_skips", u(a.proxySkips)},
+      {"cache.memo_bytes", u(a.memoBytes)},
       {"cache.budget_violations", u(a.budgetViolations)},
       {"time.load_s", f(loadSeconds)},
       {"time.build_s", f(buildSeconds)},
@@ -740,6 +745,8 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
   accelOptions.sideCacheTriangles =
       cl.sideCache.value_or(accelOptions.cacheBudgetTriangles == UINT64_MAX ? kDefaultSideCache : 0);
   if (const char* env = std::getenv("RELIEF_SUBVOXEL")) accelOptions.subVoxelGrid = std::string_view(env) == "grid";
+  if (const char* env = std::getenv("RELIEF_SUBTREES")) accelOptions.learnSubtrees = std::string_view(env) != "0";
+  if (const char* env = std::getenv("RELIEF_PROXIES")) accelOptions.voxelProxies = std::string_view(env) != "0";
   std::unique_ptr<relief::Accelerator> accel;
   if (cl.accel == "grid") {
     accel = relief::makeGridAccelerator(scene, accelOptions);
