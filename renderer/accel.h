@@ -54,9 +54,9 @@ struct AccelOptions {
   // subtree they keep whole, so later fills skip subtrees that miss their voxel. Never changes the
   // image; costs kSubtreeSlots words per subdivided input triangle.
   bool learnSubtrees = true;
-  // Voxel proxies: a voxel's BVH root (88 bytes) is kept when the voxel is evicted, and rays that
-  // enter none of its children pass the voxel without the cache (a refill avoided). Never
-  // changes the image.
+  // Voxel proxies: the top two levels of a voxel's BVH (at most 344 bytes) are kept when the
+  // voxel is evicted, and rays that would enter no leaf there pass the voxel without the cache (a
+  // refill avoided). Never changes the image.
   bool voxelProxies = true;
   // Dense voxels get a BVH (default) or, when set, the paper's uniform sub-voxel grid; kept to
   // measure one against the other (docs/cache.md). Never changes the image. relief sets it from

@@ -671,7 +671,15 @@ std::unique_ptr<VoxelGeometry> GridAccelerator::buildVoxel(uint32_t voxel) {
   if (!proxies_.empty() && !g->bvhNodes.empty() && !proxies_[voxel].load(std::memory_order_acquire)) {
     // Every fill of a voxel builds the same BVH (rule 1), so whichever fill publishes it, the
     // proxy is the root a resident voxel would have.
-    auto proxy = std::make_unique<VoxelProxy>(VoxelProxy{g->bvhOrigin, g->bvhStep, g->bvhNodes[0]});
+    auto proxy = std::make_unique<VoxelProxy>();
+    proxy->origin = g->bvhOrigin, proxy->step = g->bvhStep;
+    proxy->nodes[0] = g->bvhNodes[0];
+    uint32_t next = 1;
+    for (uint32_t& ref : proxy->nodes[0].child)
+      if (!(ref & VoxelGeometry::kBvhLeafFlag)) {
+        proxy->nodes[next] = g->bvhNodes[ref];
+        ref = next++;
+      }
     const VoxelProxy* expected = nullptr;
     if (proxies_[voxel].compare_exchange_strong(expected, proxy.get(), std::memory_order_acq_rel)) {
       proxy.release();
@@ -689,6 +697,24 @@ std::unique_ptr<VoxelGeometry> GridAccelerator::buildVoxel(uint32_t voxel) {
                                     .count()),
                        std::memory_order_relaxed);
   return g;
+}
+
+bool GridAccelerator::passes(const VoxelProxy& p, const Ray& ray, const SlabRay& sr, float limit) {
+  // The decisions the BVH traversal takes first, with the same arithmetic: the root's children
+  // the ray enters, then, for those that are nodes, their children. The traversal tests
+  // triangles only in a leaf, and `limit` can only shrink through a hit, so a ray entering no
+  // leaf here enters none there (and a root child that is a leaf is a leaf entered).
+  glm::vec3 base, scale;
+  lattice(p.origin, p.step, ray, sr, base, scale);
+  float tNear[4];
+  const int mask = enterChildren(p.nodes[0], sr, base, scale, ray.tMin, limit, tNear);
+  for (int i = 0; i < 4; ++i) {
+    if (!(mask >> i & 1)) continue;
+    const uint32_t ref = p.nodes[0].child[i];
+    if (ref & VoxelGeometry::kBvhLeafFlag) return false;
+    if (enterChildren(p.nodes[ref], sr, base, scale, ray.tMin, limit, tNear)) return false;
+  }
+  return true;
 }
 
 void GridAccelerator::intersectVoxel(uint32_t voxel, const WatertightRay& wr, const SlabRay& sr, const Ray& ray,
@@ -722,17 +748,12 @@ void GridAccelerator::intersectVoxel(uint32_t voxel, const WatertightRay& wr, co
     }
     return;
   }
-  // A voxel's BVH root outlives the voxel (VoxelProxy): a ray entering none of the root's
-  // children would test no triangle, so it need not touch the cache, nor bring the voxel back.
+  // The top of a voxel's BVH outlives the voxel (VoxelProxy): a ray that passes it would test no
+  // triangle, so it need not touch the cache, nor bring the voxel back.
   if (sr.usable && !proxies_.empty()) {
-    if (const VoxelProxy* p = proxies_[voxel].load(std::memory_order_acquire)) {
-      glm::vec3 base, scale;
-      lattice(p->origin, p->step, ray, sr, base, scale);
-      float tNear[4];
-      if (!enterChildren(p->root, sr, base, scale, ray.tMin, limit, tNear)) {
-        traverseNanos_[cacheThreadShard() % kTimeShards].proxySkips.fetch_add(1, std::memory_order_relaxed);
-        return;
-      }
+    if (const VoxelProxy* p = proxies_[voxel].load(std::memory_order_acquire); p && passes(*p, ray, sr, limit)) {
+      traverseNanos_[cacheThreadShard() % kTimeShards].proxySkips.fetch_add(1, std::memory_order_relaxed);
+      return;
     }
   }
   const VoxelGeometry* g = cache_->acquire(voxel, stamp, [this](uint32_t v) { return buildVoxel(v); });

@@ -73,11 +73,15 @@ class GridAccelerator final : public Accelerator {
   std::unique_ptr<SideCache> side_;
   std::vector<std::atomic<SubtreeMemo*>> subtreeMemos_;  // per input triangle, owned; or null
   std::atomic<uint64_t> subtreeBytes_{0};
-  // Per voxel, once filled with a BVH: its root node and lattice, kept when the voxel is evicted.
+  // Per voxel, once filled with a BVH: the top two levels of its nodes and its lattice, kept when
+  // the voxel is evicted. nodes[0] is the root; its children that are nodes follow, and the
+  // root's child references point at them (leaves keep their leaf references).
   struct VoxelProxy {
     glm::vec3 origin, step;
-    VoxelGeometry::BvhNode root;
+    VoxelGeometry::BvhNode nodes[5];
   };
+  // Whether `ray` passes the voxel of proxy `p` without testing a triangle (see intersectVoxel).
+  static bool passes(const VoxelProxy& p, const Ray& ray, const SlabRay& sr, float limit);
   std::vector<std::atomic<const VoxelProxy*>> proxies_;  // owned; null until the first fill
   std::atomic<uint64_t> proxyBytes_{0};
   std::atomic<uint64_t> sideHits_{0}, sideMisses_{0}, sidePeak_{0};

@@ -418,15 +418,19 @@ void learnSubtrees(const MicroMesh& out, const std::vector<glm::vec3>& P, Scratc
   scratch.subtreeCut.assign(slots, 0);
   for (uint32_t code : scratch.culledCodes)
     for (uint32_t c = code; c != 0; c >>= 2) scratch.subtreeCut[subtreeSlot(c)] = 1;
+  // Each triangle into its own subtree's box, then each box into its parent's, deepest first.
   for (size_t i = 0; i < out.ids.size(); ++i) {
     const uint32_t* tri = &out.indices[3 * i];
-    const glm::vec3 lo = glm::min(P[tri[0]], glm::min(P[tri[1]], P[tri[2]]));
-    const glm::vec3 hi = glm::max(P[tri[0]], glm::max(P[tri[1]], P[tri[2]]));
-    for (uint32_t c = out.ids[i] >> kMicroRankBits; c != 0; c >>= 2) {
-      CullBox& b = scratch.subtreeBoxes[subtreeSlot(c)];
-      b.lo = glm::min(b.lo, lo), b.hi = glm::max(b.hi, hi);
-    }
+    CullBox& b = scratch.subtreeBoxes[subtreeSlot(out.ids[i] >> kMicroRankBits)];
+    b.lo = glm::min(b.lo, glm::min(P[tri[0]], glm::min(P[tri[1]], P[tri[2]])));
+    b.hi = glm::max(b.hi, glm::max(P[tri[0]], glm::max(P[tri[1]], P[tri[2]])));
   }
+  for (int round = rounds; round > 0; --round)
+    for (uint32_t code = 1u << (2 * round); code < 2u << (2 * round); ++code) {
+      const CullBox& b = scratch.subtreeBoxes[subtreeSlot(code)];
+      CullBox& parent = scratch.subtreeBoxes[subtreeSlot(code >> 2)];
+      parent.lo = glm::min(parent.lo, b.lo), parent.hi = glm::max(parent.hi, b.hi);
+    }
   CullBox ignored;
   for (int round = 0; round <= rounds; ++round)
     for (uint32_t code = 1u << (2 * round); code < 2u << (2 * round); ++code) {
@@ -539,6 +543,7 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
     activeCodes.assign({1});
     scratch.ranks.assign(size_t(1) << (1 + 2 * kCullRounds), 0);
     const float cullGrow = std::max(0.0f, disp.boundWorld);
+    bool unknownKept = false;  // some subtree kept by culling had no box in `known`
     uint64_t samplePoints = 0;  // interior samples, evaluated and dropped
     edges.clear();
     // Edge-map values: a midpoint (>= 0), -1 (short or at the depth limit), or kFlat (wanted
@@ -747,13 +752,14 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
         size_t kept = 0;
         for (size_t k = 0; k < active.size(); k += 3) {
           CullBox exact;
-          const bool reach = known && known->box(activeCodes[k / 3], exact)
-                                 ? boxesOverlap(exact, *cull)
-                                 : mayReach(vs, active[k], active[k + 1], active[k + 2], cullGrow, *cull);
+          const bool isKnown = known && known->box(activeCodes[k / 3], exact);
+          const bool reach = isKnown ? boxesOverlap(exact, *cull)
+                                     : mayReach(vs, active[k], active[k + 1], active[k + 2], cullGrow, *cull);
           if (!reach) {
             if (learnt) scratch.culledCodes.push_back(activeCodes[k / 3]);
             continue;
           }
+          unknownKept |= !isKnown;
           for (int c = 0; c < 3; ++c) active[kept * 3 + c] = active[k + c];
           activeCodes[kept++] = activeCodes[k / 3];
         }
@@ -845,7 +851,9 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
     }
     counters.trianglesBeforeSimplification += before;
     counters.trianglesAfterSimplification += after;
-    if (learnt) learnSubtrees(out, vs.displaced, scratch, known, *learnt);
+    // Only subtrees kept whole and still unknown are learnt: when every kept one was known (a
+    // refill of a voxel whose neighbourhood was filled before) there is nothing to learn.
+    if (learnt && (unknownKept || !cull)) learnSubtrees(out, vs.displaced, scratch, known, *learnt);
   } else {
     push(out.indices, 0, 1, 2);
     out.ids.push_back(kWholeTriangleId);
