@@ -237,6 +237,24 @@ TEST(Stats, RefinementSideCacheAndGridResolutionFlags) {
   }
 }
 
+// A budget holding fewer than four of the largest voxels, walked in scanline order, makes voxels
+// evict each other: relief says so after the render, naming the budget and the largest voxel. A
+// budget with room to spare says nothing.
+TEST(Stats, ThrashingBudgetIsReported) {
+  const fs::path dir = scratchDir();
+  const std::string base = kRelief + " " + kSphereScene + " --resolution 64x48 --threads 1 --order scanline -o " +
+                           (dir / "thin.png").string() + " --cache-triangles ";
+  ASSERT_EQ(runCommand(base + "30000", dir / "thin.log"), 0) << readFile(dir / "thin.log");
+  const std::string thin = readFile(dir / "thin.log");
+  EXPECT_NE(thin.find("sphere.rib: warning: the cache budget of 30000 displaced triangles holds fewer than 4 "
+                      "of the largest voxels ("),
+            std::string::npos)
+      << thin;
+  EXPECT_NE(thin.find("raise --cache-triangles, or --grid-resolution"), std::string::npos) << thin;
+  ASSERT_EQ(runCommand(base + "300000", dir / "roomy.log"), 0) << readFile(dir / "roomy.log");
+  EXPECT_EQ(readFile(dir / "roomy.log").find("warning"), std::string::npos) << readFile(dir / "roomy.log");
+}
+
 TEST(Stats, HumanReadableStatsShowTheSameKeys) {
   const fs::path dir = scratchDir(), log = dir / "stats.txt";
   ASSERT_EQ(runCommand(kRelief + " " + kSphereScene + " --quiet --resolution 32x24 --stats -o " +
