@@ -54,6 +54,9 @@ struct AccelOptions {
   // subtree they keep whole, so later fills skip subtrees that miss their voxel. Never changes the
   // image; costs kSubtreeSlots words per subdivided input triangle.
   bool learnSubtrees = true;
+  // The subtree memos' total size, beyond which input triangles get none (the facade needs 5 MB:
+  // about 2.3 bytes per displaced triangle of the input triangles fills reach).
+  uint64_t memoBytesLimit = uint64_t(64) << 20;
   // Voxel proxies: the top two levels of a voxel's BVH (at most 344 bytes) are kept when the
   // voxel is evicted, and rays that would enter no leaf there pass the voxel without the cache (a
   // refill avoided). Never changes the image.

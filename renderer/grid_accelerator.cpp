@@ -523,9 +523,13 @@ GridAccelerator::~GridAccelerator() {
   for (std::atomic<SubtreeMemo*>& b : subtreeMemos_) delete b.load(std::memory_order_relaxed);
 }
 
-SubtreeMemo& GridAccelerator::subtreeMemo(uint32_t id, int rounds) {
+SubtreeMemo* GridAccelerator::subtreeMemo(uint32_t id, int rounds) {
   SubtreeMemo* boxes = subtreeMemos_[id].load(std::memory_order_acquire);
-  if (boxes) return *boxes;
+  if (boxes) return boxes;
+  // Memos are kept for the whole render; past their cap, contributors go without (fills then
+  // cull on the bound margin, as without memos). Checked before making one, so two threads may
+  // each add one past the cap.
+  if (subtreeBytes_.load(std::memory_order_relaxed) >= options_.memoBytesLimit) return nullptr;
   // The lattice spans the reach the contributor grid assumes: the input triangle grown by its
   // displacement bound (a subtree reaching beyond it, against its shader's bound, is not learnt).
   const auto [m, triangle] = grid_.split(id);
@@ -541,9 +545,9 @@ SubtreeMemo& GridAccelerator::subtreeMemo(uint32_t id, int rounds) {
   auto made = std::make_unique<SubtreeMemo>(reference, rounds);
   if (subtreeMemos_[id].compare_exchange_strong(boxes, made.get(), std::memory_order_acq_rel)) {
     subtreeBytes_.fetch_add(made->bytes(), std::memory_order_relaxed);
-    return *made.release();
+    return made.release();
   }
-  return *boxes;  // another thread's, made meanwhile
+  return boxes;  // another thread's, made meanwhile
 }
 
 std::shared_ptr<const MicroMesh> GridAccelerator::sideCached(uint32_t id, SubdivideCounters& counters) {
@@ -624,8 +628,8 @@ std::unique_ptr<VoxelGeometry> GridAccelerator::buildVoxel(uint32_t voxel) {
         // keeps some subtree of round r whole, unless culling cut them all).
         uint32_t deepest = 0;
         for (const LearntSubtree& l : learnt) deepest = std::max(deepest, l.code);
-        SubtreeMemo& memo = subtreeMemo(id, (31 - __builtin_clz(deepest)) / 2);
-        for (const LearntSubtree& l : learnt) memo.learn(l.code, l.box, l.decisions);
+        if (SubtreeMemo* memo = subtreeMemo(id, (31 - __builtin_clz(deepest)) / 2))
+          for (const LearntSubtree& l : learnt) memo->learn(l.code, l.box, l.decisions);
       }
     }
     const MicroMesh& mm = whole ? *whole : culled;

@@ -53,8 +53,9 @@ class GridAccelerator final : public Accelerator {
   struct SideCache;
   // The whole micro-mesh of contributor `id` from the shared side cache, subdividing on a miss.
   std::shared_ptr<const MicroMesh> sideCached(uint32_t id, SubdivideCounters& counters);
-  // The subtree memo of contributor `id`, created on first use with slots for `rounds` rounds.
-  SubtreeMemo& subtreeMemo(uint32_t id, int rounds);
+  // The subtree memo of contributor `id`, created on first use with slots for `rounds` rounds;
+  // null once the memos reach AccelOptions::memoBytesLimit.
+  SubtreeMemo* subtreeMemo(uint32_t id, int rounds);
   void addCounters(const SubdivideCounters& counters);
   void addTraverseTime(std::chrono::steady_clock::time_point start);
 

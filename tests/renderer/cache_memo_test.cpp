@@ -1,8 +1,9 @@
 // What the cache keeps beyond its voxels (docs/cache.md, "Subtree memo" and "Voxel proxies"): a
 // culled subdivision that reads and feeds the subtree memo keeps exactly the micro-triangles of the
 // whole subdivision that reach its box, with less shader work once the memo knows the triangle;
-// memo boxes are rounded outwards; and an accelerator with memos and proxies gives the hits of one
-// without, at any budget and on two threads, with fewer shader points and capacity misses.
+// memo boxes are rounded outwards; an accelerator with memos and proxies gives the hits of one
+// without, at any budget and on two threads, with fewer shader points and capacity misses; and
+// memos stop at their byte limit.
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -270,6 +271,15 @@ TEST(CacheMemo, SameHitsWithMemosAndProxiesAtAnyBudgetAndOnTwoThreads) {
       EXPECT_LT(3 * both.shaderPoints, 2 * none.shaderPoints) << both.shaderPoints << " vs " << none.shaderPoints;
       EXPECT_LE(both.peakResidentTriangles, budget + both.maxVoxelTriangles);
     }
+
+    // Memos stop at their byte limit: with none allowed, fills work as without memos.
+    AccelOptions capped = base;
+    capped.cacheBudgetTriangles = budget;
+    capped.learnSubtrees = true, capped.memoBytesLimit = 0;
+    GridAccelerator cappedAccel(scene, capped);
+    for (size_t i = 0; i < rays.size(); ++i) ASSERT_EQ(key(cappedAccel.intersect(rays[i])), expected[i]) << i;
+    EXPECT_EQ(cappedAccel.stats().shaderPoints, none.shaderPoints);
+    EXPECT_LT(cappedAccel.stats().memoBytes, onlyMemo.memoBytes);
 
     AccelOptions o = base;
     o.cacheBudgetTriangles = budget;
