@@ -50,16 +50,18 @@ struct AccelOptions {
   // reuse them instead of re-subdividing. 0: off (each fill subdivides its contributors culled to
   // the voxel). Never changes the image: culled and whole subdivisions agree triangle for triangle.
   uint64_t sideCacheTriangles = 0;
-  // Subtree boxes (subdivide.h, SubtreeBoxes): culled fills learn the exact displaced box of every
-  // subtree they keep whole, so later fills skip subtrees that miss their voxel. Never changes the
-  // image; costs kSubtreeSlots words per subdivided input triangle.
+  // Subtree memos (subdivide.h, SubtreeMemo; docs/cache.md): culled fills learn the exact
+  // displaced box of every subtree they keep whole and the simplification decisions of the
+  // subtrees they process, so later fills skip subtrees that miss their voxel and replay the
+  // decisions instead of sampling. One memo per input triangle listed in two or more voxels,
+  // two words per subtree of the rounds it reaches (at most 5.5 KB). Never changes the image.
   bool learnSubtrees = true;
   // The subtree memos' total size, beyond which input triangles get none (the facade needs 5 MB:
   // about 2.3 bytes per displaced triangle of the input triangles fills reach).
   uint64_t memoBytesLimit = uint64_t(64) << 20;
-  // Voxel proxies: the top two levels of a voxel's BVH (at most 344 bytes) are kept when the
-  // voxel is evicted, and rays that would enter no leaf there pass the voxel without the cache (a
-  // refill avoided). Never changes the image.
+  // Voxel proxies: a voxel's first fill keeps the top two levels of its BVH (at most 344 bytes)
+  // for the rest of the render, and rays that would enter no leaf there pass the voxel without
+  // the cache (after an eviction, a refill avoided). Never changes the image.
   bool voxelProxies = true;
   // Dense voxels get a BVH (default) or, when set, the paper's uniform sub-voxel grid; kept to
   // measure one against the other (docs/cache.md). Never changes the image. relief sets it from

@@ -466,8 +466,8 @@ GridAccelerator::GridAccelerator(const Scene& scene, const AccelOptions& options
       voxelCounted_(grid_.numVoxels()),
       knownEmpty_(grid_.numVoxels()),
       side_(std::make_unique<SideCache>()),
-      subtreeMemos_(options.learnSubtrees ? grid_.numTriangles() : 0),
-      proxies_(options.voxelProxies ? grid_.numVoxels() : 0) {
+      subtreeMemos_(options.learnSubtrees && grid_.anyDisplaced() ? grid_.numTriangles() : 0),
+      proxies_(options.voxelProxies && !options.subVoxelGrid ? grid_.numVoxels() : 0) {
   // Undisplaced scenes go through the cache too: a fill then stores the input triangles whole,
   // and dense voxels get sub-voxel grids. Testing every contributor of a voxel instead made
   // sphere_box's undisplaced baseline (131K triangles in a few voxels of a room-sized grid) 8x
@@ -538,11 +538,21 @@ SubtreeMemo* GridAccelerator::subtreeMemo(uint32_t id, int rounds) {
   const float grow = d ? std::max(0.0f, d->boundWorld) : 0.0f;
   CullBox reference{glm::vec3(std::numeric_limits<float>::infinity()),
                     glm::vec3(-std::numeric_limits<float>::infinity())};
+  glm::vec3 p[3];
   for (int c = 0; c < 3; ++c) {
-    const glm::vec3 p = mesh.P[mesh.indices[3 * size_t(triangle) + c]];
-    reference.lo = glm::min(reference.lo, p - grow), reference.hi = glm::max(reference.hi, p + grow);
+    p[c] = mesh.P[mesh.indices[3 * size_t(triangle) + c]];
+    reference.lo = glm::min(reference.lo, p[c] - grow), reference.hi = glm::max(reference.hi, p[c] + grow);
   }
-  auto made = std::make_unique<SubtreeMemo>(reference, rounds);
+  // Rounds: what the first learning fill reached, or what the undisplaced triangle's longest edge
+  // suggests (one round per halving down to the edge length, and one more for the displacement),
+  // whichever is deeper; a first fill in a flat corner may stop rounds before the rest.
+  if (d && d->edgeLength > 0.0f) {
+    const float longest = std::max({glm::length(p[1] - p[0]), glm::length(p[2] - p[1]), glm::length(p[0] - p[2])});
+    int estimate = 1;
+    for (float l = longest; l > d->edgeLength && estimate <= kCullRounds; l *= 0.5f) ++estimate;
+    rounds = std::max(rounds, estimate);
+  }
+  auto made = std::make_unique<SubtreeMemo>(reference, std::min(rounds, kCullRounds));
   if (subtreeMemos_[id].compare_exchange_strong(boxes, made.get(), std::memory_order_acq_rel)) {
     subtreeBytes_.fetch_add(made->bytes(), std::memory_order_relaxed);
     return made.release();
@@ -621,15 +631,17 @@ std::unique_ptr<VoxelGeometry> GridAccelerator::buildVoxel(uint32_t voxel) {
       subdivideTriangle(scene_.meshes[mesh], triangle, grid_.displacement(mesh), culled, counters, &cull);
     else {
       const SubtreeMemo* known = subtreeMemos_[id].load(std::memory_order_acquire);
+      // Past the memos' cap, a contributor without one will not get one: nothing to learn.
+      const bool learn = known || subtreeBytes_.load(std::memory_order_relaxed) < options_.memoBytesLimit;
       subdivideTriangle(scene_.meshes[mesh], triangle, grid_.displacement(mesh), culled, counters, &cull,
-                        known, &learnt);
-      if (!learnt.empty()) {
+                        known, learn ? &learnt : nullptr);
+      if (learn && !learnt.empty()) {
         // Sized by the deepest subtree this fill learnt (a subdivision reaching round r anywhere
         // keeps some subtree of round r whole, unless culling cut them all).
         uint32_t deepest = 0;
         for (const LearntSubtree& l : learnt) deepest = std::max(deepest, l.code);
         if (SubtreeMemo* memo = subtreeMemo(id, (31 - __builtin_clz(deepest)) / 2))
-          for (const LearntSubtree& l : learnt) memo->learn(l.code, l.box, l.decisions);
+          for (const LearntSubtree& l : learnt) memo->learn(l.code, l.hasBox ? &l.box : nullptr, l.decisions);
       }
     }
     const MicroMesh& mm = whole ? *whole : culled;

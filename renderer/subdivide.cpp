@@ -431,15 +431,18 @@ void learnSubtrees(const MicroMesh& out, const std::vector<glm::vec3>& P, Scratc
       CullBox& parent = scratch.subtreeBoxes[subtreeSlot(code >> 2)];
       parent.lo = glm::min(parent.lo, b.lo), parent.hi = glm::max(parent.hi, b.hi);
     }
+  // A subtree's box needs the whole subtree; its decisions only the subtree's own triangles: for a
+  // subtree of an earlier round, the one triangle, decided before any child could be culled (and
+  // a culled subtree made none).
   CullBox ignored;
   for (int round = 0; round <= rounds; ++round)
     for (uint32_t code = 1u << (2 * round); code < 2u << (2 * round); ++code) {
       const uint32_t slot = subtreeSlot(code);
       const CullBox& b = scratch.subtreeBoxes[slot];
-      if (scratch.subtreeCut[slot] || !(b.lo.x <= b.hi.x)) continue;  // cut, or no such subtree
-      if (known && known->box(code, ignored)) continue;
-      const uint64_t decisions = scratch.subtreeDecisions[slot];
-      learnt.push_back({code, b, decisions == ~uint64_t(0) ? 0 : decisions});
+      const bool newBox = !scratch.subtreeCut[slot] && b.lo.x <= b.hi.x && !(known && known->box(code, ignored));
+      uint64_t decisions = slot < scratch.subtreeDecisions.size() ? scratch.subtreeDecisions[slot] : 0;
+      if (decisions == ~uint64_t(0) || (known && known->decisions(code))) decisions = 0;
+      if (newBox || decisions) learnt.push_back({code, newBox, b, decisions});
     }
 }
 
@@ -447,7 +450,9 @@ void learnSubtrees(const MicroMesh& out, const std::vector<glm::vec3>& P, Scratc
 
 SubtreeMemo::SubtreeMemo(const CullBox& reference, int rounds)
     : lo_(reference.lo),
-      step_((reference.hi - reference.lo) / 255.0f),
+      // 254 steps across the reference: the lattice's last point lies a step beyond its top, so
+      // rounding cannot leave a box touching the top unrepresentable.
+      step_((reference.hi - reference.lo) / 254.0f),
       slots_(subtreeSlots(std::clamp(rounds, 0, kCullRounds))),
       boxes_(std::make_unique<std::atomic<uint64_t>[]>(slots_)),
       decisions_(std::make_unique<std::atomic<uint64_t>[]>(slots_)) {
@@ -468,21 +473,24 @@ bool SubtreeMemo::box(uint32_t code, CullBox& box) const {
   return true;
 }
 
-void SubtreeMemo::learn(uint32_t code, const CullBox& box, uint64_t decisions) {
+void SubtreeMemo::learn(uint32_t code, const CullBox* box, uint64_t decisions) {
   const uint32_t slot = subtreeSlot(code);
   if (slot >= slots_) return;
   if (decisions) decisions_[slot].store(decisions, std::memory_order_relaxed);
+  if (!box) return;
   uint64_t w = uint64_t(1) << 63;
   for (int a = 0; a < 3; ++a) {
     // The lattice point at or below lo, and the one at or above hi; a box the lattice cannot hold
     // (outside the reference, or not finite) is not kept.
-    if (!(box.lo[a] >= decode(a, 0)) || !(box.hi[a] <= decode(a, 255))) return;
+    if (!(box->lo[a] >= decode(a, 0)) || !(box->hi[a] <= decode(a, 255))) return;
     const float scale = step_[a] > 0.0f ? 1.0f / step_[a] : 0.0f;
-    uint32_t qlo = uint32_t(std::clamp((box.lo[a] - lo_[a]) * scale, 0.0f, 255.0f));
-    while (qlo > 0 && decode(a, qlo) > box.lo[a]) --qlo;
-    uint32_t qhi = uint32_t(std::clamp(std::ceil((box.hi[a] - lo_[a]) * scale), 0.0f, 255.0f));
-    while (qhi < 255 && decode(a, qhi) < box.hi[a]) ++qhi;
-    if (decode(a, qlo) > box.lo[a] || decode(a, qhi) < box.hi[a]) return;
+    if (!std::isfinite(scale)) return;  // a subnormal step: the lattice is useless
+    // Both products are finite and non-negative here (the box lies on the lattice's span).
+    uint32_t qlo = uint32_t(std::clamp((box->lo[a] - lo_[a]) * scale, 0.0f, 255.0f));
+    while (qlo > 0 && decode(a, qlo) > box->lo[a]) --qlo;
+    uint32_t qhi = uint32_t(std::clamp(std::ceil((box->hi[a] - lo_[a]) * scale), 0.0f, 255.0f));
+    while (qhi < 255 && decode(a, qhi) < box->hi[a]) ++qhi;
+    if (decode(a, qlo) > box->lo[a] || decode(a, qhi) < box->hi[a]) return;
     w |= uint64_t(qlo) << (8 * a) | uint64_t(qhi) << (8 * (a + 3));
   }
   boxes_[slot].store(w, std::memory_order_relaxed);
@@ -543,7 +551,10 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
     activeCodes.assign({1});
     scratch.ranks.assign(size_t(1) << (1 + 2 * kCullRounds), 0);
     const float cullGrow = std::max(0.0f, disp.boundWorld);
-    bool unknownKept = false;  // some subtree kept by culling had no box in `known`
+    // Whether this subdivision can teach `known` anything: a subtree of the last cull round, or
+    // one finished earlier, kept without a known box, or a decision made afresh. (Boxes of
+    // coarser subtrees are learnt only along with one of these.)
+    bool learnable = !cull || !known;
     uint64_t samplePoints = 0;  // interior samples, evaluated and dropped
     edges.clear();
     // Edge-map values: a midpoint (>= 0), -1 (short or at the depth limit), or kFlat (wanted
@@ -574,7 +585,10 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
     auto memoDecision = [&](uint32_t code, bool& flat) {
       const uint32_t index = scratch.decisionIndex[subtreeSlot(code)]++;
       const uint64_t memo = known ? known->decisions(code) : 0;
-      if (!memo || index >= ((memo >> 56) & 127u)) return false;
+      if (!memo || index >= ((memo >> 56) & 127u)) {
+        learnable = true;
+        return false;
+      }
       flat = (memo >> index) & 1u;
       return true;
     };
@@ -740,6 +754,10 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
     // code and its rank among that ancestor's finished descendants.
     auto finish = [&](uint32_t a, uint32_t b, uint32_t c, uint32_t code, int round) {
       push(out.indices, a, b, c);
+      if (round < kCullRounds && !learnable && learnt) {
+        CullBox ignored;
+        learnable = !known->box(code, ignored);
+      }
       // Ranks saturate rather than spill into the code bits: beyond 2^23 descendants of one
       // ancestor (only near kMaxSubdivisionDepth) ids may repeat, which only weakens tie-breaks.
       const uint32_t rank =
@@ -759,7 +777,7 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
             if (learnt) scratch.culledCodes.push_back(activeCodes[k / 3]);
             continue;
           }
-          unknownKept |= !isKnown;
+          learnable |= !isKnown && round == kCullRounds;
           for (int c = 0; c < 3; ++c) active[kept * 3 + c] = active[k + c];
           activeCodes[kept++] = activeCodes[k / 3];
         }
@@ -853,7 +871,7 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
     counters.trianglesAfterSimplification += after;
     // Only subtrees kept whole and still unknown are learnt: when every kept one was known (a
     // refill of a voxel whose neighbourhood was filled before) there is nothing to learn.
-    if (learnt && (unknownKept || !cull)) learnSubtrees(out, vs.displaced, scratch, known, *learnt);
+    if (learnt && learnable) learnSubtrees(out, vs.displaced, scratch, known, *learnt);
   } else {
     push(out.indices, 0, 1, 2);
     out.ids.push_back(kWholeTriangleId);

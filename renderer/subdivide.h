@@ -80,21 +80,22 @@ inline uint32_t subtreeSlot(uint32_t code) {
 // once set, is the same whichever thread sets it, so relaxed order suffices.
 class SubtreeMemo {
  public:
-  // The most interior decisions one subtree's word holds (a subtree with more is not memoized).
+  // The most decisions one subtree's word holds (a subtree with more is not memoized).
   static constexpr int kMaxDecisions = 56;
   // Slots for the subtrees of rounds 0..rounds (at most kCullRounds): a triangle that subdivides
   // only a few rounds deep needs only a few (what deeper subdivisions learn is then not kept).
   SubtreeMemo(const CullBox& reference, int rounds = kCullRounds);
   // The box of subtree `code`, if learnt.
   bool box(uint32_t code, CullBox& box) const;
-  // The interior decisions of subtree `code`: 0 if not learnt, else bit 63, the count in bits
-  // 56..62 and decision i (1: flat) in bit i.
+  // The simplification decisions (edges and interiors, in order) of subtree `code`: 0 if not
+  // learnt, else bit 63, the count in bits 56..62 and decision i (1: flat) in bit i.
   uint64_t decisions(uint32_t code) const {
     const uint32_t slot = subtreeSlot(code);
     return slot < slots_ ? decisions_[slot].load(std::memory_order_relaxed) : 0;
   }
-  // Keeps `box` for subtree `code` when the lattice can hold it conservatively, and its decisions.
-  void learn(uint32_t code, const CullBox& box, uint64_t decisions);
+  // Keeps `box` (if not null) for subtree `code` when the lattice can hold it conservatively, and
+  // its decisions (if not 0). Codes beyond the memo's rounds are ignored.
+  void learn(uint32_t code, const CullBox* box, uint64_t decisions);
   size_t bytes() const { return sizeof(SubtreeMemo) + 2 * size_t(slots_) * sizeof(uint64_t); }
 
  private:
@@ -107,6 +108,7 @@ class SubtreeMemo {
 // What one subdivision learnt about a subtree it kept whole (SubtreeMemo::learn's arguments).
 struct LearntSubtree {
   uint32_t code;
+  bool hasBox;  // the subtree was kept whole (else only its own decisions are known)
   CullBox box;
   uint64_t decisions;
 };
