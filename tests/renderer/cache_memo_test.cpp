@@ -23,6 +23,11 @@
 namespace relief {
 namespace {
 
+using testing::HitKey;
+using testing::hitKey;
+using testing::hitKeys;
+using testing::hitKeysOnTwoThreads;
+
 // Bumps on the half x > 0 of the plane, nothing on the other half: simplification then finds flat
 // edges and flat interiors (decisions to memoize) beside edges and interiors that are not flat.
 void halfBumpsEntry(const RlfShadingBatch* b, const void* params, RlfStatus*) {
@@ -231,13 +236,6 @@ TEST(SubtreeMemo, BoxesAreRoundedOutwardsOrNotKept) {
   EXPECT_FALSE(unbounded.box(1, got));
 }
 
-using HitKey = std::tuple<bool, float, uint32_t, uint32_t, uint32_t, float, float>;
-
-HitKey key(const std::optional<Hit>& hit) {
-  if (!hit) return {false, 0.0f, 0, 0, 0, 0.0f, 0.0f};
-  return {true, hit->t, hit->meshIndex, hit->triangleIndex, hit->microIndex, hit->bary.x, hit->bary.y};
-}
-
 // Two sweeps of rays from one point across the sphere and past its silhouette, row by row
 // (neighbouring rays need neighbouring voxels, as in a coherent pixel order); under a budget the
 // second sweep refills what the first evicted.
@@ -265,8 +263,7 @@ TEST(CacheMemo, SameHitsWithMemosAndProxiesAtAnyBudgetAndOnTwoThreads) {
   base.gridResolution = 6;  // voxels of a few hundred triangles: dense enough for a BVH
   base.learnSubtrees = false, base.voxelProxies = false;
   GridAccelerator reference(scene, base);
-  std::vector<HitKey> expected;
-  for (const Ray& r : rays) expected.push_back(key(reference.intersect(r)));
+  const std::vector<HitKey> expected = hitKeys(reference, rays);
   const AccelStats plain = reference.stats();
   ASSERT_GT(plain.uniqueDisplacedTriangles, 2000u);
   EXPECT_EQ(plain.memoBytes, 0u);
@@ -281,7 +278,7 @@ TEST(CacheMemo, SameHitsWithMemosAndProxiesAtAnyBudgetAndOnTwoThreads) {
         o.learnSubtrees = memo, o.voxelProxies = proxies;
         GridAccelerator accel(scene, o);
         for (size_t i = 0; i < rays.size(); ++i)
-          ASSERT_EQ(key(accel.intersect(rays[i])), expected[i]) << i << " memo " << memo << " proxies " << proxies;
+          ASSERT_EQ(hitKey(accel.intersect(rays[i])), expected[i]) << i << " memo " << memo << " proxies " << proxies;
         stats[std::make_pair(memo, proxies)] = accel.stats();
       }
     const AccelStats& none = stats[std::make_pair(false, false)];
@@ -308,7 +305,7 @@ TEST(CacheMemo, SameHitsWithMemosAndProxiesAtAnyBudgetAndOnTwoThreads) {
     capped.cacheBudgetTriangles = budget;
     capped.learnSubtrees = true, capped.memoBytesLimit = 0;
     GridAccelerator cappedAccel(scene, capped);
-    for (size_t i = 0; i < rays.size(); ++i) ASSERT_EQ(key(cappedAccel.intersect(rays[i])), expected[i]) << i;
+    for (size_t i = 0; i < rays.size(); ++i) ASSERT_EQ(hitKey(cappedAccel.intersect(rays[i])), expected[i]) << i;
     EXPECT_EQ(cappedAccel.stats().shaderPoints, none.shaderPoints);
     EXPECT_LT(cappedAccel.stats().memoBytes, onlyMemo.memoBytes);
 
@@ -316,13 +313,7 @@ TEST(CacheMemo, SameHitsWithMemosAndProxiesAtAnyBudgetAndOnTwoThreads) {
     o.cacheBudgetTriangles = budget;
     o.learnSubtrees = true, o.voxelProxies = true;
     GridAccelerator shared(scene, o);
-    std::vector<HitKey> threaded(rays.size());
-    auto worker = [&](size_t first) {
-      for (size_t i = first; i < rays.size(); i += 2) threaded[i] = key(shared.intersect(rays[i]));
-    };
-    std::thread a(worker, 0), b(worker, 1);
-    a.join(), b.join();
-    EXPECT_EQ(threaded, expected);
+    EXPECT_EQ(hitKeysOnTwoThreads(shared, rays), expected);
   }
 }
 

@@ -13,12 +13,10 @@
 namespace relief {
 namespace {
 
-using HitKey = std::tuple<bool, float, uint32_t, uint32_t, uint32_t, float, float>;
-
-HitKey key(const std::optional<Hit>& hit) {
-  if (!hit) return {false, 0.0f, 0, 0, 0, 0.0f, 0.0f};
-  return {true, hit->t, hit->meshIndex, hit->triangleIndex, hit->microIndex, hit->bary.x, hit->bary.y};
-}
+using testing::HitKey;
+using testing::hitKey;
+using testing::hitKeys;
+using testing::hitKeysOnTwoThreads;
 
 // Rays from one point sweeping across the sphere row by row: neighbouring rays need neighbouring
 // voxels, as in a coherent pixel order.
@@ -41,19 +39,13 @@ Scene sideScene() {
   return testing::makeSphereScene(o);
 }
 
-std::vector<HitKey> hitsOf(GridAccelerator& accel, const std::vector<Ray>& rays) {
-  std::vector<HitKey> keys;
-  for (const Ray& r : rays) keys.push_back(key(accel.intersect(r)));
-  return keys;
-}
-
 TEST(CacheSide, SameHitsWithTheSideCacheAtAnyBudgetAndOnTwoThreads) {
   const Scene scene = sideScene();
   const std::vector<Ray> rays = sweep();
   AccelOptions base;
   base.gridResolution = 12;
   GridAccelerator reference(scene, base);
-  const std::vector<HitKey> expected = hitsOf(reference, rays);
+  const std::vector<HitKey> expected = hitKeys(reference, rays);
   const AccelStats plain = reference.stats();
   ASSERT_GT(plain.uniqueDisplacedTriangles, 10000u);
 
@@ -62,7 +54,7 @@ TEST(CacheSide, SameHitsWithTheSideCacheAtAnyBudgetAndOnTwoThreads) {
     o2.cacheBudgetTriangles = budget;
     o2.sideCacheTriangles = 20000;
     GridAccelerator side(scene, o2);
-    for (size_t i = 0; i < rays.size(); ++i) ASSERT_EQ(key(side.intersect(rays[i])), expected[i]) << i;
+    for (size_t i = 0; i < rays.size(); ++i) ASSERT_EQ(hitKey(side.intersect(rays[i])), expected[i]) << i;
     const AccelStats s = side.stats();
     EXPECT_GT(s.sideCacheHits, 0u);
     EXPECT_GT(s.sideCacheMisses, 0u);
@@ -76,13 +68,7 @@ TEST(CacheSide, SameHitsWithTheSideCacheAtAnyBudgetAndOnTwoThreads) {
     }
 
     GridAccelerator shared(scene, o2);
-    std::vector<HitKey> threaded(rays.size());
-    auto worker = [&](size_t first) {
-      for (size_t i = first; i < rays.size(); i += 2) threaded[i] = key(shared.intersect(rays[i]));
-    };
-    std::thread a(worker, 0), b(worker, 1);
-    a.join(), b.join();
-    EXPECT_EQ(threaded, expected);
+    EXPECT_EQ(hitKeysOnTwoThreads(shared, rays), expected);
   }
 }
 
@@ -98,8 +84,8 @@ TEST(CacheSide, ContributorsOfOneVoxelOnlyBypassTheSideCache) {
   AccelOptions withSide = base;
   withSide.sideCacheTriangles = 20000;
   GridAccelerator side(scene, withSide);
-  const std::vector<HitKey> expected = hitsOf(reference, rays);
-  for (size_t i = 0; i < rays.size(); ++i) ASSERT_EQ(key(side.intersect(rays[i])), expected[i]) << i;
+  const std::vector<HitKey> expected = hitKeys(reference, rays);
+  for (size_t i = 0; i < rays.size(); ++i) ASSERT_EQ(hitKey(side.intersect(rays[i])), expected[i]) << i;
   const AccelStats s = side.stats();
   EXPECT_EQ(s.sideCacheHits + s.sideCacheMisses, 0u);
   EXPECT_EQ(s.sideCachePeakTriangles, 0u);

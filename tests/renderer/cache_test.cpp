@@ -13,15 +13,12 @@
 namespace relief {
 namespace {
 
+using testing::HitKey;
+using testing::hitKeys;
+using testing::hitKeysOnTwoThreads;
+
 using testing::makeSphereScene;
 using testing::SphereOptions;
-
-using HitKey = std::tuple<bool, float, uint32_t, uint32_t, uint32_t>;
-
-HitKey key(const std::optional<Hit>& hit) {
-  if (!hit) return {false, 0.0f, 0, 0, 0};
-  return {true, hit->t, hit->meshIndex, hit->triangleIndex, hit->microIndex};
-}
 
 SphereOptions cacheOptions() {
   SphereOptions o;
@@ -33,12 +30,6 @@ SphereOptions cacheOptions() {
 // Rays in a scattered order (each ray far from the previous one), so a small cache thrashes.
 std::vector<Ray> scatteredRays() { return testing::randomRays(3000, 5, 3.0f, 1.2f); }
 
-std::vector<HitKey> run(Accelerator& accel, const std::vector<Ray>& rays) {
-  std::vector<HitKey> keys;
-  for (const Ray& ray : rays) keys.push_back(key(accel.intersect(ray)));
-  return keys;
-}
-
 TEST(GeometryCache, HitsIndependentOfBudgetAndThreads) {
   const Scene scene = makeSphereScene(cacheOptions());
   const std::vector<Ray> rays = scatteredRays();
@@ -47,14 +38,14 @@ TEST(GeometryCache, HitsIndependentOfBudgetAndThreads) {
   AccelOptions unlimitedOptions;
   unlimitedOptions.gridResolution = 16;
   GridAccelerator unlimited(scene, unlimitedOptions);
-  const std::vector<HitKey> expected = run(unlimited, rays);
+  const std::vector<HitKey> expected = hitKeys(unlimited, rays);
   const AccelStats full = unlimited.stats();
   ASSERT_GT(full.residentTriangles, 10000u);
   EXPECT_EQ(full.capacityMisses, 0u);
   EXPECT_EQ(full.residentTriangles, full.displacedTrianglesCreated);
 
   // A second pass over the same rays is served entirely from the cache.
-  EXPECT_EQ(run(unlimited, rays), expected);
+  EXPECT_EQ(hitKeys(unlimited, rays), expected);
   const AccelStats again = unlimited.stats();
   EXPECT_EQ(again.compulsoryMisses, full.compulsoryMisses);
   EXPECT_EQ(again.hits - full.hits, again.accesses - full.accesses);
@@ -62,7 +53,7 @@ TEST(GeometryCache, HitsIndependentOfBudgetAndThreads) {
   AccelOptions small = unlimitedOptions;
   small.cacheBudgetTriangles = full.residentTriangles / 20;  // 5%
   GridAccelerator limited(scene, small);
-  EXPECT_EQ(run(limited, rays), expected);
+  EXPECT_EQ(hitKeys(limited, rays), expected);
   const AccelStats ls = limited.stats();
   EXPECT_GT(ls.capacityMisses, 0u);
   EXPECT_EQ(ls.compulsoryMisses, full.compulsoryMisses);
@@ -75,13 +66,7 @@ TEST(GeometryCache, HitsIndependentOfBudgetAndThreads) {
 
   // Two threads sharing one small cache, each taking every other ray.
   GridAccelerator shared(scene, small);
-  std::vector<HitKey> threaded(rays.size());
-  auto worker = [&](size_t first) {
-    for (size_t i = first; i < rays.size(); i += 2) threaded[i] = key(shared.intersect(rays[i]));
-  };
-  std::thread a(worker, 0), b(worker, 1);
-  a.join(), b.join();
-  EXPECT_EQ(threaded, expected);
+  EXPECT_EQ(hitKeysOnTwoThreads(shared, rays), expected);
   const AccelStats ts = shared.stats();
   EXPECT_EQ(ts.compulsoryMisses, full.compulsoryMisses);  // every voxel is filled once first
   // Each thread pins at most one voxel at a time, so at most one voxel per thread overshoots.

@@ -1,6 +1,7 @@
 // Shared helpers of the geometry tests (subdivide, watertight, cache, accel): a hand-written bumpy
 // displacement shader behind the real runtime::ShaderInstance interface (no JIT), a displaced sphere
-// scene, seeded ray sets and a brute-force reference intersector.
+// scene, seeded ray sets, a brute-force reference intersector, and hit keys for the tests that
+// compare accelerators hit for hit (cache budgets, side cache, memos, threads).
 #pragma once
 
 #include <cmath>
@@ -9,6 +10,8 @@
 #include <numbers>
 #include <optional>
 #include <random>
+#include <thread>
+#include <tuple>
 #include <vector>
 
 #include "renderer/accel.h"
@@ -151,5 +154,31 @@ class BruteForce {
   };
   std::vector<Entry> meshes_;
 };
+
+// A hit reduced to what determinism tests compare: found, t, mesh, triangle, micro id and the
+// barycentrics on the input triangle.
+using HitKey = std::tuple<bool, float, uint32_t, uint32_t, uint32_t, float, float>;
+
+inline HitKey hitKey(const std::optional<Hit>& hit) {
+  if (!hit) return {false, 0.0f, 0, 0, 0, 0.0f, 0.0f};
+  return {true, hit->t, hit->meshIndex, hit->triangleIndex, hit->microIndex, hit->bary.x, hit->bary.y};
+}
+
+inline std::vector<HitKey> hitKeys(Accelerator& accel, const std::vector<Ray>& rays) {
+  std::vector<HitKey> keys;
+  for (const Ray& r : rays) keys.push_back(hitKey(accel.intersect(r)));
+  return keys;
+}
+
+// The same on two threads sharing `accel`, each taking every other ray.
+inline std::vector<HitKey> hitKeysOnTwoThreads(Accelerator& accel, const std::vector<Ray>& rays) {
+  std::vector<HitKey> keys(rays.size());
+  auto worker = [&](size_t first) {
+    for (size_t i = first; i < rays.size(); i += 2) keys[i] = hitKey(accel.intersect(rays[i]));
+  };
+  std::thread a(worker, 0), b(worker, 1);
+  a.join(), b.join();
+  return keys;
+}
 
 }  // namespace relief::testing
