@@ -11,6 +11,18 @@ bool finite(glm::vec3 v) { return std::isfinite(v.x) && std::isfinite(v.y) && st
 
 }  // namespace
 
+Bounds3 triangleReach(const Mesh& mesh, uint32_t triangle, float grow) {
+  Bounds3 box;
+  for (int c = 0; c < 3; ++c) {
+    const uint32_t i = mesh.indices[3 * size_t(triangle) + c];
+    if (i >= mesh.P.size() || !finite(mesh.P[i])) return {};
+    box.extend(mesh.P[i]);
+  }
+  if (!std::isfinite(grow)) return {};
+  box.lo -= glm::vec3(grow), box.hi += glm::vec3(grow);
+  return box;
+}
+
 ContributorGrid::ContributorGrid(const Scene& scene, const AccelOptions& options) {
   meshOffsets_.push_back(0);
   for (const Mesh& mesh : scene.meshes) {
@@ -31,15 +43,8 @@ ContributorGrid::ContributorGrid(const Scene& scene, const AccelOptions& options
     const Mesh& mesh = scene.meshes[m];
     const float grow = displacements_[m] ? std::max(0.0f, displacements_[m]->boundWorld) : 0.0f;
     for (uint32_t t = 0; t < mesh.numTriangles(); ++t) {
-      Bounds3 box;
-      bool ok = true;
-      for (int c = 0; c < 3; ++c) {
-        const uint32_t i = mesh.indices[3 * size_t(t) + c];
-        if (i >= mesh.P.size() || !finite(mesh.P[i])) ok = false;
-        else box.extend(mesh.P[i]);
-      }
-      if (!ok || !std::isfinite(grow)) continue;
-      box.lo -= glm::vec3(grow), box.hi += glm::vec3(grow);
+      const Bounds3 box = triangleReach(mesh, t, grow);
+      if (box.empty()) continue;
       boxes[meshOffsets_[m] + t] = box;
       bounds_.extend(box.lo), bounds_.extend(box.hi);
     }

@@ -28,6 +28,10 @@ struct Bounds3 {
   }
 };
 
+// Triangle `triangle` of `mesh` grown by `grow` (a displacement bound): what the grid lists it
+// under, and what its displaced geometry may reach. Empty when a corner is missing or not finite.
+Bounds3 triangleReach(const Mesh& mesh, uint32_t triangle, float grow);
+
 // Heuristic for AccelOptions::gridResolution == 0: voxels along the longest axis =
 // round(kAutoGridFactor * cbrt(numTriangles)), clamped to [1, kMaxAutoGridResolution]. With cubic
 // voxels this gives about kAutoGridFactor^3 = 8 voxels per input triangle on a compact scene, so a

@@ -535,18 +535,14 @@ SubtreeMemo* GridAccelerator::subtreeMemo(uint32_t id, int rounds) {
   const auto [m, triangle] = grid_.split(id);
   const Mesh& mesh = scene_.meshes[m];
   const Displacement* d = grid_.displacement(m);
-  const float grow = d ? std::max(0.0f, d->boundWorld) : 0.0f;
-  CullBox reference{glm::vec3(std::numeric_limits<float>::infinity()),
-                    glm::vec3(-std::numeric_limits<float>::infinity())};
-  glm::vec3 p[3];
-  for (int c = 0; c < 3; ++c) {
-    p[c] = mesh.P[mesh.indices[3 * size_t(triangle) + c]];
-    reference.lo = glm::min(reference.lo, p[c] - grow), reference.hi = glm::max(reference.hi, p[c] + grow);
-  }
+  const Bounds3 reach = triangleReach(mesh, triangle, d ? std::max(0.0f, d->boundWorld) : 0.0f);
+  const CullBox reference{reach.lo, reach.hi};
   // Rounds: what the first learning fill reached, or what the undisplaced triangle's longest edge
   // suggests (one round per halving down to the edge length, and one more for the displacement),
   // whichever is deeper; a first fill in a flat corner may stop rounds before the rest.
   if (d && d->edgeLength > 0.0f) {
+    glm::vec3 p[3];
+    for (int c = 0; c < 3; ++c) p[c] = mesh.P[mesh.indices[3 * size_t(triangle) + c]];
     const float longest = std::max({glm::length(p[1] - p[0]), glm::length(p[2] - p[1]), glm::length(p[0] - p[2])});
     int estimate = 1;
     for (float l = longest; l > d->edgeLength && estimate <= kCullRounds; l *= 0.5f) ++estimate;
@@ -715,13 +711,12 @@ std::unique_ptr<VoxelGeometry> GridAccelerator::buildVoxel(uint32_t voxel) {
   return g;
 }
 
-bool GridAccelerator::passes(const VoxelProxy& p, const Ray& ray, const SlabRay& sr, float limit) {
+bool GridAccelerator::passes(const VoxelProxy& p, const Ray& ray, const SlabRay& sr, const glm::vec3& base,
+                             const glm::vec3& scale, float limit) {
   // The decisions the BVH traversal takes first, with the same arithmetic: the root's children
   // the ray enters, then, for those that are nodes, their children. The traversal tests
   // triangles only in a leaf, and `limit` can only shrink through a hit, so a ray entering no
   // leaf here enters none there (and a root child that is a leaf is a leaf entered).
-  glm::vec3 base, scale;
-  lattice(p.origin, p.step, ray, sr, base, scale);
   float tNear[4];
   const int mask = enterChildren(p.nodes[0], sr, base, scale, ray.tMin, limit, tNear);
   for (int i = 0; i < 4; ++i) {
@@ -766,10 +761,17 @@ void GridAccelerator::intersectVoxel(uint32_t voxel, const WatertightRay& wr, co
   }
   // The top of a voxel's BVH outlives the voxel (VoxelProxy): a ray that passes it would test no
   // triangle, so it need not touch the cache, nor bring the voxel back.
+  // The proxy's lattice is the voxel's own, so its slab set-up serves the traversal below too.
+  glm::vec3 base, scale;
+  bool latticeReady = false;
   if (sr.usable && !proxies_.empty()) {
-    if (const VoxelProxy* p = proxies_[voxel].load(std::memory_order_acquire); p && passes(*p, ray, sr, limit)) {
-      traverseNanos_[cacheThreadShard() % kTimeShards].proxySkips.fetch_add(1, std::memory_order_relaxed);
-      return;
+    if (const VoxelProxy* p = proxies_[voxel].load(std::memory_order_acquire)) {
+      lattice(p->origin, p->step, ray, sr, base, scale);
+      latticeReady = true;
+      if (passes(*p, ray, sr, base, scale, limit)) {
+        traverseNanos_[cacheThreadShard() % kTimeShards].proxySkips.fetch_add(1, std::memory_order_relaxed);
+        return;
+      }
     }
   }
   const VoxelGeometry* g = cache_->acquire(voxel, stamp, [this](uint32_t v) { return buildVoxel(v); });
@@ -782,8 +784,7 @@ void GridAccelerator::intersectVoxel(uint32_t voxel, const WatertightRay& wr, co
   };
   if (!g->bvhNodes.empty() && sr.usable) {
     // Slab tests against the decoded boxes, as t = base + q * scale per axis.
-    glm::vec3 base, scale;
-    lattice(g->bvhOrigin, g->bvhStep, ray, sr, base, scale);
+    if (!latticeReady) lattice(g->bvhOrigin, g->bvhStep, ray, sr, base, scale);
     const float tLow = ray.tMin;
     // Node and entry distance in separate arrays: a pop that reloads both halves of one 8-byte
     // entry written as two 4-byte stores stalls on store forwarding. Entries are node indices or

@@ -82,7 +82,9 @@ class GridAccelerator final : public Accelerator {
     VoxelGeometry::BvhNode nodes[5];
   };
   // Whether `ray` passes the voxel of proxy `p` without testing a triangle (see intersectVoxel).
-  static bool passes(const VoxelProxy& p, const Ray& ray, const SlabRay& sr, float limit);
+  // base and scale: the ray's slab set-up on the proxy's lattice.
+  static bool passes(const VoxelProxy& p, const Ray& ray, const SlabRay& sr, const glm::vec3& base,
+                     const glm::vec3& scale, float limit);
   std::vector<std::atomic<const VoxelProxy*>> proxies_;  // owned; null until the first fill
   std::atomic<uint64_t> proxyBytes_{0};
   std::atomic<uint64_t> sideHits_{0}, sideMisses_{0}, sidePeak_{0};

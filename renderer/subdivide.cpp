@@ -141,10 +141,10 @@ struct Scratch {
   std::vector<uint32_t> culledCodes;  // subtrees culled by this subdivision
   std::vector<CullBox> subtreeBoxes;  // per subtree slot: the box of its kept micro-triangles
   std::vector<uint8_t> subtreeCut;    // per subtree slot: some part of it was culled
-  std::vector<uint64_t> subtreeDecisions;  // per subtree slot: interior decisions as in SubtreeMemo
+  std::vector<uint64_t> subtreeDecisions;  // per subtree slot: decisions made, as in SubtreeMemo
   std::vector<uint32_t> candidates;        // this round's interior candidates (active triangle)
-  std::vector<std::pair<uint32_t, uint64_t>> edgeCalls;  // this round's split edges: slot, key
-  std::vector<uint32_t> decisionIndex;     // per subtree slot: interior decisions made so far
+  std::vector<std::pair<uint32_t, uint64_t>> edgeCalls;  // this round's split edges: code, key
+  std::vector<uint32_t> decisionIndex;     // per subtree slot: decisions met so far
 };
 
 // Frame of the input triangle shared by all its vertices: geometric normal, dP/du and dP/dv of its
@@ -388,6 +388,11 @@ bool nearChord(glm::vec3 p, glm::vec3 q, glm::vec3 m, float tolerance) {
   return distanceToSegment2(p, q, m) <= tolerance * tolerance;
 }
 
+bool boxesOverlap(const CullBox& a, const CullBox& b) {
+  return a.lo.x <= b.hi.x && b.lo.x <= a.hi.x && a.lo.y <= b.hi.y && b.lo.y <= a.hi.y &&
+         a.lo.z <= b.hi.z && b.lo.z <= a.hi.z;
+}
+
 // Whether the displaced descendants of triangle (a, b, c) may reach `box`: they lie within
 // `bound` of the undisplaced triangle (the displacement bound the contributor grid relies on too).
 bool mayReach(const Vertices& vs, uint32_t a, uint32_t b, uint32_t c, float bound, const CullBox& box) {
@@ -395,16 +400,11 @@ bool mayReach(const Vertices& vs, uint32_t a, uint32_t b, uint32_t c, float boun
   glm::vec3 hi = glm::max(vs.P[a], glm::max(vs.P[b], vs.P[c])) + glm::vec3(bound);
   lo = glm::min(lo, glm::min(vs.displaced[a], glm::min(vs.displaced[b], vs.displaced[c])));
   hi = glm::max(hi, glm::max(vs.displaced[a], glm::max(vs.displaced[b], vs.displaced[c])));
-  return lo.x <= box.hi.x && box.lo.x <= hi.x && lo.y <= box.hi.y && box.lo.y <= hi.y &&
-         lo.z <= box.hi.z && box.lo.z <= hi.z;
+  return boxesOverlap({lo, hi}, box);
 }
 
-bool boxesOverlap(const CullBox& a, const CullBox& b) {
-  return a.lo.x <= b.hi.x && b.lo.x <= a.hi.x && a.lo.y <= b.hi.y && b.lo.y <= a.hi.y &&
-         a.lo.z <= b.hi.z && b.lo.z <= a.hi.z;
-}
-
-// The boxes of the subtrees `out` holds whole (no part culled), those `known` lacks.
+// What this subdivision found and `known` lacks: the boxes of the subtrees `out` holds whole (no
+// part culled), and the decisions of the subtrees it processed.
 void learnSubtrees(const MicroMesh& out, const std::vector<glm::vec3>& P, Scratch& scratch,
                    const SubtreeMemo* known, std::vector<LearntSubtree>& learnt) {
   constexpr float kInf = std::numeric_limits<float>::infinity();
@@ -531,10 +531,14 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
   if (learnt) learnt->clear();
   scratch.culledCodes.clear();
   scratch.edgeCalls.clear();
-  if (learnt) scratch.subtreeDecisions.assign(kSubtreeSlots, 0);
-  // Interior decisions are numbered per subtree when they may be read from or written to a memo.
-  const bool memoize = known || learnt;
-  if (memoize) scratch.decisionIndex.assign(kSubtreeSlots, 0);
+  scratch.subtreeDecisions.clear();
+  // Simplification decisions are numbered per subtree when they may be read from or written to a
+  // memo (only simplification makes any).
+  const bool memoize = (known || learnt) && displaced && displacement->flatness > 0.0f;
+  if (memoize) {
+    scratch.decisionIndex.assign(kSubtreeSlots, 0);
+    if (learnt) scratch.subtreeDecisions.assign(kSubtreeSlots, 0);
+  }
   if (displaced) {
     const Displacement& disp = *displacement;
     const TriangleFrame frame = makeFrame(p, n, uv, st, mesh.N.size() == mesh.P.size());
