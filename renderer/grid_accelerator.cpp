@@ -775,12 +775,44 @@ void GridAccelerator::intersectVoxel(uint32_t voxel, const WatertightRay& wr, co
     }
   }
   const VoxelGeometry* g = cache_->acquire(voxel, stamp, [this](uint32_t v) { return buildVoxel(v); });
-  auto test = [&](uint32_t i) {
-    const glm::uvec3 tri = g->triangle(i);
-    if (!intersectTriangle(wr, g->P[tri.x], g->P[tri.y], g->P[tri.z], ray.tMin, limit, h)) return;
+  // Takes `h`, a hit on triangle i, if it beats the best.
+  auto accept = [&](uint32_t i, const glm::uvec3& tri) {
     const auto [triangleId, microId] = g->key(i);
     if (!improves(triangleId, microId)) return;
     for (int c = 0; c < 3; ++c) best.p[c] = g->P[tri[c]], best.bary[c] = g->bary(tri[c]);
+  };
+  auto test = [&](uint32_t i) {
+    const glm::uvec3 tri = g->triangle(i);
+    if (intersectTriangle(wr, g->P[tri.x], g->P[tri.y], g->P[tri.z], ray.tMin, limit, h)) accept(i, tri);
+  };
+  // Triangles [first, end) in groups of four lanes, then in order, as `test` one by one would: a
+  // lane's hit is bit-identical to the scalar test's, and re-checked against the limit the lanes
+  // before it may have lowered.
+  auto testRange = [&](uint32_t first, uint32_t end) {
+    for (uint32_t k = first; k < end; k += 4) {
+      const uint32_t n = std::min(4u, end - k);
+      glm::uvec3 tri[4];
+      const float *a[4], *b[4], *c[4];
+      for (uint32_t j = 0; j < 4; ++j) {
+        tri[j] = g->triangle(k + std::min(j, n - 1));  // short groups repeat their last triangle
+        a[j] = &g->P[tri[j].x].x, b[j] = &g->P[tri[j].y].x, c[j] = &g->P[tri[j].z].x;
+      }
+      TriangleHits4 hits;
+      unsigned undecided = 0;
+      const unsigned lanes = (1u << n) - 1;
+      const unsigned mask = intersectTriangles4(wr, a, b, c, ray.tMin, limit, hits, undecided) & lanes;
+      undecided &= lanes;
+      if (!(mask | undecided)) continue;
+      for (uint32_t j = 0; j < n; ++j) {
+        if (undecided >> j & 1) {
+          test(k + j);
+        } else if ((mask >> j & 1) && hits.t[j] < limit) {
+          h.t = hits.t[j], h.b0 = hits.b0[j], h.b1 = hits.b1[j], h.b2 = hits.b2[j];
+          accept(k + j, tri[j]);
+        }
+        if (anyHit && best.found) return;
+      }
+    }
   };
   if (!g->bvhNodes.empty() && sr.usable) {
     // Slab tests against the decoded boxes, as t = base + q * scale per axis.
@@ -799,7 +831,7 @@ void GridAccelerator::intersectVoxel(uint32_t voxel, const WatertightRay& wr, co
       const uint32_t ref = stackNode[top];
       if (ref & VoxelGeometry::kBvhLeafFlag) {
         const uint32_t first = ref & 0xffffffu, count = (ref >> 24) & 0x7fu;
-        for (uint32_t k = first; k < first + count && !(anyHit && best.found); ++k) test(k);
+        testRange(first, first + count);
         continue;
       }
       const VoxelGeometry::BvhNode& node = g->bvhNodes[ref];
@@ -819,7 +851,7 @@ void GridAccelerator::intersectVoxel(uint32_t voxel, const WatertightRay& wr, co
       for (int j = 0; j < hits; ++j) stackNode[top] = hitRef[j], stackT[top] = hitT[j], ++top;
     }
   } else if (g->subResolution.x == 0) {  // sparse, or a BVH voxel for an unusable direction
-    for (uint32_t i = 0; i < g->numTriangles() && !(anyHit && best.found); ++i) test(i);
+    testRange(0, g->numTriangles());
   } else {
     // Walk the sub-cells along the ray's whole passage through the (padded) voxel box, so every
     // stored triangle the ray meets inside the voxel is tested, whatever the outer DDA's rounding.

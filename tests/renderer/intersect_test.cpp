@@ -1,0 +1,120 @@
+// The four-lane triangle test (intersectTriangles4) against the scalar watertight test it stands in
+// for: every lane's verdict and hit must be bit-identical, or images would depend on how a leaf's
+// triangles fall into groups of four.
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <random>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "renderer/intersect.h"
+
+namespace relief {
+namespace {
+
+uint32_t bits(float f) {
+  uint32_t b;
+  std::memcpy(&b, &f, 4);
+  return b;
+}
+
+struct Tri {
+  glm::vec3 a, b, c;
+};
+
+// Compares the lanes of one group of four with the scalar test; counts hits and undecided lanes.
+void expectLanesMatchScalar(const Ray& ray, const Tri (&tris)[4], float tMin, float tMax, int& hitsSeen,
+                            int& undecidedSeen) {
+  const WatertightRay wr(ray);
+  const float *a[4], *b[4], *c[4];
+  for (int k = 0; k < 4; ++k) a[k] = &tris[k].a.x, b[k] = &tris[k].b.x, c[k] = &tris[k].c.x;
+  TriangleHits4 hits;
+  unsigned undecided = 0;
+  const unsigned mask = intersectTriangles4(wr, a, b, c, tMin, tMax, hits, undecided);
+  ASSERT_EQ(mask & undecided, 0u) << "a lane is both decided and undecided";
+  for (int k = 0; k < 4; ++k) {
+    TriangleHit h{};
+    const bool scalar = intersectTriangle(wr, tris[k].a, tris[k].b, tris[k].c, tMin, tMax, h);
+    if (undecided >> k & 1) {
+      ++undecidedSeen;
+      continue;  // the caller hands these to the scalar test
+    }
+    ASSERT_EQ(bool(mask >> k & 1), scalar) << "lane " << k;
+    if (!scalar) continue;
+    ++hitsSeen;
+    EXPECT_EQ(bits(hits.t[k]), bits(h.t)) << "lane " << k;
+    EXPECT_EQ(bits(hits.b0[k]), bits(h.b0));
+    EXPECT_EQ(bits(hits.b1[k]), bits(h.b1));
+    EXPECT_EQ(bits(hits.b2[k]), bits(h.b2));
+  }
+}
+
+TEST(Intersect4, RandomTrianglesMatchTheScalarTestBitForBit) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> pos(-1.0f, 1.0f), dir(-1.0f, 1.0f), small(-1e-3f, 1e-3f);
+  int hits = 0, undecided = 0;
+  for (int round = 0; round < 20000; ++round) {
+    Ray ray;
+    ray.origin = glm::vec3(pos(rng), pos(rng), pos(rng)) * 3.0f;
+    do ray.direction = glm::vec3(dir(rng), dir(rng), dir(rng));
+    while (glm::length(ray.direction) < 0.1f);
+    // Triangles around a point on the ray, some tiny, so that hits, misses and grazes all occur.
+    const float along = std::abs(pos(rng)) * 4.0f;
+    const glm::vec3 centre = ray.origin + along * ray.direction;
+    Tri tris[4];
+    for (Tri& t : tris) {
+      const float scale = round % 3 == 0 ? 0.01f : 0.5f;
+      t.a = centre + glm::vec3(pos(rng), pos(rng), pos(rng)) * scale;
+      t.b = centre + glm::vec3(pos(rng), pos(rng), pos(rng)) * scale;
+      t.c = centre + glm::vec3(pos(rng), pos(rng), pos(rng)) * scale;
+    }
+    if (round % 7 == 0) tris[1].c = tris[1].b + glm::vec3(small(rng), 0, 0);  // nearly degenerate
+    if (round % 11 == 0) tris[2].c = tris[2].b;                               // degenerate
+    const float tMax = round % 5 == 0 ? along : std::numeric_limits<float>::infinity();
+    expectLanesMatchScalar(ray, tris, round % 4 == 0 ? along * 0.999f : 0.0f, tMax, hits, undecided);
+    if (HasFatalFailure()) return;
+  }
+  // The comparison covered both verdicts in quantity.
+  EXPECT_GT(hits, 10000);
+}
+
+TEST(Intersect4, RaysThroughSharedEdgesAndVerticesAreLeftToTheScalarTest) {
+  // A fan of four triangles around the origin in the z = 1 plane; rays along +z through a vertex
+  // or along an edge give exact zeros in the edge functions, which only the scalar test resolves.
+  const glm::vec3 o(0, 0, 1), e[4] = {{1, 0, 1}, {0, 1, 1}, {-1, 0, 1}, {0, -1, 1}};
+  Tri fan[4];
+  for (int k = 0; k < 4; ++k) fan[k] = {o, e[k], e[(k + 1) % 4]};
+  int hits = 0, undecided = 0;
+  for (const glm::vec3 origin : {glm::vec3(0, 0, 0), glm::vec3(0.5f, 0, 0), glm::vec3(0, -0.25f, 0),
+                                 glm::vec3(0.3f, 0.2f, 0), glm::vec3(-0.1f, -0.6f, 0)}) {
+    Ray ray;
+    ray.origin = origin, ray.direction = glm::vec3(0, 0, 1);
+    expectLanesMatchScalar(ray, fan, 0.0f, 10.0f, hits, undecided);
+  }
+  EXPECT_GT(undecided, 0);  // the vertex and the edges
+  EXPECT_EQ(hits, 2);       // the two interior points, one triangle each
+}
+
+TEST(Intersect4, NonFiniteCornersAndLimitsNeverHit) {
+  const float inf = std::numeric_limits<float>::infinity(), nan = std::numeric_limits<float>::quiet_NaN();
+  Ray ray;
+  ray.origin = glm::vec3(0.2f, 0.2f, 0), ray.direction = glm::vec3(0, 0, 1);
+  const Tri good = {{0, 0, 1}, {1, 0, 1}, {0, 1, 1}};
+  Tri tris[4] = {good, good, good, good};
+  tris[0].a.z = nan;
+  tris[1].b = glm::vec3(inf, 0, 1);
+  tris[2].c = glm::vec3(0, inf, inf);
+  int hits = 0, undecided = 0;
+  expectLanesMatchScalar(ray, tris, 0.0f, 10.0f, hits, undecided);
+  EXPECT_EQ(hits, 1);  // only the finite triangle
+  hits = 0;
+  expectLanesMatchScalar(ray, tris, 0.0f, 1.0f, hits, undecided);  // t == tMax: outside
+  EXPECT_EQ(hits, 0);
+  expectLanesMatchScalar(ray, tris, 1.0f, 10.0f, hits, undecided);  // t == tMin: outside
+  EXPECT_EQ(hits, 0);
+}
+
+}  // namespace
+}  // namespace relief
