@@ -134,7 +134,7 @@ struct VoxelGeometry {
 constexpr uint32_t kSubGridThreshold = 100;
 // Triangles per BVH leaf at most (at most 127: the count has 7 bits; docs/cache.md gives the
 // measured trade of speed against bytes).
-constexpr uint32_t kBvhLeafSize = 16;
+constexpr uint32_t kBvhLeafSize = 32;
 
 struct CacheStats {
   uint64_t accesses = 0, hits = 0, compulsoryMisses = 0, capacityMisses = 0;
