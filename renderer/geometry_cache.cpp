@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <functional>
 
 namespace relief {
@@ -14,7 +15,7 @@ int cacheThreadShard() {
 }
 
 uint64_t VoxelGeometry::bytes() const {
-  return sizeof(VoxelGeometry) + P.size() * sizeof(glm::vec3) + bary16.size() * 2 +
+  return sizeof(VoxelGeometry) + P.size() * sizeof(glm::vec3) + P16.size() * 2 + bary16.size() * 2 +
          baryF.size() * sizeof(glm::vec2) + indices16.size() * 2 + indices32.size() * 4 +
          microLow.size() * 2 + segments.size() * sizeof(Segment) + subOffsets16.size() * 2 + subOffsets32.size() * 4 +
          subTriangles16.size() * 2 + subTriangles32.size() * 4 + bvhNodes.size() * sizeof(BvhNode);
@@ -25,6 +26,57 @@ std::pair<uint32_t, uint32_t> VoxelGeometry::key(uint32_t i) const {
                                    [](uint32_t t, const Segment& s) { return t < s.first; });
   const Segment& s = *(it - 1);
   return {s.triangleId, unpackMicro((s.microHigh << 16) | microLow[i])};
+}
+
+void VoxelGeometry::packPositions(float step, const glm::vec3& centre) {
+  if (!(step > 0.0f) || P.empty() || !P16.empty()) return;
+  // The window's corner: a lattice point 32768 steps below the centre's.
+  const glm::vec3 base = snapToLattice(centre, step) - glm::vec3(32768.0f * step);
+  const uint32_t n = uint32_t(P.size());
+  std::vector<uint16_t> packed;
+  packed.reserve(3 * size_t(n));
+  std::vector<uint32_t> order(n, UINT32_MAX);  // old vertex -> new vertex
+  uint32_t next = 0;
+  for (uint32_t i = 0; i < n; ++i) {
+    uint16_t q[3];
+    bool fits = true;
+    for (int k = 0; k < 3 && fits; ++k) {
+      // Exact for lattice points within 2^24 steps: the difference of two multiples of a power
+      // of two, scaled by its inverse. Taken only if it decodes to the vertex's own bits (which
+      // also rules out -0 and NaN).
+      const float s = (P[i][k] - base[k]) / step;
+      fits = s >= 0.0f && s <= 65535.0f && s == std::floor(s);
+      if (!fits) break;
+      q[k] = uint16_t(s);
+      const float decoded = base[k] + float(q[k]) * step;
+      fits = std::memcmp(&decoded, &P[i][k], sizeof(float)) == 0;
+    }
+    if (!fits) continue;
+    order[i] = next++;
+    packed.insert(packed.end(), q, q + 3);
+  }
+  if (next == 0) return;
+  std::vector<glm::vec3> rest;
+  rest.reserve(n - next);
+  for (uint32_t i = 0; i < n; ++i)
+    if (order[i] == UINT32_MAX) order[i] = next + uint32_t(rest.size()), rest.push_back(P[i]);
+  for (uint16_t& v : indices16) v = uint16_t(order[v]);
+  for (uint32_t& v : indices32) v = order[v];
+  if (!bary16.empty()) {
+    std::vector<uint16_t> b(bary16.size());
+    for (uint32_t i = 0; i < n; ++i) b[2 * size_t(order[i])] = bary16[2 * size_t(i)], b[2 * size_t(order[i]) + 1] = bary16[2 * size_t(i) + 1];
+    bary16.swap(b);
+  } else if (!baryF.empty()) {
+    std::vector<glm::vec2> b(baryF.size());
+    for (uint32_t i = 0; i < n; ++i) b[order[i]] = baryF[i];
+    baryF.swap(b);
+  }
+  packed.push_back(0);  // the pad that lets the last vertex load as 8 bytes
+  P16 = std::move(packed);
+  P16.shrink_to_fit();
+  pBase = base, pStep = step;
+  P = std::move(rest);
+  P.shrink_to_fit();
 }
 
 void VoxelGeometry::setBary(const std::vector<glm::vec2>& b) {

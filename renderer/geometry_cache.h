@@ -26,6 +26,7 @@
 #pragma once
 
 #include <atomic>
+#include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <memory>
@@ -57,7 +58,15 @@ struct VoxelGeometry {
     uint32_t triangleId;  // global input triangle id
     uint32_t microHigh;   // packMicro(micro id) >> 16
   };
-  std::vector<glm::vec3> P;
+  // Vertex positions. Displaced vertices are points of the scene's position lattice (multiples of
+  // a power of two, snapToLattice). Those within a window of 65536 steps per axis around the voxel
+  // come first, stored as 16-bit steps from the window's corner (P16, pBase, pStep); the rest
+  // (corners of large simplified triangles reaching far out) follow as floats (P). Both forms
+  // decode to the same floats: a vertex shared by two voxels is the same bits in both.
+  std::vector<uint16_t> P16;  // 3 per packed vertex: vertices [0, numPacked()), then one pad
+  std::vector<glm::vec3> P;   // vertices [numPacked(), numVertices())
+  glm::vec3 pBase{0};
+  float pStep = 0;
   std::vector<uint16_t> bary16;     // 2 per vertex: (b1, b2) * 2^15, when exact
   std::vector<glm::vec2> baryF;     // otherwise: (b1, b2)
   std::vector<uint16_t> indices16;  // used when P.size() <= 65536
@@ -90,6 +99,18 @@ struct VoxelGeometry {
   glm::vec3 bvhOrigin{0}, bvhStep{0};
 
   uint32_t numTriangles() const { return uint32_t(microLow.size()); }
+  uint32_t numPacked() const { return uint32_t(P16.size() / 3); }
+  uint32_t numVertices() const { return numPacked() + uint32_t(P.size()); }
+  glm::vec3 vertex(uint32_t i) const {
+    const uint32_t packed = numPacked();
+    if (i >= packed) return P[i - packed];
+    return pBase + glm::vec3(float(P16[3 * size_t(i)]), float(P16[3 * size_t(i) + 1]), float(P16[3 * size_t(i) + 2])) * pStep;
+  }
+  // Packs the float vertices in P (all of them, before any are packed) that decode exactly from
+  // 16-bit steps of `step` (a power of two) in the window of 65536 steps centred on `centre`:
+  // they move to P16 and to the front of the vertex order (indices and barycentrics renumbered
+  // alike). No-op for step 0.
+  void packPositions(float step, const glm::vec3& centre);
 
   glm::uvec3 triangle(uint32_t i) const {
     if (!indices16.empty()) return {indices16[3 * i], indices16[3 * i + 1], indices16[3 * i + 2]};
@@ -129,6 +150,15 @@ struct VoxelGeometry {
   void setBary(const std::vector<glm::vec2>& b);
   uint64_t bytes() const;
 };
+
+// The point of the position lattice of step `step` (a power of two; 0: no lattice) nearest to p,
+// with -0 made +0: a pure function of p, so every voxel holding a vertex stores the same point.
+// Exact as long as |p| / step < 2^24 (GridAccelerator chooses the step so).
+inline glm::vec3 snapToLattice(const glm::vec3& p, float step) {
+  if (!(step > 0.0f)) return p;
+  return glm::vec3(std::nearbyint(p.x / step), std::nearbyint(p.y / step), std::nearbyint(p.z / step)) * step +
+         glm::vec3(0.0f);
+}
 
 // Above this many triangles a voxel gets a sub-voxel grid or BVH (the paper's "more than about 100").
 constexpr uint32_t kSubGridThreshold = 100;

@@ -473,6 +473,7 @@ GridAccelerator::GridAccelerator(const Scene& scene, const AccelOptions& options
   // sphere_box's undisplaced baseline (131K triangles in a few voxels of a room-sized grid) 8x
   // slower than the displaced render.
   cache_ = std::make_unique<GeometryCache>(grid_.numVoxels(), options.cacheBudgetTriangles);
+  positionStep_ = choosePositionStep();
   const char* env = std::getenv("RELIEF_CHECK_BUDGET");
   cache_->setCheckBudget(options.checkBudget || (env && std::string_view(env) == "1"));
   if (grid_.anyDisplaced() && (options.sideCacheTriangles || options.learnSubtrees)) {
@@ -488,6 +489,30 @@ GridAccelerator::GridAccelerator(const Scene& scene, const AccelOptions& options
         seen[id] = 1;
       }
   }
+}
+
+float GridAccelerator::choosePositionStep() const {
+  // Displaced vertices are snapped to a lattice fine against both the micro-triangles (1/1024 of
+  // the smallest target edge length) and the voxels (1/16384 of a voxel, so a voxel's vertices,
+  // overhanging neighbours included, usually span fewer than 65536 steps and pack into 16 bits).
+  // Undisplaced scenes keep their input positions: their sparse voxels are tested straight from
+  // the input meshes, and every form of a triangle must be the same bits.
+  if (!grid_.anyDisplaced()) return 0.0f;
+  float wanted = grid_.voxelSize() / 16384.0f;
+  for (uint32_t m = 0; m < scene_.meshes.size(); ++m)
+    if (const Displacement* d = grid_.displacement(m); d && d->shader && d->edgeLength > 0.0f)
+      wanted = std::min(wanted, d->edgeLength / 1024.0f);
+  // No finer than 2^-23 of the largest coordinate, so every lattice point is a float exactly.
+  const Bounds3& b = grid_.bounds();
+  float largest = 0.0f;
+  for (int k = 0; k < 3; ++k) largest = std::max({largest, std::fabs(b.lo[k]), std::fabs(b.hi[k])});
+  const float coarsest = largest / 8388608.0f;
+  if (!std::isfinite(wanted) || !std::isfinite(coarsest) || !(wanted > 0.0f)) return 0.0f;
+  int e = 0;
+  std::frexp(wanted, &e);                       // wanted in [2^(e-1), 2^e)
+  float step = std::ldexp(1.0f, e - 1);         // the power of two at or below it
+  while (step < coarsest) step *= 2.0f;
+  return step >= std::numeric_limits<float>::min() ? step : 0.0f;
 }
 
 void GridAccelerator::addCounters(const SubdivideCounters& counters) {
@@ -650,7 +675,7 @@ std::unique_ptr<VoxelGeometry> GridAccelerator::buildVoxel(uint32_t voxel) {
         uint32_t& slot = remap[tri[c]];
         if (slot == UINT32_MAX) {
           slot = uint32_t(g->P.size());
-          g->P.push_back(mm.P[tri[c]]);
+          g->P.push_back(snapToLattice(mm.P[tri[c]], positionStep_));
           bary.push_back(mm.bary[tri[c]]);
         }
         indices.push_back(slot);
@@ -680,6 +705,7 @@ std::unique_ptr<VoxelGeometry> GridAccelerator::buildVoxel(uint32_t voxel) {
   g->microLow.shrink_to_fit(), g->segments.shrink_to_fit();
   if (options_.subVoxelGrid) buildSubGrid(*g, box, grid_.padding());
   else buildBvh(*g, grid_.padding());
+  g->packPositions(positionStep_, 0.5f * (box.lo + box.hi));
   if (!proxies_.empty() && !g->bvhNodes.empty() && !proxies_[voxel].load(std::memory_order_acquire)) {
     // Every fill of a voxel builds the same BVH (rule 1), so whichever fill publishes it, the
     // proxy is the root a resident voxel would have.
@@ -779,28 +805,64 @@ void GridAccelerator::intersectVoxel(uint32_t voxel, const WatertightRay& wr, co
   auto accept = [&](uint32_t i, const glm::uvec3& tri) {
     const auto [triangleId, microId] = g->key(i);
     if (!improves(triangleId, microId)) return;
-    for (int c = 0; c < 3; ++c) best.p[c] = g->P[tri[c]], best.bary[c] = g->bary(tri[c]);
+    for (int c = 0; c < 3; ++c) best.p[c] = g->vertex(tri[c]), best.bary[c] = g->bary(tri[c]);
   };
   auto test = [&](uint32_t i) {
     const glm::uvec3 tri = g->triangle(i);
-    if (intersectTriangle(wr, g->P[tri.x], g->P[tri.y], g->P[tri.z], ray.tMin, limit, h)) accept(i, tri);
+    if (intersectTriangle(wr, g->vertex(tri.x), g->vertex(tri.y), g->vertex(tri.z), ray.tMin, limit, h))
+      accept(i, tri);
   };
+#if defined(__SSE2__)
+  // Packed positions decode in the lanes with the arithmetic of VoxelGeometry::vertex.
+  const __m128 pStep = _mm_set1_ps(g->pStep);
+  const __m128 pBase4 = _mm_setr_ps(g->pBase.x, g->pBase.y, g->pBase.z, 0.0f);
+#endif
   // Triangles [first, end) in groups of four lanes, then in order, as `test` one by one would: a
   // lane's hit is bit-identical to the scalar test's, and re-checked against the limit the lanes
   // before it may have lowered.
   auto testRange = [&](uint32_t first, uint32_t end) {
+#if !defined(__SSE2__)
+    for (uint32_t k = first; k < end && !(anyHit && best.found); ++k) test(k);
+#else
     for (uint32_t k = first; k < end; k += 4) {
       const uint32_t n = std::min(4u, end - k);
       glm::uvec3 tri[4];
-      const float *a[4], *b[4], *c[4];
-      for (uint32_t j = 0; j < 4; ++j) {
-        tri[j] = g->triangle(k + std::min(j, n - 1));  // short groups repeat their last triangle
-        a[j] = &g->P[tri[j].x].x, b[j] = &g->P[tri[j].y].x, c[j] = &g->P[tri[j].z].x;
+      for (uint32_t j = 0; j < 4; ++j) tri[j] = g->triangle(k + std::min(j, n - 1));  // short groups repeat their last
+      Corners4 corners;
+      const uint32_t packed = g->numPacked();
+      bool allPacked = true;
+      for (uint32_t j = 0; j < 4; ++j) allPacked &= tri[j].x < packed && tri[j].y < packed && tri[j].z < packed;
+      if (allPacked) {
+        // A vertex's three steps load as 8 bytes (P16 ends in a pad), widen to 32 bits and decode
+        // together; four lanes' vertices then transpose into per-axis vectors.
+        const uint16_t* q = g->P16.data();
+        const __m128i zero = _mm_setzero_si128();
+        auto decode = [&](uint32_t v) {
+          const __m128i steps = _mm_unpacklo_epi16(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(q + 3 * size_t(v))), zero);
+          return _mm_add_ps(pBase4, _mm_mul_ps(_mm_cvtepi32_ps(steps), pStep));
+        };
+        __m128* out[3] = {corners.a, corners.b, corners.c};
+        for (int corner = 0; corner < 3; ++corner) {
+          __m128 r0 = decode(tri[0][corner]), r1 = decode(tri[1][corner]);
+          __m128 r2 = decode(tri[2][corner]), r3 = decode(tri[3][corner]);
+          _MM_TRANSPOSE4_PS(r0, r1, r2, r3);
+          out[corner][0] = r0, out[corner][1] = r1, out[corner][2] = r2;
+        }
+      } else {
+        glm::vec3 v[4][3];
+        for (uint32_t j = 0; j < 4; ++j)
+          for (int corner = 0; corner < 3; ++corner) v[j][corner] = g->vertex(tri[j][corner]);
+        for (int axis = 0; axis < 3; ++axis) {
+          auto gather = [&](int corner) {
+            return _mm_setr_ps(v[0][corner][axis], v[1][corner][axis], v[2][corner][axis], v[3][corner][axis]);
+          };
+          corners.a[axis] = gather(0), corners.b[axis] = gather(1), corners.c[axis] = gather(2);
+        }
       }
       TriangleHits4 hits;
       unsigned undecided = 0;
       const unsigned lanes = (1u << n) - 1;
-      const unsigned mask = intersectTriangles4(wr, a, b, c, ray.tMin, limit, hits, undecided) & lanes;
+      const unsigned mask = intersectTriangles4(wr, corners, ray.tMin, limit, hits, undecided) & lanes;
       undecided &= lanes;
       if (!(mask | undecided)) continue;
       for (uint32_t j = 0; j < n; ++j) {
@@ -813,6 +875,7 @@ void GridAccelerator::intersectVoxel(uint32_t voxel, const WatertightRay& wr, co
         if (anyHit && best.found) return;
       }
     }
+#endif
   };
   if (!g->bvhNodes.empty() && sr.usable) {
     // Slab tests against the decoded boxes, as t = base + q * scale per axis.

@@ -40,6 +40,8 @@ class GridAccelerator final : public Accelerator {
   uint64_t maxVoxelTriangles() const { return maxVoxelTriangles_.load(std::memory_order_relaxed); }
   // Shader problems summed over all fills (for one-time warnings by the caller).
   RlfStatus shaderStatus() const;
+  // The step of the lattice displaced vertices are snapped to (snapToLattice; 0: none).
+  float positionStep() const { return positionStep_; }
 
   struct SlabRay;  // a ray's slab-test set-up, shared by the voxel BVHs and their proxies
 
@@ -57,6 +59,7 @@ class GridAccelerator final : public Accelerator {
   // null once the memos reach AccelOptions::memoBytesLimit.
   SubtreeMemo* subtreeMemo(uint32_t id, int rounds);
   void addCounters(const SubdivideCounters& counters);
+  float choosePositionStep() const;
   void addTraverseTime(std::chrono::steady_clock::time_point start);
 
   const Scene& scene_;
@@ -64,6 +67,7 @@ class GridAccelerator final : public Accelerator {
   ContributorGrid grid_;
   std::unique_ptr<GeometryCache> cache_;
   std::atomic<uint64_t> clock_{1};
+  float positionStep_ = 0.0f;
   std::vector<std::atomic<uint8_t>> voxelCounted_;  // per voxel: its unique triangles counted
   std::vector<std::atomic<uint8_t>> knownEmpty_;    // per voxel: filled once with no triangles
   std::vector<uint8_t> sharedContributor_;  // per input triangle: listed in 2+ voxels (side cache, memo)

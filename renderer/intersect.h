@@ -74,28 +74,31 @@ struct TriangleHits4 {
   float t[4], b0[4], b1[4], b2[4];
 };
 
-// intersectTriangle on four triangles at once (lane k: the corners at a[k], b[k], c[k], each three
-// floats). Each lane takes the same IEEE operations in the same order as the scalar test, so its
-// verdict and hit are bit-identical to it: a BVH leaf or a sparse voxel tests a group of four in the
-// time of about two. Returns the mask of lanes that hit; `undecided` gets the lanes whose edge
-// functions have an exact zero, which the caller must test with intersectTriangle (it redoes them
-// in double). Without SSE2 every lane is undecided.
-inline unsigned intersectTriangles4(const WatertightRay& ray, const float* const a[4], const float* const b[4],
-                                    const float* const c[4], float tMin, float tMax, TriangleHits4& hits,
-                                    unsigned& undecided) {
 #if defined(__SSE2__)
-  auto gather = [](const float* const p[4], int k) { return _mm_setr_ps(p[0][k], p[1][k], p[2][k], p[3][k]); };
+// Four triangles' corners in SSE lanes, lane k for the k-th triangle: a[axis], b[axis], c[axis]
+// hold the world x, y and z of corners a, b and c.
+struct Corners4 {
+  __m128 a[3], b[3], c[3];
+};
+
+// intersectTriangle on four triangles at once. Each lane takes the same IEEE operations in the
+// same order as the scalar test, so its verdict and hit are bit-identical to it: a BVH leaf or a
+// sparse voxel tests a group of four in the time of about two. Returns the mask of lanes that hit;
+// `undecided` gets the lanes whose edge functions have an exact zero, which the caller must test
+// with intersectTriangle (it redoes them in double).
+inline unsigned intersectTriangles4(const WatertightRay& ray, const Corners4& k, float tMin, float tMax,
+                                    TriangleHits4& hits, unsigned& undecided) {
   const __m128 ox = _mm_set1_ps(ray.ox), oy = _mm_set1_ps(ray.oy), oz = _mm_set1_ps(ray.oz);
   const __m128 sx = _mm_set1_ps(ray.sx), sy = _mm_set1_ps(ray.sy), sz = _mm_set1_ps(ray.sz);
-  const __m128 Az = _mm_sub_ps(gather(a, ray.kz), oz);
-  const __m128 Bz = _mm_sub_ps(gather(b, ray.kz), oz);
-  const __m128 Cz = _mm_sub_ps(gather(c, ray.kz), oz);
-  const __m128 ax = _mm_sub_ps(_mm_sub_ps(gather(a, ray.kx), ox), _mm_mul_ps(sx, Az));
-  const __m128 ay = _mm_sub_ps(_mm_sub_ps(gather(a, ray.ky), oy), _mm_mul_ps(sy, Az));
-  const __m128 bx = _mm_sub_ps(_mm_sub_ps(gather(b, ray.kx), ox), _mm_mul_ps(sx, Bz));
-  const __m128 by = _mm_sub_ps(_mm_sub_ps(gather(b, ray.ky), oy), _mm_mul_ps(sy, Bz));
-  const __m128 cx = _mm_sub_ps(_mm_sub_ps(gather(c, ray.kx), ox), _mm_mul_ps(sx, Cz));
-  const __m128 cy = _mm_sub_ps(_mm_sub_ps(gather(c, ray.ky), oy), _mm_mul_ps(sy, Cz));
+  const __m128 Az = _mm_sub_ps(k.a[ray.kz], oz);
+  const __m128 Bz = _mm_sub_ps(k.b[ray.kz], oz);
+  const __m128 Cz = _mm_sub_ps(k.c[ray.kz], oz);
+  const __m128 ax = _mm_sub_ps(_mm_sub_ps(k.a[ray.kx], ox), _mm_mul_ps(sx, Az));
+  const __m128 ay = _mm_sub_ps(_mm_sub_ps(k.a[ray.ky], oy), _mm_mul_ps(sy, Az));
+  const __m128 bx = _mm_sub_ps(_mm_sub_ps(k.b[ray.kx], ox), _mm_mul_ps(sx, Bz));
+  const __m128 by = _mm_sub_ps(_mm_sub_ps(k.b[ray.ky], oy), _mm_mul_ps(sy, Bz));
+  const __m128 cx = _mm_sub_ps(_mm_sub_ps(k.c[ray.kx], ox), _mm_mul_ps(sx, Cz));
+  const __m128 cy = _mm_sub_ps(_mm_sub_ps(k.c[ray.ky], oy), _mm_mul_ps(sy, Cz));
   const __m128 u = _mm_sub_ps(_mm_mul_ps(cx, by), _mm_mul_ps(cy, bx));
   const __m128 v = _mm_sub_ps(_mm_mul_ps(ax, cy), _mm_mul_ps(ay, cx));
   const __m128 w = _mm_sub_ps(_mm_mul_ps(bx, ay), _mm_mul_ps(by, ax));
@@ -123,6 +126,22 @@ inline unsigned intersectTriangles4(const WatertightRay& ray, const float* const
     _mm_storeu_ps(hits.b2, _mm_mul_ps(w, invDet));
   }
   return mask;
+}
+#endif
+
+// The same on corners given as pointers to three floats each (lane k: a[k], b[k], c[k]). Without
+// SSE2 every lane is undecided.
+inline unsigned intersectTriangles4(const WatertightRay& ray, const float* const a[4], const float* const b[4],
+                                    const float* const c[4], float tMin, float tMax, TriangleHits4& hits,
+                                    unsigned& undecided) {
+#if defined(__SSE2__)
+  Corners4 k;
+  for (int axis = 0; axis < 3; ++axis) {
+    k.a[axis] = _mm_setr_ps(a[0][axis], a[1][axis], a[2][axis], a[3][axis]);
+    k.b[axis] = _mm_setr_ps(b[0][axis], b[1][axis], b[2][axis], b[3][axis]);
+    k.c[axis] = _mm_setr_ps(c[0][axis], c[1][axis], c[2][axis], c[3][axis]);
+  }
+  return intersectTriangles4(ray, k, tMin, tMax, hits, undecided);
 #else
   (void)ray, (void)a, (void)b, (void)c, (void)tMin, (void)tMax, (void)hits;
   undecided = 0xf;

@@ -21,8 +21,8 @@ using testing::SphereOptions;
 
 void expectMatchesBruteForce(const Scene& scene, const AccelOptions& options, int numRays,
                              float jitter) {
-  auto accel = makeGridAccelerator(scene, options);
-  BruteForce reference(scene);
+  auto accel = std::make_unique<GridAccelerator>(scene, options);
+  BruteForce reference(scene, accel->positionStep());
   int numHits = 0;
   for (const Ray& ray : randomRays(numRays, 7, 3.0f, jitter)) {
     auto hit = accel->intersect(ray);

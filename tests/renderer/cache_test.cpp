@@ -1,6 +1,9 @@
 // Invariants of the geometry cache: answers independent of budget, order and threads; the
 // resident set bounded by the budget plus one voxel; statistics that add up.
 #include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <random>
 #include <thread>
 #include <tuple>
 
@@ -94,7 +97,7 @@ TEST(GeometryCache, StorageUsesNarrowIndicesAndSubGrids) {
   AccelOptions options;
   options.gridResolution = 4;  // large voxels: dense enough for sub-voxel grids
   GridAccelerator accel(scene, options);
-  auto expected = testing::BruteForce(scene);
+  auto expected = testing::BruteForce(scene, accel.positionStep());
   for (const Ray& ray : testing::randomRays(200, 11, 3.0f, 1.2f)) {
     auto hit = accel.intersect(ray);
     auto ref = expected.intersect(ray);
@@ -216,6 +219,103 @@ TEST(VoxelStorage, KeysAndBarycentricsRoundTrip) {
   for (uint32_t v = 0; v < fine.size(); ++v) EXPECT_EQ(g.bary(v), fine[v]);
 }
 
+// Positions pack into 16-bit lattice steps around the voxel where they decode to their own bits;
+// the rest stay floats, and triangles and barycentrics follow the renumbering.
+void expectPackingKeepsEveryCorner(bool wideIndices, bool floatBary) {
+  const float step = 1.0f / 1024.0f;
+  const glm::vec3 centre(0.3f, -0.2f, 5.1f);
+  const glm::vec3 c = snapToLattice(centre, step);
+  std::vector<glm::vec3> P;
+  std::mt19937 rng(3);
+  std::uniform_int_distribution<int> near(-30000, 30000);
+  uint32_t expectPacked = 0;
+  for (int i = 0; i < 300; ++i) {
+    const int kind = i % 10;
+    glm::vec3 p = c + glm::vec3(float(near(rng)), float(near(rng)), float(near(rng))) * step;
+    if (kind == 3) p.y = c.y + 40000.0f * step;  // outside the window
+    if (kind == 5) p.x += 0.3f * step;              // not a lattice point
+    if (kind == 7) p.z = c.z - 32769.0f * step;     // one step below the window
+    if (kind == 8) p.x = c.x + 32767.0f * step;     // the window's last step
+    expectPacked += kind != 3 && kind != 5 && kind != 7;
+    P.push_back(p);
+  }
+  P.push_back(glm::vec3(-0.0f, 0.0f, 0.0f));  // -0 would decode as +0: must stay a float
+  VoxelGeometry g;
+  g.P = P;
+  std::vector<uint32_t> indices;
+  for (uint32_t t = 0; t + 2 < uint32_t(P.size()); ++t) indices.insert(indices.end(), {t, t + 2, uint32_t(P.size()) - 1 - t});
+  if (wideIndices) g.indices32 = indices;
+  else g.indices16.assign(indices.begin(), indices.end());
+  std::vector<glm::vec2> bary;
+  for (uint32_t v = 0; v < P.size(); ++v)
+    bary.push_back(glm::vec2(float(v % 64), float(v / 64)) / (floatBary ? 65536.0f : 128.0f));
+  g.setBary(bary);
+  ASSERT_EQ(g.baryF.empty(), !floatBary);
+  const uint32_t numTriangles = uint32_t(indices.size() / 3);
+  for (uint32_t t = 0; t < numTriangles; ++t) g.microLow.push_back(uint16_t(t));
+
+  g.packPositions(step, centre);
+  EXPECT_EQ(g.numPacked(), expectPacked);
+  EXPECT_EQ(g.numVertices(), P.size());
+  for (uint32_t t = 0; t < numTriangles; ++t) {
+    const glm::uvec3 tri = g.triangle(t);
+    for (int k = 0; k < 3; ++k) {
+      const glm::vec3 want = P[indices[3 * t + k]], got = g.vertex(tri[k]);
+      ASSERT_EQ(std::memcmp(&want, &got, sizeof want), 0) << "triangle " << t << " corner " << k;
+      ASSERT_EQ(g.bary(tri[k]), bary[indices[3 * t + k]]);
+    }
+  }
+  // Packed vertices take 6 bytes instead of 12.
+  EXPECT_LT(g.bytes(), sizeof(VoxelGeometry) + 12 * P.size() + 2 * indices.size() * (wideIndices ? 2 : 1) +
+                           bary.size() * (floatBary ? 8 : 4) + 2 * numTriangles);
+  // A step of 0 (an undisplaced scene) packs nothing.
+  VoxelGeometry h;
+  h.P = P;
+  h.packPositions(0.0f, centre);
+  EXPECT_EQ(h.numPacked(), 0u);
+  EXPECT_EQ(h.P.size(), P.size());
+}
+
+TEST(VoxelStorage, PackedPositionsDecodeToTheirOwnBits) {
+  expectPackingKeepsEveryCorner(false, false);
+  expectPackingKeepsEveryCorner(true, true);
+}
+
+TEST(VoxelStorage, SnappingIsAPureFunctionOntoThePowerOfTwoLattice) {
+  const float step = std::ldexp(1.0f, -16);
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<float> pos(-8.0f, 8.0f);
+  for (int i = 0; i < 1000; ++i) {
+    const glm::vec3 p(pos(rng), pos(rng), pos(rng));
+    const glm::vec3 s = snapToLattice(p, step);
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_LE(std::fabs(s[k] - p[k]), 0.5f * step);
+      EXPECT_EQ(s[k] / step, std::floor(s[k] / step));  // a lattice point
+    }
+    EXPECT_EQ(snapToLattice(s, step), s);  // idempotent
+  }
+  EXPECT_FALSE(std::signbit(snapToLattice(glm::vec3(-1e-9f), step).x));  // -0 made +0
+  EXPECT_EQ(snapToLattice(glm::vec3(0.1f), 0.0f), glm::vec3(0.1f));      // no lattice
+}
+
+// The lattice the accelerator chooses: a power of two fine against the micro-triangles, and
+// none for an undisplaced scene.
+TEST(GridAccelerator, PositionStepIsAPowerOfTwoFineAgainstTheEdgeLength) {
+  SphereOptions o = cacheOptions();
+  const Scene scene = makeSphereScene(o);
+  GridAccelerator accel(scene, AccelOptions{});
+  const float step = accel.positionStep();
+  ASSERT_GT(step, 0.0f);
+  int e = 0;
+  EXPECT_EQ(std::frexp(step, &e), 0.5f);
+  const float wanted = std::min(o.edgeLength / 1024.0f, accel.grid().voxelSize() / 16384.0f);
+  EXPECT_LE(step, wanted);
+  EXPECT_GT(step, 0.5f * wanted);
+  AccelOptions flat;
+  flat.displace = false;
+  EXPECT_EQ(GridAccelerator(scene, flat).positionStep(), 0.0f);
+}
+
 }  // namespace
 }  // namespace relief
 
@@ -233,7 +333,7 @@ TEST(VoxelStorage, WideVoxelsUseTheir32BitFormsCorrectly) {
   AccelOptions options;
   options.gridResolution = 1;
   GridAccelerator accel(scene, options);
-  testing::BruteForce expected(scene);
+  testing::BruteForce expected(scene, accel.positionStep());
   for (const Ray& ray : testing::randomRays(60, 13, 3.0f, 1.2f)) {
     const auto hit = accel.intersect(ray);
     const auto ref = expected.intersect(ray);

@@ -16,6 +16,7 @@
 
 #include "renderer/accel.h"
 #include "renderer/contributor_grid.h"
+#include "renderer/geometry_cache.h"
 #include "renderer/intersect.h"
 #include "renderer/subdivide.h"
 #include "renderer/tessellate.h"
@@ -102,10 +103,11 @@ inline std::vector<Ray> randomRays(int count, uint32_t seed, float distance, flo
   return rays;
 }
 
-// Every displaced micro-triangle of the scene, intersected one by one.
+// Every displaced micro-triangle of the scene, intersected one by one; with a position step, on
+// the lattice the grid accelerator snaps its vertices to (GridAccelerator::positionStep).
 class BruteForce {
  public:
-  explicit BruteForce(const Scene& scene) {
+  explicit BruteForce(const Scene& scene, float positionStep = 0.0f) {
     for (uint32_t m = 0; m < scene.meshes.size(); ++m) {
       const Mesh& mesh = scene.meshes[m];
       const Displacement* d = mesh.displacementIndex < scene.displacements.size()
@@ -115,6 +117,7 @@ class BruteForce {
         MicroMesh mm;
         SubdivideCounters counters;
         subdivideTriangle(mesh, t, d, mm, counters);
+        for (glm::vec3& p : mm.P) p = snapToLattice(p, positionStep);
         meshes_.push_back({m, t, std::move(mm)});
       }
     }
