@@ -2,6 +2,7 @@
 #include "renderer/geometry_cache.h"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstring>
 #include <functional>
@@ -16,7 +17,7 @@ int cacheThreadShard() {
 
 uint64_t VoxelGeometry::bytes() const {
   return sizeof(VoxelGeometry) + P.size() * sizeof(glm::vec3) + P16.size() * 2 + bary16.size() * 2 +
-         baryF.size() * sizeof(glm::vec2) + indices16.size() * 2 + indices32.size() * 4 +
+         baryF.size() * sizeof(glm::vec2) + indices16.size() * 2 + indices32.size() * 4 + packedIndices.size() +
          microLow.size() * 2 + segments.size() * sizeof(Segment) + subOffsets16.size() * 2 + subOffsets32.size() * 4 +
          subTriangles16.size() * 2 + subTriangles32.size() * 4 + bvhNodes.size() * sizeof(BvhNode);
 }
@@ -79,19 +80,43 @@ void VoxelGeometry::packPositions(float step, const glm::vec3& centre) {
   P.shrink_to_fit();
 }
 
+void VoxelGeometry::packIndices() {
+  if constexpr (std::endian::native != std::endian::little) return;
+  const uint32_t n = numTriangles();
+  if (indexBits || n == 0 || (indices16.empty() && indices32.empty())) return;
+  const uint32_t vertices = numVertices();
+  const uint32_t bits = std::max(1, int(std::bit_width(vertices > 0 ? vertices - 1 : 0u)));
+  if (bits > 19 || (bits == 16 && !indices16.empty())) return;  // no room, or no gain
+  std::vector<uint8_t> stream((uint64_t(3 * bits) * n + 7) / 8 + sizeof(uint64_t), 0);
+  for (uint32_t i = 0; i < n; ++i) {
+    const glm::uvec3 t = triangle(i);
+    const uint64_t bit = uint64_t(3 * bits) * i;
+    uint64_t word;
+    std::memcpy(&word, stream.data() + (bit >> 3), sizeof word);
+    word |= (uint64_t(t.x) | uint64_t(t.y) << bits | uint64_t(t.z) << (2 * bits)) << (bit & 7);
+    std::memcpy(stream.data() + (bit >> 3), &word, sizeof word);
+  }
+  packedIndices = std::move(stream);
+  indexBits = bits;
+  indices16.clear(), indices16.shrink_to_fit();
+  indices32.clear(), indices32.shrink_to_fit();
+}
+
 void VoxelGeometry::setBary(const std::vector<glm::vec2>& b) {
   bary16.clear(), baryF.clear();
   bary16.reserve(2 * b.size());
   for (const glm::vec2& v : b) {
     for (int c = 0; c < 2; ++c) {
-      const float scaled = v[c] * 32768.0f;  // exact: a power-of-two scale
-      if (!(scaled >= 0.0f && scaled <= 32768.0f) || scaled != std::floor(scaled)) {
+      // Midpoint subdivision's barycentrics are dyadic and stay exact (a power-of-two scale);
+      // simplification's 1-to-3 centre splits make thirds, which round to the nearest 2^-15.
+      const float scaled = v[c] * 32768.0f;
+      if (!(scaled >= 0.0f && scaled <= 32768.0f)) {  // outside the triangle, or NaN: floats
         bary16.clear();
         baryF = b;
         baryF.shrink_to_fit();
         return;
       }
-      bary16.push_back(uint16_t(scaled));
+      bary16.push_back(uint16_t(std::nearbyint(scaled)));
     }
   }
 }

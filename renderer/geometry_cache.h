@@ -29,6 +29,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <cstring>
 #include <memory>
 #include <mutex>
 #include <vector>
@@ -41,9 +42,10 @@
 namespace relief {
 
 // The displaced geometry resident for one voxel, stored compactly (docs/cache.md, "Density"):
-// - shared vertices (float3) with their position in the input triangle as two 16-bit fixed-point
-//   numbers (exact: subdivision barycentrics are dyadic, k / 2^level; float pairs are kept only in
-//   the rare voxel holding a level beyond 15);
+// - shared vertices (16-bit lattice steps, or floats; see P16) with their position in the input
+//   triangle as two 16-bit fixed-point numbers (exact for midpoint subdivision's dyadic
+//   barycentrics k / 2^level up to level 15, within 2^-16 for deeper levels and simplification's
+//   centre splits; float pairs only where a value lies outside [0, 1]);
 // - 3 narrow indices per triangle (16-bit where the voxel has <= 65536 vertices);
 // - the (input triangle, micro-triangle) key per triangle as runs: a triangle stores the low 16
 //   bits of its micro id (rotated, see packMicro), and a segment table gives, from each segment's
@@ -67,10 +69,15 @@ struct VoxelGeometry {
   std::vector<glm::vec3> P;   // vertices [numPacked(), numVertices())
   glm::vec3 pBase{0};
   float pStep = 0;
-  std::vector<uint16_t> bary16;     // 2 per vertex: (b1, b2) * 2^15, when exact
+  std::vector<uint16_t> bary16;     // 2 per vertex: (b1, b2) * 2^15, rounded
   std::vector<glm::vec2> baryF;     // otherwise: (b1, b2)
-  std::vector<uint16_t> indices16;  // used when P.size() <= 65536
-  std::vector<uint32_t> indices32;  // otherwise
+  // Triangles' corners. Built as 16-bit (at most 65536 vertices) or 32-bit numbers; a finished
+  // voxel keeps them as a bit stream of 3 x indexBits bits per triangle, indexBits being the bits
+  // of its largest vertex number, so one unaligned 64-bit load reads a triangle (packIndices).
+  std::vector<uint16_t> indices16;
+  std::vector<uint32_t> indices32;
+  std::vector<uint8_t> packedIndices;  // ends in 8 bytes of pad for the 64-bit loads
+  uint32_t indexBits = 0;              // 0: not packed
   std::vector<uint16_t> microLow;   // per triangle: micro id & 0xffff
   std::vector<Segment> segments;
 
@@ -111,8 +118,19 @@ struct VoxelGeometry {
   // they move to P16 and to the front of the vertex order (indices and barycentrics renumbered
   // alike). No-op for step 0.
   void packPositions(float step, const glm::vec3& centre);
+  // Moves indices16 or indices32 into packedIndices (little-endian machines, vertex numbers of
+  // at most 19 bits: 3 of them and a 7-bit shift fit one 64-bit word) where that is smaller.
+  void packIndices();
 
   glm::uvec3 triangle(uint32_t i) const {
+    if (indexBits) {
+      const uint64_t bit = uint64_t(3 * indexBits) * i;
+      uint64_t word;
+      std::memcpy(&word, packedIndices.data() + (bit >> 3), sizeof word);
+      word >>= bit & 7;
+      const uint64_t mask = (uint64_t(1) << indexBits) - 1;
+      return {uint32_t(word & mask), uint32_t((word >> indexBits) & mask), uint32_t((word >> (2 * indexBits)) & mask)};
+    }
     if (!indices16.empty()) return {indices16[3 * i], indices16[3 * i + 1], indices16[3 * i + 2]};
     return {indices32[3 * i], indices32[3 * i + 1], indices32[3 * i + 2]};
   }
@@ -146,7 +164,7 @@ struct VoxelGeometry {
   }
   // The key of triangle i: (global input triangle id, micro id).
   std::pair<uint32_t, uint32_t> key(uint32_t i) const;
-  // Stores vertex bary (b1, b2) in the compact form if every one is exact in it.
+  // Stores vertex bary (b1, b2) in the compact form if every one lies in [0, 1].
   void setBary(const std::vector<glm::vec2>& b);
   uint64_t bytes() const;
 };

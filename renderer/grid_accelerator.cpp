@@ -706,6 +706,7 @@ std::unique_ptr<VoxelGeometry> GridAccelerator::buildVoxel(uint32_t voxel) {
   if (options_.subVoxelGrid) buildSubGrid(*g, box, grid_.padding());
   else buildBvh(*g, grid_.padding());
   g->packPositions(positionStep_, 0.5f * (box.lo + box.hi));
+  g->packIndices();
   if (!proxies_.empty() && !g->bvhNodes.empty() && !proxies_[voxel].load(std::memory_order_acquire)) {
     // Every fill of a voxel builds the same BVH (rule 1), so whichever fill publishes it, the
     // proxy is the root a resident voxel would have.

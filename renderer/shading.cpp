@@ -114,7 +114,7 @@ Integrator::Integrator(const Scene& scene, Accelerator& accel, const ShadingOpti
 
 glm::vec3 Integrator::surfaceColor(const Mesh& mesh, const Material& material, const Hit& hit) {
   if (mesh.Cs.empty() || hit.triangleIndex >= mesh.numTriangles()) return material.color;
-  // Hit::bary is exact for displaced hits too (the point the micro-geometry was displaced from).
+  // Hit::bary holds for displaced hits too (the point the micro-geometry was displaced from, to 2^-16).
   const uint32_t* idx = &mesh.indices[3 * size_t(hit.triangleIndex)];
   const float b1 = std::clamp(hit.bary.x, 0.0f, 1.0f);
   const float b2 = std::clamp(hit.bary.y, 0.0f, 1.0f - b1);

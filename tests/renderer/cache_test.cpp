@@ -1,6 +1,7 @@
 // Invariants of the geometry cache: answers independent of budget, order and threads; the
 // resident set bounded by the budget plus one voxel; statistics that add up.
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstring>
 #include <random>
@@ -212,11 +213,20 @@ TEST(VoxelStorage, KeysAndBarycentricsRoundTrip) {
   EXPECT_EQ(g.bary16.size(), 2 * dyadic.size());
   EXPECT_TRUE(g.baryF.empty());
   for (uint32_t v = 0; v < dyadic.size(); ++v) EXPECT_EQ(g.bary(v), dyadic[v]);
-  // A finer value falls back to floats, still exact.
-  const std::vector<glm::vec2> fine = {{0.5f, 0.5f}, {1.0f / 65536, 0.0f}, {0.3f, 0.1f}};
+  // Finer values (deeper levels, the thirds of centre splits) round to the nearest 2^-15.
+  const std::vector<glm::vec2> fine = {{0.5f, 0.5f}, {1.0f / 65536, 0.0f}, {1.0f / 3, 1.0f / 3}, {0.3f, 0.1f}};
   g.setBary(fine);
+  EXPECT_EQ(g.bary16.size(), 2 * fine.size());
+  for (uint32_t v = 0; v < fine.size(); ++v) {
+    EXPECT_LE(std::fabs(g.bary(v).x - fine[v].x), 1.0f / 65536) << v;
+    EXPECT_LE(std::fabs(g.bary(v).y - fine[v].y), 1.0f / 65536) << v;
+  }
+  EXPECT_EQ(g.bary(0), fine[0]);  // dyadic: exact
+  // A value outside the triangle (or NaN) falls back to floats, exact.
+  const std::vector<glm::vec2> outside = {{0.25f, 0.5f}, {1.5f, -0.25f}};
+  g.setBary(outside);
   EXPECT_TRUE(g.bary16.empty());
-  for (uint32_t v = 0; v < fine.size(); ++v) EXPECT_EQ(g.bary(v), fine[v]);
+  for (uint32_t v = 0; v < outside.size(); ++v) EXPECT_EQ(g.bary(v), outside[v]);
 }
 
 // Positions pack into 16-bit lattice steps around the voxel where they decode to their own bits;
@@ -248,7 +258,7 @@ void expectPackingKeepsEveryCorner(bool wideIndices, bool floatBary) {
   else g.indices16.assign(indices.begin(), indices.end());
   std::vector<glm::vec2> bary;
   for (uint32_t v = 0; v < P.size(); ++v)
-    bary.push_back(glm::vec2(float(v % 64), float(v / 64)) / (floatBary ? 65536.0f : 128.0f));
+    bary.push_back(glm::vec2(float(v % 64), float(v / 64)) / 128.0f + (floatBary ? 1.25f : 0.0f));  // > 1: floats
   g.setBary(bary);
   ASSERT_EQ(g.baryF.empty(), !floatBary);
   const uint32_t numTriangles = uint32_t(indices.size() / 3);
@@ -279,6 +289,41 @@ void expectPackingKeepsEveryCorner(bool wideIndices, bool floatBary) {
 TEST(VoxelStorage, PackedPositionsDecodeToTheirOwnBits) {
   expectPackingKeepsEveryCorner(false, false);
   expectPackingKeepsEveryCorner(true, true);
+}
+
+// Indices pack into 3 x (bits of the largest vertex number) per triangle and read back the same,
+// at widths from 1 to 19 bits and at their edges; wider voxels keep 32-bit indices.
+TEST(VoxelStorage, PackedIndicesReadBackAtEveryWidth) {
+  std::mt19937 rng(17);
+  for (uint32_t vertices : {1u, 2u, 3u, 4u, 5u, 255u, 256u, 257u, 1000u, 4096u, 4097u, 65536u, 65537u, 300000u,
+                            524288u, 524289u}) {
+    VoxelGeometry g;
+    g.P.resize(vertices);
+    std::uniform_int_distribution<uint32_t> pick(0, vertices - 1);
+    std::vector<uint32_t> indices;
+    for (uint32_t t = 0; t < 301; ++t) {
+      // The extremes at every position of a triangle, then random corners.
+      if (t < 3) indices.insert(indices.end(), {vertices - 1, t % 2 ? 0u : vertices - 1, 0u});
+      else indices.insert(indices.end(), {pick(rng), pick(rng), pick(rng)});
+      g.microLow.push_back(uint16_t(t));
+    }
+    if (vertices <= 65536) g.indices16.assign(indices.begin(), indices.end());
+    else g.indices32 = indices;
+    const uint64_t before = g.bytes();
+    g.packIndices();
+    const uint32_t width = std::max(1, int(std::bit_width(vertices - 1)));
+    if (width <= 19 && !(width == 16 && vertices <= 65536)) {  // 16 bits in 16: nothing to gain
+      EXPECT_EQ(g.indexBits, width) << vertices;
+      EXPECT_TRUE(g.indices16.empty() && g.indices32.empty());
+      EXPECT_LT(g.bytes(), before) << vertices;
+    } else {
+      EXPECT_EQ(g.indexBits, 0u) << vertices;
+      EXPECT_EQ(g.indices16.size() + g.indices32.size(), indices.size());
+    }
+    for (uint32_t t = 0; t < 301; ++t)
+      ASSERT_EQ(g.triangle(t), glm::uvec3(indices[3 * t], indices[3 * t + 1], indices[3 * t + 2]))
+          << vertices << " vertices, triangle " << t;
+  }
 }
 
 TEST(VoxelStorage, SnappingIsAPureFunctionOntoThePowerOfTwoLattice) {
