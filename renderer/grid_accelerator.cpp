@@ -16,6 +16,10 @@
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
+#if defined(__x86_64__)
+#include <cpuid.h>
+#include <x86intrin.h>
+#endif
 
 namespace relief {
 namespace {
@@ -474,6 +478,13 @@ GridAccelerator::GridAccelerator(const Scene& scene, const AccelOptions& options
   // slower than the displaced render.
   cache_ = std::make_unique<GeometryCache>(grid_.numVoxels(), options.cacheBudgetTriangles);
   positionStep_ = choosePositionStep();
+#if defined(__x86_64__)
+  // The counter serves as a clock only where it is invariant (CPUID 0x80000007, EDX bit 8).
+  unsigned eax = 0, ebx = 0, ecx = 0, edx = 0;
+  useTsc_ = __get_cpuid(0x80000007, &eax, &ebx, &ecx, &edx) && (edx >> 8 & 1);
+  tick0_ = useTsc_ ? __rdtsc() : 0;
+#endif
+  steady0_ = std::chrono::steady_clock::now();
   const char* env = std::getenv("RELIEF_CHECK_BUDGET");
   cache_->setCheckBudget(options.checkBudget || (env && std::string_view(env) == "1"));
   if (grid_.anyDisplaced() && (options.sideCacheTriangles || options.learnSubtrees)) {
@@ -941,11 +952,29 @@ void GridAccelerator::intersectVoxel(uint32_t voxel, const WatertightRay& wr, co
   cache_->release(voxel);
 }
 
-void GridAccelerator::addTraverseTime(std::chrono::steady_clock::time_point start) {
-  const auto nanos = std::chrono::duration_cast<std::chrono::nanoseconds>(
-      std::chrono::steady_clock::now() - start);
-  traverseNanos_[cacheThreadShard() % kTimeShards].nanos.fetch_add(uint64_t(nanos.count()),
-                                                                  std::memory_order_relaxed);
+uint64_t GridAccelerator::rayTicks() const {
+#if defined(__x86_64__)
+  if (useTsc_) return __rdtsc();
+#endif
+  return uint64_t(std::chrono::duration_cast<std::chrono::nanoseconds>(
+                      std::chrono::steady_clock::now().time_since_epoch())
+                      .count());
+}
+
+double GridAccelerator::tickNanos() const {
+  if (!useTsc_) return 1.0;
+  const double nanos = double(std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                  std::chrono::steady_clock::now() - steady0_)
+                                  .count());
+  const uint64_t ticks = rayTicks() - tick0_;
+  return ticks > 0 && nanos > 0.0 ? nanos / double(ticks) : 0.0;
+}
+
+void GridAccelerator::addTraverseTime(uint64_t startTicks) {
+  const uint64_t end = rayTicks();
+  // A thread moved between cores whose counters disagree must not add a wrapped-around span.
+  if (end <= startTicks) return;
+  traverseNanos_[cacheThreadShard() % kTimeShards].ticks.fetch_add(end - startTicks, std::memory_order_relaxed);
 }
 
 template <bool kAnyHit>
@@ -975,7 +1004,7 @@ void GridAccelerator::traverse(const Ray& ray, Best& best) {
 
 std::optional<Hit> GridAccelerator::intersect(const Ray& ray) {
   Best best;
-  const auto start = std::chrono::steady_clock::now();
+  const uint64_t start = rayTicks();
   traverse<false>(ray, best);
   addTraverseTime(start);
   if (!best.found) return std::nullopt;
@@ -1006,7 +1035,7 @@ std::optional<Hit> GridAccelerator::intersect(const Ray& ray) {
 
 bool GridAccelerator::occluded(const Ray& ray) {
   Best best;
-  const auto start = std::chrono::steady_clock::now();
+  const uint64_t start = rayTicks();
   traverse<true>(ray, best);
   addTraverseTime(start);
   return best.found;
@@ -1018,7 +1047,8 @@ AccelStats GridAccelerator::stats() const {
   s.contributorEntries = grid_.numEntries();
   s.gridResolution = grid_.resolution();
   uint64_t traverse = 0;
-  for (const TimeShard& shard : traverseNanos_) traverse += shard.nanos.load(std::memory_order_relaxed);
+  for (const TimeShard& shard : traverseNanos_) traverse += shard.ticks.load(std::memory_order_relaxed);
+  traverse = uint64_t(double(traverse) * tickNanos());
   // Without displacement the cache holds input triangles only: none of its counts are about
   // displaced geometry, which is what the statistics report (docs/statistics.md), and building a
   // voxel of input triangles counts as intersecting it.
