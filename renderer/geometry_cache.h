@@ -171,7 +171,7 @@ struct VoxelGeometry {
 
 // The point of the position lattice of step `step` (a power of two; 0: no lattice) nearest to p,
 // with -0 made +0: a pure function of p, so every voxel holding a vertex stores the same point.
-// Exact as long as |p| / step < 2^24 (GridAccelerator chooses the step so).
+// Exact as long as |p| / step <= 2^24 (GridAccelerator chooses the step so).
 inline glm::vec3 snapToLattice(const glm::vec3& p, float step) {
   if (!(step > 0.0f)) return p;
   return glm::vec3(std::nearbyint(p.x / step), std::nearbyint(p.y / step), std::nearbyint(p.z / step)) * step +

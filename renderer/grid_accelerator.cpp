@@ -513,11 +513,12 @@ float GridAccelerator::choosePositionStep() const {
   for (uint32_t m = 0; m < scene_.meshes.size(); ++m)
     if (const Displacement* d = grid_.displacement(m); d && d->shader && d->edgeLength > 0.0f)
       wanted = std::min(wanted, d->edgeLength / 1024.0f);
-  // No finer than 2^-23 of the largest coordinate, so every lattice point is a float exactly.
+  // No finer than 2^-24 of the largest coordinate, so every lattice point (at most 2^24 steps
+  // from 0) is a float exactly: far from the origin the lattice is the float grid there.
   const Bounds3& b = grid_.bounds();
   float largest = 0.0f;
   for (int k = 0; k < 3; ++k) largest = std::max({largest, std::fabs(b.lo[k]), std::fabs(b.hi[k])});
-  const float coarsest = largest / 8388608.0f;
+  const float coarsest = largest / 16777216.0f;
   if (!std::isfinite(wanted) || !std::isfinite(coarsest) || !(wanted > 0.0f)) return 0.0f;
   int e = 0;
   std::frexp(wanted, &e);                       // wanted in [2^(e-1), 2^e)

@@ -359,6 +359,22 @@ TEST(GridAccelerator, PositionStepIsAPowerOfTwoFineAgainstTheEdgeLength) {
   AccelOptions flat;
   flat.displace = false;
   EXPECT_EQ(GridAccelerator(scene, flat).positionStep(), 0.0f);
+  // Far from the origin the lattice may not be finer than the floats there: every lattice point
+  // must stay a float exactly.
+  Scene far = scene;
+  for (Mesh& m : far.meshes)
+    for (glm::vec3& p : m.P) p += glm::vec3(3.0e5f, 0.0f, 0.0f);
+  GridAccelerator farAccel(far, AccelOptions{});
+  const float farStep = farAccel.positionStep();
+  const Bounds3& b = farAccel.grid().bounds();
+  const float largest = std::max({std::fabs(b.lo.x), std::fabs(b.hi.x), std::fabs(b.lo.y), std::fabs(b.hi.y),
+                                  std::fabs(b.lo.z), std::fabs(b.hi.z)});
+  EXPECT_GE(farStep * 16777216.0f, largest);
+  EXPECT_LT(farStep * 16777216.0f, 2.0f * largest);  // and no coarser than needed
+  EXPECT_EQ(std::frexp(farStep, &e), 0.5f);
+  const auto hit = farAccel.intersect(Ray{{3.0e5f, 0.0f, -5.0f}, {0.0f, 0.0f, 1.0f}, 0.0f, 1e30f});
+  ASSERT_TRUE(hit.has_value());
+  EXPECT_NEAR(hit->P.z, -1.0f, 0.2f);  // the displaced sphere's near side
 }
 
 }  // namespace
