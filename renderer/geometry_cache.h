@@ -46,7 +46,8 @@ namespace relief {
 //   triangle as two 16-bit fixed-point numbers (exact for midpoint subdivision's dyadic
 //   barycentrics k / 2^level up to level 15, within 2^-16 for deeper levels and simplification's
 //   centre splits; float pairs only where a value lies outside [0, 1]);
-// - 3 narrow indices per triangle (16-bit where the voxel has <= 65536 vertices);
+// - 3 indices per triangle, as a bit stream of bit_width(vertices - 1) bits each (packIndices;
+//   16- or 32-bit numbers while building and where that is no larger);
 // - the (input triangle, micro-triangle) key per triangle as runs: a triangle stores the low 16
 //   bits of its micro id (rotated, see packMicro), and a segment table gives, from each segment's
 //   first triangle on, the input triangle and the high 16 bits. Keys are only needed at a hit (tie-breaking
@@ -171,11 +172,15 @@ struct VoxelGeometry {
 
 // The point of the position lattice of step `step` (a power of two; 0: no lattice) nearest to p,
 // with -0 made +0: a pure function of p, so every voxel holding a vertex stores the same point.
-// Exact as long as |p| / step <= 2^24 (GridAccelerator chooses the step so).
+// Exact: p / step is a power-of-two scaling, and a coordinate 2^24 steps or more from 0 (where the
+// floats are no finer than the lattice), infinite or NaN is already as good as it gets, and kept.
+inline float snapToLattice(float x, float step) {
+  const float q = x / step;
+  return (std::fabs(q) < 16777216.0f ? std::nearbyint(q) * step : x) + 0.0f;
+}
 inline glm::vec3 snapToLattice(const glm::vec3& p, float step) {
   if (!(step > 0.0f)) return p;
-  return glm::vec3(std::nearbyint(p.x / step), std::nearbyint(p.y / step), std::nearbyint(p.z / step)) * step +
-         glm::vec3(0.0f);
+  return glm::vec3(snapToLattice(p.x, step), snapToLattice(p.y, step), snapToLattice(p.z, step));
 }
 
 // Above this many triangles a voxel gets a sub-voxel grid or BVH (the paper's "more than about 100").

@@ -503,27 +503,24 @@ GridAccelerator::GridAccelerator(const Scene& scene, const AccelOptions& options
 }
 
 float GridAccelerator::choosePositionStep() const {
-  // Displaced vertices are snapped to a lattice fine against both the micro-triangles (1/1024 of
-  // the smallest target edge length) and the voxels (1/16384 of a voxel, so a voxel's vertices,
-  // overhanging neighbours included, usually span fewer than 65536 steps and pack into 16 bits).
+  // Vertices are snapped to a lattice fine against the micro-triangles (1/1024 of the smallest
+  // target edge length) and the voxels (1/16384 of a voxel, so a voxel's vertices, overhanging
+  // neighbours included, usually span fewer than 65536 steps and pack into 16 bits), and no
+  // coarser than the grid's padding: a snapped triangle then reaches at most half the padding
+  // beyond the unsnapped one, so every voxel it enters holds it (the voxel boxes and the
+  // contributor lists are grown by the padding). Where the lattice is finer than the floats
+  // (far from the origin), snapping leaves a coordinate as it is (snapToLattice).
   // Undisplaced scenes keep their input positions: their sparse voxels are tested straight from
   // the input meshes, and every form of a triangle must be the same bits.
   if (!grid_.anyDisplaced()) return 0.0f;
-  float wanted = grid_.voxelSize() / 16384.0f;
+  float wanted = std::min(grid_.voxelSize() / 16384.0f, grid_.padding());
   for (uint32_t m = 0; m < scene_.meshes.size(); ++m)
     if (const Displacement* d = grid_.displacement(m); d && d->shader && d->edgeLength > 0.0f)
       wanted = std::min(wanted, d->edgeLength / 1024.0f);
-  // No finer than 2^-24 of the largest coordinate, so every lattice point (at most 2^24 steps
-  // from 0) is a float exactly: far from the origin the lattice is the float grid there.
-  const Bounds3& b = grid_.bounds();
-  float largest = 0.0f;
-  for (int k = 0; k < 3; ++k) largest = std::max({largest, std::fabs(b.lo[k]), std::fabs(b.hi[k])});
-  const float coarsest = largest / 16777216.0f;
-  if (!std::isfinite(wanted) || !std::isfinite(coarsest) || !(wanted > 0.0f)) return 0.0f;
+  if (!std::isfinite(wanted) || !(wanted > 0.0f)) return 0.0f;
   int e = 0;
-  std::frexp(wanted, &e);                       // wanted in [2^(e-1), 2^e)
-  float step = std::ldexp(1.0f, e - 1);         // the power of two at or below it
-  while (step < coarsest) step *= 2.0f;
+  std::frexp(wanted, &e);                // wanted in [2^(e-1), 2^e)
+  const float step = std::ldexp(1.0f, e - 1);  // the power of two at or below it
   return step >= std::numeric_limits<float>::min() ? step : 0.0f;
 }
 

@@ -4,6 +4,7 @@
 #include <bit>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <random>
 #include <thread>
 #include <tuple>
@@ -341,6 +342,10 @@ TEST(VoxelStorage, SnappingIsAPureFunctionOntoThePowerOfTwoLattice) {
   }
   EXPECT_FALSE(std::signbit(snapToLattice(glm::vec3(-1e-9f), step).x));  // -0 made +0
   EXPECT_EQ(snapToLattice(glm::vec3(0.1f), 0.0f), glm::vec3(0.1f));      // no lattice
+  // Where the floats are coarser than the lattice, and for infinities, a coordinate is kept.
+  EXPECT_EQ(snapToLattice(glm::vec3(3.0e5f + 0.03125f, 1e30f, -std::numeric_limits<float>::infinity()), step),
+            glm::vec3(3.0e5f + 0.03125f, 1e30f, -std::numeric_limits<float>::infinity()));
+  EXPECT_TRUE(std::isnan(snapToLattice(glm::vec3(std::nanf("")), step).x));
 }
 
 // The lattice the accelerator chooses: a power of two fine against the micro-triangles, and
@@ -353,14 +358,13 @@ TEST(GridAccelerator, PositionStepIsAPowerOfTwoFineAgainstTheEdgeLength) {
   ASSERT_GT(step, 0.0f);
   int e = 0;
   EXPECT_EQ(std::frexp(step, &e), 0.5f);
-  const float wanted = std::min(o.edgeLength / 1024.0f, accel.grid().voxelSize() / 16384.0f);
+  const float wanted = std::min({o.edgeLength / 1024.0f, accel.grid().voxelSize() / 16384.0f, accel.grid().padding()});
   EXPECT_LE(step, wanted);
   EXPECT_GT(step, 0.5f * wanted);
   AccelOptions flat;
   flat.displace = false;
   EXPECT_EQ(GridAccelerator(scene, flat).positionStep(), 0.0f);
-  // Far from the origin the lattice may not be finer than the floats there: every lattice point
-  // must stay a float exactly.
+  // Far from the origin along x, y and z keep the fine lattice.
   Scene far = scene;
   for (Mesh& m : far.meshes)
     for (glm::vec3& p : m.P) p += glm::vec3(3.0e5f, 0.0f, 0.0f);
@@ -369,9 +373,9 @@ TEST(GridAccelerator, PositionStepIsAPowerOfTwoFineAgainstTheEdgeLength) {
   const Bounds3& b = farAccel.grid().bounds();
   const float largest = std::max({std::fabs(b.lo.x), std::fabs(b.hi.x), std::fabs(b.lo.y), std::fabs(b.hi.y),
                                   std::fabs(b.lo.z), std::fabs(b.hi.z)});
-  EXPECT_GE(farStep * 16777216.0f, largest);
-  EXPECT_LT(farStep * 16777216.0f, 2.0f * largest);  // and no coarser than needed
-  EXPECT_EQ(std::frexp(farStep, &e), 0.5f);
+  // The lattice stays as fine as near the origin: snapping keeps x where floats are coarser.
+  EXPECT_EQ(farStep, step);
+  EXPECT_GT(largest / farStep, 16777216.0f);
   const auto hit = farAccel.intersect(Ray{{3.0e5f, 0.0f, -5.0f}, {0.0f, 0.0f, 1.0f}, 0.0f, 1e30f});
   ASSERT_TRUE(hit.has_value());
   EXPECT_NEAR(hit->P.z, -1.0f, 0.2f);  // the displaced sphere's near side
@@ -383,29 +387,71 @@ TEST(GridAccelerator, PositionStepIsAPowerOfTwoFineAgainstTheEdgeLength) {
 namespace relief {
 namespace {
 
-// One voxel holding everything: more than 65536 vertices, triangles and sub-grid references, so
-// the 32-bit forms of indices, sub-grid offsets and references are used, and still agree exactly
-// with brute force.
+// Hits of `accel` against brute force on the same lattice, for rays moved by `offset`.
+void expectHitsMatchBruteForce(GridAccelerator& accel, const Scene& scene, int numRays, uint32_t seed,
+                               const glm::vec3& offset = glm::vec3(0.0f)) {
+  testing::BruteForce expected(scene, accel.positionStep());
+  int hits = 0;
+  for (Ray ray : testing::randomRays(numRays, seed, 3.0f, 1.2f)) {
+    ray.origin += offset;
+    const auto hit = accel.intersect(ray);
+    const auto ref = expected.intersect(ray);
+    ASSERT_EQ(hit.has_value(), ref.has_value());
+    if (!hit) continue;
+    ++hits;
+    EXPECT_EQ(hit->t, ref->t);
+    EXPECT_EQ(hit->meshIndex, ref->mesh);
+    EXPECT_EQ(hit->triangleIndex, ref->triangle);
+    EXPECT_EQ(hit->microIndex, ref->micro);
+  }
+  EXPECT_GT(hits, numRays / 4);
+}
+
+// One voxel holding everything: more than 65536 vertices (indices as a 17-bit stream), triangles
+// and sub-grid references (32-bit sub-grid offsets and references), with the BVH and with the
+// sub-voxel grid, still in exact agreement with brute force.
 TEST(VoxelStorage, WideVoxelsUseTheir32BitFormsCorrectly) {
   SphereOptions o;
   o.nu = 24, o.nv = 12;
   o.edgeLength = 0.02f;
   const Scene scene = makeSphereScene(o);
-  AccelOptions options;
-  options.gridResolution = 1;
-  GridAccelerator accel(scene, options);
-  testing::BruteForce expected(scene, accel.positionStep());
-  for (const Ray& ray : testing::randomRays(60, 13, 3.0f, 1.2f)) {
-    const auto hit = accel.intersect(ray);
-    const auto ref = expected.intersect(ray);
-    ASSERT_EQ(hit.has_value(), ref.has_value());
-    if (hit) {
-      EXPECT_EQ(hit->t, ref->t);
-      EXPECT_EQ(hit->triangleIndex, ref->triangle);
-      EXPECT_EQ(hit->microIndex, ref->micro);
-    }
+  for (bool grid : {false, true}) {
+    AccelOptions options;
+    options.gridResolution = 1;
+    options.subVoxelGrid = grid;
+    GridAccelerator accel(scene, options);
+    expectHitsMatchBruteForce(accel, scene, 60, 13);
+    EXPECT_GT(accel.maxVoxelTriangles(), 100000u);
   }
-  EXPECT_GT(accel.maxVoxelTriangles(), 100000u);
+}
+
+// A displaced sphere on a large undisplaced floor: the floor's far corners fall outside every
+// voxel's 16-bit window and stay floats, so groups of four mix packed and float vertices; grids of
+// 1 to 3 voxels across make the lattice as coarse as the padding allows; and the same scene far
+// from the origin snaps only where the floats are finer than the lattice. Hits agree exactly
+// with brute force on the same lattice everywhere.
+TEST(VoxelStorage, MixedPackedAndFloatVerticesAndCoarseLatticesMatchBruteForce) {
+  SphereOptions o = cacheOptions();
+  Scene scene = makeSphereScene(o);
+  Mesh floor;
+  floor.P = {{-40, -40, -1.3f}, {40, -40, -1.3f}, {40, 40, -1.3f}, {-40, 40, -1.3f}, {0.5f, 0.5f, -1.3f}};
+  floor.indices = {0, 1, 4, 1, 2, 4, 2, 3, 4, 3, 0, 4};
+  scene.meshes.push_back(floor);
+  for (int resolution : {0, 1, 2, 3}) {
+    AccelOptions options;
+    options.gridResolution = resolution;  // 0: automatic
+    GridAccelerator accel(scene, options);
+    ASSERT_GT(accel.positionStep(), 0.0f);
+    EXPECT_LE(accel.positionStep(), accel.grid().padding());
+    expectHitsMatchBruteForce(accel, scene, 200, 21);
+    if (HasFatalFailure()) return;
+  }
+  const glm::vec3 offset(3.0e5f, 0.0f, 0.0f);
+  Scene far = scene;
+  for (Mesh& m : far.meshes)
+    for (glm::vec3& p : m.P) p += offset;
+  GridAccelerator accel(far, AccelOptions{});
+  expectHitsMatchBruteForce(accel, far, 200, 23, offset);
 }
 
 }  // namespace
