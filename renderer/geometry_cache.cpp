@@ -44,9 +44,9 @@ void VoxelGeometry::packPositions(float step, const glm::vec3& centre) {
     for (int k = 0; k < 3 && fits; ++k) {
       // Exact for lattice points within 2^24 steps: the difference of two multiples of a power
       // of two, scaled by its inverse. Taken only if it decodes to the vertex's own bits (which
-      // also rules out -0 and NaN).
+      // also rules out points off the lattice, -0 and NaN).
       const float s = (P[i][k] - base[k]) / step;
-      fits = s >= 0.0f && s <= 65535.0f && s == std::floor(s);
+      fits = s >= 0.0f && s <= 65535.0f;
       if (!fits) break;
       q[k] = uint16_t(s);
       const float decoded = base[k] + float(q[k]) * step;

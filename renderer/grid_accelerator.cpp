@@ -826,6 +826,7 @@ void GridAccelerator::intersectVoxel(uint32_t voxel, const WatertightRay& wr, co
   // Packed positions decode in the lanes with the arithmetic of VoxelGeometry::vertex.
   const __m128 pStep = _mm_set1_ps(g->pStep);
   const __m128 pBase4 = _mm_setr_ps(g->pBase.x, g->pBase.y, g->pBase.z, 0.0f);
+  const uint32_t packed = g->numPacked();
 #endif
   // Triangles [first, end) in groups of four lanes, then in order, as `test` one by one would: a
   // lane's hit is bit-identical to the scalar test's, and re-checked against the limit the lanes
@@ -839,7 +840,6 @@ void GridAccelerator::intersectVoxel(uint32_t voxel, const WatertightRay& wr, co
       glm::uvec3 tri[4];
       for (uint32_t j = 0; j < 4; ++j) tri[j] = g->triangle(k + std::min(j, n - 1));  // short groups repeat their last
       Corners4 corners;
-      const uint32_t packed = g->numPacked();
       bool allPacked = true;
       for (uint32_t j = 0; j < 4; ++j) allPacked &= tri[j].x < packed && tri[j].y < packed && tri[j].z < packed;
       if (allPacked) {
@@ -862,12 +862,7 @@ void GridAccelerator::intersectVoxel(uint32_t voxel, const WatertightRay& wr, co
         glm::vec3 v[4][3];
         for (uint32_t j = 0; j < 4; ++j)
           for (int corner = 0; corner < 3; ++corner) v[j][corner] = g->vertex(tri[j][corner]);
-        for (int axis = 0; axis < 3; ++axis) {
-          auto gather = [&](int corner) {
-            return _mm_setr_ps(v[0][corner][axis], v[1][corner][axis], v[2][corner][axis], v[3][corner][axis]);
-          };
-          corners.a[axis] = gather(0), corners.b[axis] = gather(1), corners.c[axis] = gather(2);
-        }
+        corners = cornersOf(v);
       }
       TriangleHits4 hits;
       unsigned undecided = 0;

@@ -81,6 +81,16 @@ struct Corners4 {
   __m128 a[3], b[3], c[3];
 };
 
+// The lanes of four triangles given as corners v[lane][0..2].
+inline Corners4 cornersOf(const glm::vec3 (&v)[4][3]) {
+  Corners4 k;
+  __m128* corner[3] = {k.a, k.b, k.c};
+  for (int c = 0; c < 3; ++c)
+    for (int axis = 0; axis < 3; ++axis)
+      corner[c][axis] = _mm_setr_ps(v[0][c][axis], v[1][c][axis], v[2][c][axis], v[3][c][axis]);
+  return k;
+}
+
 // intersectTriangle on four triangles at once. Each lane takes the same IEEE operations in the
 // same order as the scalar test, so its verdict and hit are bit-identical to it: a BVH leaf or a
 // sparse voxel tests a group of four in the time of about two. Returns the mask of lanes that hit;
@@ -128,25 +138,5 @@ inline unsigned intersectTriangles4(const WatertightRay& ray, const Corners4& k,
   return mask;
 }
 #endif
-
-// The same on corners given as pointers to three floats each (lane k: a[k], b[k], c[k]). Without
-// SSE2 every lane is undecided.
-inline unsigned intersectTriangles4(const WatertightRay& ray, const float* const a[4], const float* const b[4],
-                                    const float* const c[4], float tMin, float tMax, TriangleHits4& hits,
-                                    unsigned& undecided) {
-#if defined(__SSE2__)
-  Corners4 k;
-  for (int axis = 0; axis < 3; ++axis) {
-    k.a[axis] = _mm_setr_ps(a[0][axis], a[1][axis], a[2][axis], a[3][axis]);
-    k.b[axis] = _mm_setr_ps(b[0][axis], b[1][axis], b[2][axis], b[3][axis]);
-    k.c[axis] = _mm_setr_ps(c[0][axis], c[1][axis], c[2][axis], c[3][axis]);
-  }
-  return intersectTriangles4(ray, k, tMin, tMax, hits, undecided);
-#else
-  (void)ray, (void)a, (void)b, (void)c, (void)tMin, (void)tMax, (void)hits;
-  undecided = 0xf;
-  return 0;
-#endif
-}
 
 }  // namespace relief

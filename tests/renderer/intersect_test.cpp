@@ -11,6 +11,7 @@
 
 #include "renderer/intersect.h"
 
+#if defined(__SSE2__)
 namespace relief {
 namespace {
 
@@ -28,11 +29,11 @@ struct Tri {
 void expectLanesMatchScalar(const Ray& ray, const Tri (&tris)[4], float tMin, float tMax, int& hitsSeen,
                             int& undecidedSeen) {
   const WatertightRay wr(ray);
-  const float *a[4], *b[4], *c[4];
-  for (int k = 0; k < 4; ++k) a[k] = &tris[k].a.x, b[k] = &tris[k].b.x, c[k] = &tris[k].c.x;
+  glm::vec3 corners[4][3];
+  for (int k = 0; k < 4; ++k) corners[k][0] = tris[k].a, corners[k][1] = tris[k].b, corners[k][2] = tris[k].c;
   TriangleHits4 hits;
   unsigned undecided = 0;
-  const unsigned mask = intersectTriangles4(wr, a, b, c, tMin, tMax, hits, undecided);
+  const unsigned mask = intersectTriangles4(wr, cornersOf(corners), tMin, tMax, hits, undecided);
   for (int k = 0; k < 4; ++k) {
     TriangleHit h{};
     const bool scalar = intersectTriangle(wr, tris[k].a, tris[k].b, tris[k].c, tMin, tMax, h);
@@ -117,3 +118,4 @@ TEST(Intersect4, NonFiniteCornersAndLimitsNeverHit) {
 
 }  // namespace
 }  // namespace relief
+#endif  // __SSE2__ (without it the grid accelerator tests one triangle at a time)
