@@ -92,7 +92,7 @@ struct VoxelGeometry {
   std::vector<uint16_t> subTriangles16;  // when numTriangles() <= 65536
   std::vector<uint32_t> subTriangles32;  // otherwise
 
-  // Per-voxel BVH over dense voxels (the default; the sub-grid above is the alternative kept for
+  // Per-voxel BVH over every voxel with triangles (the default; the sub-grid above is the alternative kept for
   // measurement, docs/cache.md): a binary SAH tree collapsed into 4-wide nodes, each holding its
   // children's boxes in 16-bit fixed point on a per-voxel lattice (bvhOrigin + q * bvhStep,
   // rounded outward), laid out per axis so one SIMD slab test covers all four. Leaves hold at

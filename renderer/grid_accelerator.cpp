@@ -153,7 +153,7 @@ constexpr float kBvhTraverseCost = 10.0f;
 // Deterministic: the same triangles in the same order give the same tree.
 void buildBvh(VoxelGeometry& g, float padding) {
   const uint32_t n = g.numTriangles();
-  if (n < kSubGridThreshold || n >= (1u << 24)) return;
+  if (n == 0 || n >= (1u << 24)) return;
   // The split works on (centre, index) records in place, so nth_element compares local data.
   struct Ref {
     glm::vec3 centre;
@@ -298,15 +298,27 @@ void buildBvh(VoxelGeometry& g, float padding) {
     const float dx = float(b.hi[0] - b.lo[0]), dy = float(b.hi[1] - b.lo[1]), dz = float(b.hi[2] - b.lo[2]);
     return dx * dy + dy * dz + dz * dx;
   };
-  // The root always splits: it holds at least kSubGridThreshold triangles, more than a leaf may.
-  static_assert(kSubGridThreshold > kBvhLeafSize);
   g.bvhNodes.assign(1, VoxelGeometry::BvhNode{});
   g.bvhNodes.reserve(bin.size() / 3 + 1);
+  if (bin[0].data & VoxelGeometry::kBvhLeafFlag) {
+    // A root that is a leaf (a sparse voxel) sits in the first slot of the wide root: its box
+    // lets rays that miss the voxel's triangles pass without testing them, and lets the voxel's
+    // proxy do so without the voxel.
+    VoxelGeometry::BvhNode& root = g.bvhNodes[0];
+    for (int i = 0; i < 4; ++i) {
+      root.child[i] = i == 0 ? bin[0].data : VoxelGeometry::kBvhLeafFlag;
+      for (int k = 0; k < 3; ++k) {
+        root.lo[k][i] = i == 0 ? bin[0].lo[k] : uint16_t(65535);
+        root.hi[k][i] = i == 0 ? bin[0].hi[k] : uint16_t(0);
+      }
+    }
+    bin.clear();
+  }
   struct Job {
     uint32_t binary, wide;
   };
   thread_local std::vector<Job> jobs;
-  jobs.assign(1, {0, 0});
+  jobs.assign(bin.empty() ? 0 : 1, {0, 0});
   while (!jobs.empty()) {
     const Job job = jobs.back();
     jobs.pop_back();
@@ -918,7 +930,7 @@ void GridAccelerator::intersectVoxel(uint32_t voxel, const WatertightRay& wr, co
       }
       for (int j = 0; j < hits; ++j) stackNode[top] = hitRef[j], stackT[top] = hitT[j], ++top;
     }
-  } else if (g->subResolution.x == 0) {  // sparse, or a BVH voxel for an unusable direction
+  } else if (g->subResolution.x == 0) {  // a direction the BVH cannot take, or a sparse sub-grid voxel
     testRange(0, g->numTriangles());
   } else {
     // Walk the sub-cells along the ray's whole passage through the (padded) voxel box, so every
