@@ -975,6 +975,22 @@ double GridAccelerator::tickNanos() const {
   return ticks > 0 && nanos > 0.0 ? nanos / double(ticks) : 0.0;
 }
 
+uint64_t GridAccelerator::nextStamp() {
+  // Stamps are taken from the shared clock in blocks, so the one shared write on the ray path
+  // happens once per kStampBlock rays: threads' stamps then agree to within a block, which LRU
+  // order can afford, and one thread takes exactly the sequence a per-ray count would give.
+  struct Block {
+    uint64_t accel = 0, next = 0, end = 0;
+  };
+  thread_local Block block;
+  if (block.accel != id_ || block.next == block.end) {
+    block.accel = id_;
+    block.next = clock_.fetch_add(kStampBlock, std::memory_order_relaxed);
+    block.end = block.next + kStampBlock;
+  }
+  return block.next++;
+}
+
 void GridAccelerator::addTraverseTime(uint64_t startTicks) {
   const uint64_t end = rayTicks();
   // A thread moved between cores whose counters disagree must not add a wrapped-around span.
@@ -993,8 +1009,7 @@ void GridAccelerator::traverse(const Ray& ray, Best& best) {
   Dda dda(ray.origin, ray.direction, bounds.lo, grid_.voxelSize(), grid_.resolution(), t0);
   const WatertightRay wr(ray);
   const SlabRay sr(ray);
-  // One stamp per ray, not per voxel step: the only shared write on the ray path.
-  const uint64_t stamp = clock_.fetch_add(1, std::memory_order_relaxed);
+  const uint64_t stamp = nextStamp();
   for (;;) {
     const float tExit = dda.tExit();
     const uint32_t voxel = grid_.voxelIndex(dda.cell);

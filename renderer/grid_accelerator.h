@@ -70,7 +70,15 @@ class GridAccelerator final : public Accelerator {
   AccelOptions options_;
   ContributorGrid grid_;
   std::unique_ptr<GeometryCache> cache_;
+  // LRU stamps (nextStamp): one per ray, from a shared clock in blocks per thread. id_ tells
+  // accelerators apart in the thread's block (a new one may reuse an old one's address).
+  static constexpr uint64_t kStampBlock = 256;
+  uint64_t nextStamp();
   std::atomic<uint64_t> clock_{1};
+  const uint64_t id_ = [] {
+    static std::atomic<uint64_t> next{1};
+    return next.fetch_add(1, std::memory_order_relaxed);
+  }();
   float positionStep_ = 0.0f;
   std::vector<std::atomic<uint8_t>> voxelCounted_;  // per voxel: its unique triangles counted
   std::vector<std::atomic<uint8_t>> knownEmpty_;    // per voxel: filled once with no triangles
