@@ -128,6 +128,14 @@ class ShaderCodegen {
       paramOffsets_[p.get()] = info.offset;
       layout.params.push_back(std::move(info));
     }
+    // The "bound" flags of defaults that read coordinate spaces, after the values.
+    offset = (offset + 3) & ~3u;
+    for (size_t i = 0; i < shader_.params.size(); ++i) {
+      if (!shader_.params[i]->defaultUsesSpaces) continue;
+      layout.params[i].boundFlagOffset = int32_t(offset);
+      boundFlagOffsets_[shader_.params[i].get()] = offset;
+      offset += 4;
+    }
     layout.blockSize = (offset + 7) & ~7u;
   }
 
@@ -566,6 +574,16 @@ class ShaderCodegen {
     services_ = nullptr;
     randomInputs_ = randomOrdinal_ = nullptr;
     indexClamped_ = unknownSpace_ = splineBasisProblems_ = nullptr;
+    // Defaults that read coordinate spaces see identity transforms here (the values reflection
+    // reports); the entry evaluates them again with the batch's spaces (emitEntry).
+    {
+      auto* spacesType = llvm::ArrayType::get(f32_, sizeof(RlfSpaces) / sizeof(float));
+      llvm::AllocaInst* identitySpaces = entryAlloca(spacesType, "spaces.identity");
+      for (unsigned i = 0; i < sizeof(RlfSpaces) / sizeof(float); ++i)
+        b_.CreateStore(cf(i % 16 % 5 == 0 ? 1.0f : 0.0f), b_.CreateConstInBoundsGEP2_32(spacesType, identitySpaces, 0, i));
+      spaces_ = identitySpaces;
+    }
+    unknownSpace_ = nullptr;
     // Defaults may call library functions with loops (fBm): they count like the entry's, and
     // past the limit the remaining defaults stay zero.
     loopCounter_ = entryAlloca(i32_, "iterations");
@@ -725,6 +743,21 @@ class ShaderCodegen {
         loadParamArray(*prm, params, slotFor(prm.get()));
       else
         store(slotFor(prm.get()), loadParam(*prm, params));
+      if (prm->defaultUsesSpaces) {
+        // Not bound by the host: the default again, now with this batch's coordinate spaces
+        // (after the parameters before it, which it may read).
+        Value* bound = b_.CreateLoad(i32_, bytePtr(params, boundFlagOffsets_.at(prm.get())));
+        llvm::BasicBlock* evalB = newBlock("param.default");
+        llvm::BasicBlock* doneB = newBlock("param.ready");
+        b_.CreateCondBr(b_.CreateICmpEQ(bound, ci(0)), evalB, doneB);
+        b_.SetInsertPoint(evalB);
+        if (prm->type.isArray())
+          initArrayFrom(slotFor(prm.get()), prm->init.get());
+        else
+          store(slotFor(prm.get()), convert(gen(*prm->init), prm->type));
+        b_.CreateBr(doneB);
+        b_.SetInsertPoint(doneB);
+      }
     }
     b_.CreateStore(ci(0), loopCounter_);
     {
@@ -926,30 +959,37 @@ class ShaderCodegen {
       }
       case ExprKind::PreIncDec:
       case ExprKind::PostIncDec: {
+        // The lvalue's index expressions run once (`k[i++]++` steps i once).
         const Expr& target = *e.operands[0];
-        Val old = gen(target);
+        const Place place = resolvePlace(target);
+        Val old = readPlace(place);
         Val nv = old;
         const bool inc = e.op == Tok::PlusPlus;
         if (old.type.kind == TypeKind::Int)
           nv.c[0].v = inc ? b_.CreateAdd(old.c[0].v, ci(1)) : b_.CreateSub(old.c[0].v, ci(1));
         else
           nv.c[0].v = inc ? b_.CreateFAdd(old.c[0].v, cf(1)) : b_.CreateFSub(old.c[0].v, cf(1));
-        assignTo(target, nv);
+        writePlace(place, convert(nv, target.type));
         return e.kind == ExprKind::PreIncDec ? nv : old;
       }
       case ExprKind::Binary: return genBinary(e);
       case ExprKind::Assign: {
         const Expr& target = *e.operands[0];
-        Val value = gen(*e.operands[1]);
         if (e.op != Tok::Assign) {
+          // a op= b is a = a op b with `a` evaluated once (§4.1): its place (index expressions)
+          // first, then b, as the operands of `a op b` run left to right.
           Tok base = e.op == Tok::PlusAssign    ? Tok::Plus
                      : e.op == Tok::MinusAssign ? Tok::Minus
                      : e.op == Tok::StarAssign  ? Tok::Star
                      : e.op == Tok::SlashAssign ? Tok::Slash
                                                 : Tok::Percent;
-          Val old = gen(target);
-          value = arith(base, old, value);
+          const Place place = resolvePlace(target);
+          const Val old = readPlace(place);
+          const Val value = convert(arith(base, old, gen(*e.operands[1])), target.type);
+          writePlace(place, value);
+          return value;
         }
+        Val value = gen(*e.operands[1]);
         value = convert(value, target.type);
         assignTo(target, value);
         return value;
@@ -1994,26 +2034,19 @@ class ShaderCodegen {
             // d atan2(y, x) = (x dy - y dx) / (x² + y²)
             Value* r = libcall("atan2f", {a.v, b.v});
             const Dual den = dadd(dmul(a, a), dmul(b, b));
-            Dual num = dsub(dmul(b, a), dmul(a, b));
+            // a is y, b is x: x dy - y dx, with y and x held constant in the other product.
+            const Dual num = dsub(dmul({b.v, nullptr, nullptr}, a), dmul({a.v, nullptr, nullptr}, b));
             Dual q = ddiv({cf(0), num.du, num.dv}, {den.v, nullptr, nullptr});
             return Dual{r, q.du, q.dv};
           });
         }
-        if (rt.kind == TypeKind::Int) {
+        if (rt.kind == TypeKind::Int) {  // abs, the one int form here
           Value* x = args[0].c[0].v;
-          if (id == BuiltinId::Abs) return makeInt(b_.CreateSelect(b_.CreateICmpSLT(x, ci(0)), b_.CreateSub(ci(0), x), x));
-          return makeInt(b_.CreateSelect(b_.CreateICmpSGT(x, ci(0)), ci(1), b_.CreateSelect(b_.CreateICmpSLT(x, ci(0)), ci(-1), ci(0))));
+          return makeInt(b_.CreateSelect(b_.CreateICmpSLT(x, ci(0)), b_.CreateSub(ci(0), x), x));
         }
         return map(rt, convert(args[0], rt), [&](Dual x) { return unaryMath(id, x); });
       }
       case BuiltinShape::BinaryT: {
-        if (rt.kind == TypeKind::Int) {
-          // int mod: a - b*floor(a/b), i.e. the remainder takes the divisor's sign (by 0: 0).
-          Value* r = arith(Tok::Percent, args[0], args[1]).c[0].v;
-          Value* b = args[1].c[0].v;
-          Value* fix = b_.CreateAnd(b_.CreateICmpNE(r, ci(0)), b_.CreateICmpNE(b_.CreateICmpSLT(r, ci(0)), b_.CreateICmpSLT(b, ci(0))));
-          return makeInt(b_.CreateSelect(fix, b_.CreateAdd(r, b), r));
-        }
         const Val a = convert(args[0], rt), b = convert(args[1], rt);
         return map2(rt, a, b, [&](Dual x, Dual y) -> Dual {
           if (id == BuiltinId::Step) return {b_.CreateSelect(b_.CreateFCmpOLT(y.v, x.v), cf(0), cf(1)), nullptr, nullptr};
@@ -2345,6 +2378,7 @@ class ShaderCodegen {
   llvm::AllocaInst* splineBasisProblems_ = nullptr;  // entry only
   Value* services_ = nullptr;                  // batch->services (entry function only)
   Value* spaces_ = nullptr;
+  std::map<const VarDecl*, uint32_t> boundFlagOffsets_;
   bool usesStrings_ = false;  // format()/concat() seen: the entry frees their strings per point
   uint32_t loopLimit_ = kLoopIterationLimit;
   Value* orientation_ = nullptr;

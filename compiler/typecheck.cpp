@@ -297,8 +297,10 @@ class Checker {
         const unsigned errorsBefore = diags_.numErrors();
         checkInit(*p);
         if (!p->init->type.isError()) {
-          if (const Expr* bad = firstNonConstant(*p->init))
+          bool usesSpaces = false;
+          if (const Expr* bad = firstNonConstant(*p->init, usesSpaces))
             report(DiagId::ErrNonConstantDefault, bad->range.begin).range(bad->range);
+          p->defaultUsesSpaces = usesSpaces;
         }
         if (diags_.numErrors() != errorsBefore) p->invalid = true;
       }
@@ -313,34 +315,39 @@ class Checker {
     shader_ = nullptr;
   }
 
-  // A sub-expression that makes a default non-constant, or null.
-  const Expr* firstNonConstant(const Expr& e) {
+  // A sub-expression that makes a default non-constant, or null. Coordinate spaces are allowed
+  // (RSL's `point center = point "shader" (0, 0, 0)`): `usesSpaces` says a default reads them, so
+  // that it is evaluated with the batch's spaces (codegen).
+  const Expr* firstNonConstant(const Expr& e, bool& usesSpaces) {
     switch (e.kind) {
       case ExprKind::Identifier:
-        if (e.decl && (e.decl->storage == Storage::Parameter || e.decl->global == GlobalId::PI))
+        if (e.decl && e.decl->storage == Storage::Parameter) {
+          usesSpaces |= e.decl->defaultUsesSpaces && !e.decl->invalid;
           return nullptr;
+        }
+        if (e.decl && e.decl->global == GlobalId::PI) return nullptr;
         return &e;
       case ExprKind::Assign:
       case ExprKind::PreIncDec:
       case ExprKind::PostIncDec: return &e;
       case ExprKind::Construct:
-        // Components given in a named space depend on the batch's transforms.
+        // Components given in a named space, and matrix("from", "to"), read the transforms.
         if (!e.operands.empty() && e.operands[0]->type.kind == TypeKind::String &&
             e.constructType != TypeKind::Color)
-          return &e;
+          usesSpaces = true;
         break;
       case ExprKind::Call:
         // Library functions are pure math over their arguments unless they read globals.
         if (e.function && e.function->isLibrary && !e.function->readsVarying) break;
         if (!e.builtin) return &e;
         switch (e.builtin->shape) {
+          case BuiltinShape::Transform:  // reads the batch's spaces (unless given a matrix)
+            if (e.operands.empty() || e.operands[0]->type.kind != TypeKind::Matrix) usesSpaces = true;
+            break;
           case BuiltinShape::Deriv:
           case BuiltinShape::CalcNormal:
           case BuiltinShape::Texture:
-          case BuiltinShape::Random:
-          case BuiltinShape::Transform:  // reads the batch's spaces (unless given a matrix)
-            if (!e.operands.empty() && e.operands[0]->type.kind == TypeKind::Matrix) break;
-            return &e;
+          case BuiltinShape::Random: return &e;
           case BuiltinShape::Printf:
           case BuiltinShape::StringFn:
           case BuiltinShape::DerivRatio:
@@ -353,7 +360,7 @@ class Checker {
       default: break;
     }
     for (const ExprPtr& c : e.operands)
-      if (const Expr* bad = firstNonConstant(*c)) return bad;
+      if (const Expr* bad = firstNonConstant(*c, usesSpaces)) return bad;
     return nullptr;
   }
 
@@ -1499,12 +1506,12 @@ class Checker {
           return fits(*args[0], t) && args[1]->type.isScalar() ? t : kError;
         }
         if (n != 1) return kError;
-        const bool intForm = b.id == BuiltinId::Abs || b.id == BuiltinId::Sign;
-        return bindT(args, intForm);
+        // §6.2: of these only abs has an int form (sign(-3) is -1.0, as in RSL).
+        return bindT(args, b.id == BuiltinId::Abs);
       }
       case BuiltinShape::BinaryT: {
         if (n != 2) return kError;
-        const Type t = bindT(args, b.id == BuiltinId::Mod);
+        const Type t = bindT(args, false);  // §6.2: mod has no int form (mod(7, 4) is 3.0)
         return allFit(args, t) ? t : kError;
       }
       case BuiltinShape::PowT: {

@@ -91,6 +91,17 @@ bool ShaderInstance::bind(const ParamValue& value, std::string* error) {
     *error = "shader '" + shader_->name() + "' has no parameter '" + value.name + "'";
     return false;
   }
+  if (!bindValue(*info, value, error)) return false;
+  if (info->boundFlagOffset >= 0) {
+    // The bound value replaces a default the shader would otherwise evaluate with the spaces.
+    const int32_t bound = 1;
+    std::memcpy(block_.data() + info->boundFlagOffset, &bound, 4);
+  }
+  return true;
+}
+
+bool ShaderInstance::bindValue(const ParamInfo& infoRef, const ParamValue& value, std::string* error) {
+  const ParamInfo* info = &infoRef;
   const size_t elements = size_t(std::max(info->arrayLength, 1));
   auto mismatch = [&] {
     // Appended piecewise: GCC 12 reports a false -Wrestrict on long operator+ chains at -O3.

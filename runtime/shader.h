@@ -31,8 +31,14 @@ struct ParamInfo {
   bool isOutput = false;
   uint32_t offset = 0;  // byte offset in the block
   // Default value, flattened: arrayLength*components numbers (ints stored as floats), or strings.
+  // A default that reads coordinate spaces (`point "shader" (0, 0, 0)`) is reported as its value
+  // with every space the identity; the shader evaluates it with the batch's spaces at shading time
+  // unless the parameter is bound.
   std::vector<float> defaultNumbers;
   std::vector<std::string> defaultStrings;
+  // Byte offset in the block of the int32 "bound" flag of such a parameter (bind sets it to 1),
+  // or -1: the default is the value in the block.
+  int32_t boundFlagOffset = -1;
 };
 
 // One compiled shader: immutable, shared by every instance bound from it.
@@ -89,6 +95,7 @@ class ShaderInstance {
   std::span<const std::byte> block() const { return {block_.data(), block_.size()}; }
 
  private:
+  bool bindValue(const ParamInfo& info, const ParamValue& value, std::string* error);
   void storeNumbers(const ParamInfo& info, std::span<const float> numbers);
   void storeStrings(const ParamInfo& info, std::span<const std::string> strings);
 

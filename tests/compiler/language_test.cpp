@@ -1,6 +1,8 @@
 // Language features evaluated through the JIT against values computed here: the matrix type
 // (constructors, m[i][j], arithmetic, transform/determinant/inverse/transpose, coordinate-space
-// forms, parameters), format()/concat(), hyperbolic functions, log(x, base), int mod and vfBm's
+// forms, parameters), format()/concat(), hyperbolic functions, log(x, base), mod and sign of ints
+// (floats, §6.2: only abs min max clamp have int forms), the two-argument atan's derivatives,
+// compound assignment's single evaluation, defaults in named spaces and vfBm's
 // automatically differentiated derivatives.
 #include <gtest/gtest.h>
 
@@ -170,19 +172,19 @@ displacement s(string base = "rock")
   EXPECT_EQ(printed, "rock_7.exr|rock at 0.25: 1 2 3%|1|1\n");
 }
 
-TEST(MathTest, HyperbolicLogBaseAndIntMod) {
+TEST(MathTest, HyperbolicLogBaseAndModOfInts) {
   TestBatch b(1);
   const std::string printed = evaluate(R"(
 displacement s()
 {
     printf("%.5f %.5f %.5f %g %g\n", sinh(0.5), cosh(0.5), tanh(0.5), tanh(1000), tanh(-1000));
     printf("%g %g %g\n", log(8, 2), log(1000, 10), log(vector(4, 16, 64), 4));
-    printf("%d %d %d %d %g\n", mod(-1, 3), mod(7, -3), mod(6, 3), mod(5, 0), mod(-1.5, 1));
+    printf("%g %g %g %g %g %g %g\n", mod(-1, 3), mod(7, -3), mod(6, 3), mod(5, 0), mod(-1.5, 1), mod(7, 4) / 2, sign(-3) / 2);
     P = point(Du(sinh(u)), Du(cosh(u)), Du(tanh(u)));
 })",
                                        b);
   char expected[256];
-  std::snprintf(expected, sizeof expected, "%.5f %.5f %.5f 1 -1\n3 3 1 2 3\n2 -2 0 0 0.5\n", std::sinh(0.5),
+  std::snprintf(expected, sizeof expected, "%.5f %.5f %.5f 1 -1\n3 3 1 2 3\n2 -2 0 0 0.5 1.5 -0.5\n", std::sinh(0.5),
                 std::cosh(0.5), std::tanh(0.5));
   EXPECT_EQ(printed, expected);
   const double u = 0.25;
@@ -345,6 +347,96 @@ TEST(DisplaceTest, AmountInANamedSpaceScalesWithThatSpace) {
     EXPECT_FLOAT_EQ(b.Pout[2][0], 0.75f + 0.1f * scale);
     EXPECT_FLOAT_EQ(b.Pout[0][0], 0.25f);
   }
+}
+
+// §4.1: `a op= b` and `++`/`--` evaluate the lvalue `a` once, index expressions included.
+TEST(AssignTest, CompoundAssignmentAndIncrementEvaluateTheirLvalueOnce) {
+  TestBatch b(1);
+  evaluate(R"(
+int next(output int i) { i += 1; return i - 1; }
+displacement d()
+{
+    float k[3] = {1, 2, 3}; int i = 0; int j = 0;
+    k[i++]++;            // k[0] = 2, i = 1
+    ++k[i++];            // k[1] = 3, i = 2
+    k[next(j)] += 10;    // k[0] = 12, j = 1
+    matrix m = 1;
+    m[j++][0] += 5;      // m[1][0] = 5, j = 2
+    point q = point(1, 2, 3);
+    q[i++] *= 10;        // q[2] = 30, i = 3
+    P = point(k[0] + k[1] * 100 + i * 1000 + j * 10000, comp(m, 1, 0), q[2]);
+})",
+           b);
+  EXPECT_FLOAT_EQ(b.Pout[0][0], 12 + 300 + 3000 + 20000);
+  EXPECT_FLOAT_EQ(b.Pout[1][0], 5);
+  EXPECT_FLOAT_EQ(b.Pout[2][0], 30);
+}
+
+// §6.4: the two-argument atan carries derivatives through both arguments.
+TEST(MathTest, TwoArgumentAtanHasDerivatives) {
+  TestBatch b(1);
+  evaluate("displacement d() { P = point(Du(atan(u, 0.3)), Du(atan(0.3, u)), Dv(atan(v, u))); }", b);
+  const double u = 0.25, v = 0.5;
+  EXPECT_NEAR(b.Pout[0][0], 0.3 / (u * u + 0.09), 1e-5);
+  EXPECT_NEAR(b.Pout[1][0], -0.3 / (u * u + 0.09), 1e-5);
+  EXPECT_NEAR(b.Pout[2][0], u / (u * u + v * v), 1e-5);
+}
+
+// §3: defaults may be constructors, also in a named space (RSL's `point "shader" (0, 0, 0)`).
+// Such a default, and one that reads it, is evaluated with the batch's spaces unless the host
+// binds the parameter; reflection reports it with every space the identity.
+TEST(ParamDefaultTest, DefaultsInNamedSpacesUseTheBatchSpaces) {
+  CompileResult r = compileSource("lang.disp", R"(
+displacement d(float Km = 1; point c = point "shader" (1, 0, 0); vector w = vector "shader" (0, 0, 1);
+               point c2 = c + w; matrix m = matrix("shader", "current"); float k = 2)
+{
+    P = c;
+    N = normal(c2 - c + vector(comp(m, 3, 0), k, Km));
+})");
+  ASSERT_TRUE(r.success()) << renderDiagnostics(r) << r.internalError;
+  const auto& shader = r.shaders.front();
+  const runtime::ParamInfo* c = shader->findParam("c");
+  ASSERT_NE(c, nullptr);
+  EXPECT_EQ(c->defaultNumbers, (std::vector<float>{1, 0, 0}));
+  EXPECT_GE(c->boundFlagOffset, 0);
+  EXPECT_GE(shader->findParam("c2")->boundFlagOffset, 0);  // reads c
+  EXPECT_GE(shader->findParam("m")->boundFlagOffset, 0);
+  EXPECT_EQ(shader->findParam("k")->boundFlagOffset, -1);
+  EXPECT_EQ(shader->findParam("Km")->boundFlagOffset, -1);
+
+  // Shader space: current = shader scaled 2x, then moved by (10, 20, 30) (row vectors: p * M).
+  TestBatch b(1);
+  for (int d = 0; d < 3; ++d) b.spaces.currentFromShader[d * 5] = 2, b.spaces.shaderFromCurrent[d * 5] = 0.5f;
+  const float move[3] = {10, 20, 30};
+  for (int d = 0; d < 3; ++d) {
+    b.spaces.currentFromShader[12 + d] = move[d];
+    b.spaces.shaderFromCurrent[12 + d] = -0.5f * move[d];
+  }
+  b.N[2][0] = b.Ng[2][0] = 1;
+  RlfStatus status{};
+  runtime::ShaderInstance unbound(shader);
+  unbound.evaluate(b.all(), status);
+  EXPECT_FLOAT_EQ(b.Pout[0][0], 12);  // (1, 0, 0) * 2 + (10, 20, 30)
+  EXPECT_FLOAT_EQ(b.Pout[1][0], 20);
+  EXPECT_FLOAT_EQ(b.Pout[2][0], 30);
+  // N = (c2 - c) + (m[3][0], k, Km) = (0, 0, 2) + (10, 2, 1).
+  EXPECT_FLOAT_EQ(b.Nout[0][0], 10);
+  EXPECT_FLOAT_EQ(b.Nout[1][0], 2);
+  EXPECT_FLOAT_EQ(b.Nout[2][0], 3);
+
+  // Bound, c is the given point as is; c2 still follows c and the spaces.
+  runtime::ShaderInstance bound(shader);
+  std::string error;
+  ASSERT_TRUE(bound.bind({"c", runtime::ParamType::Point, {5, 6, 7}, {}}, &error)) << error;
+  bound.evaluate(b.all(), status);
+  EXPECT_FLOAT_EQ(b.Pout[0][0], 5);
+  EXPECT_FLOAT_EQ(b.Pout[1][0], 6);
+  EXPECT_FLOAT_EQ(b.Pout[2][0], 7);
+  EXPECT_FLOAT_EQ(b.Nout[2][0], 3);
+
+  // Anything else that is not constant stays an error.
+  CompileResult bad = compileSource("bad.disp", "displacement d(point c = P) { P = c; }");
+  EXPECT_FALSE(bad.success());
 }
 
 TEST(SplineTest, BasisNamedAtRunTime) {
