@@ -10,6 +10,9 @@
 namespace relief::compiler {
 
 namespace {
+
+// The longest array a declaration may have (see the check in the declaration parser).
+constexpr int64_t kMaxArrayLength = 65536;
 // Binary operator precedence, higher binds tighter (language.md §4.1 rows 3..10); 0: not binary.
 int binaryPrecedence(Tok k) {
   switch (k) {
@@ -374,9 +377,14 @@ bool Parser::parseDeclarators(std::vector<std::unique_ptr<VarDecl>>& out, Type t
     if (!tok().is(Tok::Identifier)) {
       if (tok().is(Tok::ReservedWord) || tok().is(Tok::ShaderKindWord))
         diags_.report(DiagId::ErrReservedWord, tok().loc).arg(tok().text).range(tok().range());
+      else if (tok().kind >= Tok::KwBreak)
+        diags_.report(DiagId::ErrKeywordAsName, tok().loc).arg(std::string(tok().text)).range(tok().range());
       else
         diags_.report(DiagId::ErrExpected, tok().loc).arg("identifier").range(tok().range());
-      return false;
+      if (out.empty()) return false;
+      // The declarators before the bad one stay declared, so their uses raise no more errors.
+      recovering_ = true;
+      return true;
     }
     const Token name = consume();
     auto decl = std::make_unique<VarDecl>();
@@ -398,6 +406,15 @@ bool Parser::parseDeclarators(std::vector<std::unique_ptr<VarDecl>>& out, Type t
         if (!foldIntConstant(*length, &n) || n <= 0) {
           diags_.report(DiagId::ErrArrayLength, length->range.begin).range(length->range);
           return false;
+        }
+        // Arrays are kept element by element in the generated code, so their length bounds the
+        // compile's time and memory (65536 elements: about a second and 180 MB).
+        if (n > kMaxArrayLength) {
+          diags_.report(DiagId::ErrArrayTooLong, length->range.begin)
+              .arg(std::to_string(n))
+              .arg(std::to_string(kMaxArrayLength))
+              .range(length->range);
+          n = kMaxArrayLength;  // still declared, so that its uses raise no further errors
         }
         decl->type.arrayLength = int(n);
       }
@@ -436,6 +453,13 @@ bool Parser::parseDeclarators(std::vector<std::unique_ptr<VarDecl>>& out, Type t
     }
     out.push_back(std::move(decl));
     if (tok().is(Tok::Comma) && peek().is(Tok::Identifier)) {
+      consume();
+      continue;
+    }
+    // `float a = 1, color = 2;`: a keyword as the next name, said at the keyword (in a local
+    // declaration, where a comma cannot start anything else).
+    if (storage == Storage::Local && tok().is(Tok::Comma) &&
+        (peek().kind >= Tok::KwBreak || peek().is(Tok::ReservedWord) || peek().is(Tok::ShaderKindWord))) {
       consume();
       continue;
     }
@@ -482,6 +506,25 @@ StmtPtr Parser::parseStatement() {
     auto s = std::make_unique<Stmt>(StmtKind::FunctionDef, SourceRange{start, prev().end()});
     s->function = std::move(f);
     return s;
+  }
+  // `float color = 1;`: a keyword where the variable's name belongs. Said at the keyword, not as
+  // "expected expression" further on.
+  if (isTypeKeyword(t.kind) &&
+      (peek().kind >= Tok::KwBreak || peek().is(Tok::ReservedWord) || peek().is(Tok::ShaderKindWord)) &&
+      (peek(2).is(Tok::Assign) || peek(2).is(Tok::Semi) || peek(2).is(Tok::Comma) || peek(2).is(Tok::LBracket))) {
+    const Token& name = peek();
+    const bool reserved = name.is(Tok::ReservedWord) || name.is(Tok::ShaderKindWord);
+    diags_.report(reserved ? DiagId::ErrReservedWord : DiagId::ErrKeywordAsName, name.loc)
+        .arg(std::string(name.text))
+        .range(name.range());
+    recovering_ = true;
+    return nullptr;
+  }
+  // `void x;`: only functions are void.
+  if (t.is(Tok::KwVoid) && peek().is(Tok::Identifier) && !peek(2).is(Tok::LParen)) {
+    diags_.report(DiagId::ErrVoidVariable, t.loc).arg(std::string(peek().text)).range(t.range());
+    recovering_ = true;
+    return nullptr;
   }
   if (startsDeclaration()) {
     auto s = parseDeclaration();

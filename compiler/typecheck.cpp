@@ -1186,6 +1186,14 @@ class Checker {
       if (baseType.kind == TypeKind::String && !baseType.isArray()) {
         ExprPtr base = std::move(index.operands[0]);
         ExprPtr channel = std::move(index.operands[1]);
+        // A channel index is an index like any other: an int (§6.3).
+        ++suppress_;
+        const Type channelType = checkExpr(*channel, kError);
+        --suppress_;
+        if (!channelType.isError() && channelType.kind != TypeKind::Int) {
+          report(DiagId::ErrIndexNotInt, channel->range.begin).arg(typeName(channelType)).range(channel->range);
+          return set(e, kError);
+        }
         auto name = std::make_unique<Expr>(ExprKind::StringLiteral, channel->range);
         name->text = "firstchannel";
         e.operands[0] = std::move(base);
@@ -1434,11 +1442,19 @@ class Checker {
       } else if (name.text == "firstchannel") {
         want = "int";
         fitsValue = value.type.isScalar();
+        // A float converts as it would to an int parameter (§2.1).
+        if (value.type.kind == TypeKind::Float) report(DiagId::WarnNarrowing, value.range.begin).range(value.range);
       } else if (name.text == "missingcolor") {
         want = "color";
         fitsValue = value.type.kind == TypeKind::Color || value.type.isScalar();
       } else {
         report(DiagId::ErrTextureOption, name.range.begin).arg(name.text).range(name.range);
+        return set(e, kError);
+      }
+      static const std::set<std::string> kWrap = {"default", "black", "clamp", "periodic", "mirror"};
+      if (fitsValue && name.text.find("wrap") != std::string::npos && value.kind == ExprKind::StringLiteral &&
+          !kWrap.count(value.text)) {
+        report(DiagId::ErrTextureWrap, value.range.begin).arg(value.text).range(value.range);
         return set(e, kError);
       }
       if (!fitsValue) {

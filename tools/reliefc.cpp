@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -256,11 +257,17 @@ int main(int argc, char** argv) {
     } else if (a.rfind("-floop-limit=", 0) == 0) {
       char* end = nullptr;
       const unsigned long n = std::strtoul(a.c_str() + 13, &end, 10);
-      if (!*(a.c_str() + 13) || *end || n == 0 || n > 0x7fffffffUL)
+      if (!*(a.c_str() + 13) || *end || !std::isdigit(static_cast<unsigned char>(a[13])) || n == 0 || n > 0x7fffffffUL)
         return usageError("bad value for -floop-limit: '" + a.substr(13) + "'");
       args.options.loopIterationLimit = uint32_t(n);
     } else if (a.rfind("-ferror-limit=", 0) == 0) {
-      args.errorLimit = unsigned(std::strtoul(a.c_str() + 14, nullptr, 10));
+      // Digits only (0: no limit); strtoul alone would take "-3" as a huge number and "2x" as 2.
+      const char* text = a.c_str() + 14;
+      char* end = nullptr;
+      const unsigned long n = std::strtoul(text, &end, 10);
+      if (!*text || *end || !std::isdigit(static_cast<unsigned char>(*text)) || n > 0x7fffffffUL)
+        return usageError("bad value for -ferror-limit: '" + a.substr(14) + "'");
+      args.errorLimit = unsigned(n);
     } else if (a == "--emit-llvm") {
       args.emitLlvm = true;
     } else if (a == "--emit-ast") {

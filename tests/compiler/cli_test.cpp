@@ -122,6 +122,11 @@ TEST(CliTest, UsageAndInputErrorsExitWithTwo) {
   EXPECT_EQ(missing.err, ::testing::TempDir() + "/relief_no_such_shader.disp: error: cannot open file: No such file or "
                                                 "directory\n1 error generated.\n");
   EXPECT_EQ(reliefc("--help").exitCode, 0);
+  // Numeric options take digits only: a sign, a suffix or nothing is a usage error.
+  for (const char* bad : {"abc", "-3", "", "2x", "+4"}) {
+    EXPECT_EQ(reliefc(std::string("-ferror-limit=") + bad + " x.disp").exitCode, 2) << bad;
+    EXPECT_EQ(reliefc(std::string("-floop-limit=") + bad + " x.disp").exitCode, 2) << bad;
+  }
 }
 
 TEST(CliTest, FindsTheStdlibNextToAnInstalledBinaryOrWhereTheEnvironmentSays) {
