@@ -156,6 +156,7 @@ struct FunctionDecl {
   bool readsVarying = false;
   // Defined in stdlib/ (prelude.h): shared by all compilations, its locations are not the user's.
   bool isLibrary = false;
+  bool bodyHadErrors = false;  // parse errors in the body: its paths are not judged (no follow-ons)
   // Expression nodes a call expands to once inlined (its body plus its callees', transitively).
   uint64_t inlineCost = 0;
 };

@@ -257,9 +257,13 @@ std::unique_ptr<FunctionDecl> Parser::parseFunction() {
   }
   if (!tok().is(Tok::LBrace)) {
     expectAfterPrev(Tok::LBrace);
+    // A prototype (`float f(float x);`) ends here: the ';' is its, not a new top-level error.
+    if (tok().is(Tok::Semi) && !f->name.empty()) consume();
     return nullptr;
   }
+  const unsigned errorsBefore = diags_.numErrors();
   f->body = parseBlock();
+  f->bodyHadErrors = diags_.numErrors() != errorsBefore;
   return f;
 }
 

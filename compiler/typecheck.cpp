@@ -536,6 +536,9 @@ class Checker {
           }
           if (!target) {
             report(DiagId::ErrExternUnknown, d->nameRange.begin).arg(d->name).range(d->nameRange);
+            // Declared here as a variable in error, so its uses raise nothing more.
+            d->invalid = true;
+            scopes_.back()[d->name] = d.get();
             continue;
           }
           if (!(target->type == d->type)) {
@@ -650,7 +653,7 @@ class Checker {
         else if (a.kind != TypeKind::String && b.kind != TypeKind::String)
           r = binaryResult(Tok::Plus, a, b);
         if (r.isError() || r.isArray()) {
-          report(DiagId::ErrInvalidBinaryOperands, e.opLoc)
+          report(DiagId::ErrConditionalOperands, e.opLoc)
               .arg(typeName(a))
               .arg(typeName(b))
               .range(e.operands[1]->range)
@@ -1020,7 +1023,7 @@ class Checker {
     if (f.body) {
       checkBlockContents(*f.body);
       if (!diags_.hasErrors()) UninitializedAnalysis(*this).stmt(*f.body);
-      if (f.returnType.kind != TypeKind::Void && canFallThrough(*f.body))
+      if (f.returnType.kind != TypeKind::Void && !f.bodyHadErrors && canFallThrough(*f.body))
         report(DiagId::ErrMissingReturn, SourceLoc{f.body->range.end.offset - 1}).arg(f.name);
     }
     popScope();

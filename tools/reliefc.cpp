@@ -206,6 +206,12 @@ int evaluate(const Args& args, const CompileResult& result) {
   if (status.splineBasis)
     std::cerr << "reliefc: warning: shader '" << shader->name()
               << "': spline basis name unknown or unfit for the knot count; catmull-rom was used\n";
+  if (status.indexClamped)
+    std::cerr << "reliefc: warning: shader '" << shader->name()
+              << "': array or component indices were clamped into range\n";
+  if (status.unknownSpace)
+    std::cerr << "reliefc: warning: shader '" << shader->name()
+              << "': unknown coordinate space names were treated as 'current'\n";
   return 0;
 }
 

@@ -213,4 +213,18 @@ TEST(CliTest, EvalWarnsAboutNonFiniteResultsNamingTheShader) {
   EXPECT_NE(r.err.find("shader 'blowup' produced a non-finite P or N"), std::string::npos) << r.err;
 }
 
+// §6.3 and §2.3: a clamped run-time index and an unknown run-time space name warn once, in
+// reliefc --eval as in the renderer.
+TEST(CliTest, EvalWarnsAboutClampedIndicesAndUnknownSpaces) {
+  const fs::path clamp = writeTemp("relief_clamp.disp",
+                                   "displacement clamped(int i = 7; string sp = \"nowhere\")\n{\n"
+                                   "    float k[3] = {1, 2, 3};\n    P += k[i] * transform(sp, N);\n}\n");
+  const CliRun r = reliefc("--eval " + quote(clamp.string()));
+  EXPECT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_NE(r.err.find("shader 'clamped': array or component indices were clamped"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("shader 'clamped': unknown coordinate space names"), std::string::npos) << r.err;
+  const CliRun quiet = reliefc("--eval " + quote(clamp.string()) + " -p i=1 -p sp=object");
+  EXPECT_EQ(quiet.err, "") << quiet.err;
+}
+
 }  // namespace
