@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <climits>
 #include <cstdint>
+#include <map>
 #include <set>
 #include <string>
 #include <unordered_map>
@@ -182,17 +183,19 @@ class Checker {
     for (size_t i = 0; i < unit_.functions.size(); ++i)
       order.emplace_back(unit_.functions[i]->parseOrder, unit_.shaders.size() + i);
     std::sort(order.begin(), order.end());
-    std::set<std::string> shaderNames;
+    std::map<std::string, const ShaderDecl*> shaderNames;
     for (const auto& [offset, index] : order) {
       if (index >= unit_.shaders.size()) {
         checkFunction(*unit_.functions[index - unit_.shaders.size()]);
         continue;
       }
       ShaderDecl& shader = *unit_.shaders[index];
-      if (!shaderNames.insert(shader.name).second)
+      const auto [first, inserted] = shaderNames.emplace(shader.name, &shader);
+      if (!inserted)
         report(DiagId::ErrDuplicateShader, shader.nameRange.begin)
             .arg(shader.name)
-            .range(shader.nameRange);
+            .range(shader.nameRange)
+            .note(DiagId::NotePreviousDefinition, first->second->nameRange.begin, {}, first->second->nameRange);
       checkShader(shader);
     }
   }
