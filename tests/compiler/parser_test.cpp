@@ -143,6 +143,14 @@ TEST(ParserTest, OnlyDisplacementShadersAndNoReservedIdentifiers) {
             "2:26: 'solar' is a reserved word\n");
 }
 
+// As in C, 2147483648 fits an int only under a unary minus (INT_MIN); hex literals keep their bits.
+TEST(ParserTest, TwoToTheThirtyFirstOnlyUnderUnaryMinus) {
+  EXPECT_EQ(errorsOf("displacement d() { int a = -2147483648; int b = - 2147483648; int h = 0xFFFFFFFF;\n"
+                     "  int x = 2147483648; int y = 1 - 2147483648; P += (a + b + h + x + y) * N; }\n"),
+            "2:11: integer literal is too large to be represented in 32 bits\n"
+            "2:35: integer literal is too large to be represented in 32 bits\n");
+}
+
 TEST(ParserTest, HostileNestingGivesOneErrorNotACrash) {
   const std::string parens = "displacement d() { P += " + std::string(50000, '(') + "1" + std::string(50000, ')') + " * N; }";
   EXPECT_EQ(errorsOf(parens), "1:280: expressions nested too deeply (the limit is 256 levels)\n");
