@@ -1295,10 +1295,20 @@ bool RibParser::executeAttributes(const Call& call, bool* handled) {
   } else if (n == "Orientation") {
     std::string o;
     if (!positionalString(call, 0, &o)) return false;
-    if (o == "outside" || o == "lh") {
+    // The orientation is kept relative to the current coordinate system's handedness (the two
+    // flip together under mirroring transforms): "lh" and "rh" are inside out exactly when the
+    // current coordinate system has the other handedness. Camera space is left-handed.
+    const glm::mat3 toCamera =
+        inWorld_ ? glm::mat3(glm::inverse(scene_.camera.worldFromCamera) * attr_.ctm) : glm::mat3(attr_.ctm);
+    const bool rightHanded = glm::determinant(toCamera) < 0.0f;
+    if (o == "outside") {
       attr_.orientationInside = false;
-    } else if (o == "inside" || o == "rh") {
+    } else if (o == "inside") {
       attr_.orientationInside = true;
+    } else if (o == "lh") {
+      attr_.orientationInside = rightHanded;
+    } else if (o == "rh") {
+      attr_.orientationInside = !rightHanded;
     } else {
       return fail(call.line, "'Orientation' must be \"outside\", \"inside\", \"lh\" or \"rh\"");
     }
@@ -2171,6 +2181,11 @@ bool RibParser::buildPolygonMesh(const Call& call, const std::vector<int>& nloop
     }
     for (uint32_t i : triangulatePolygon(loops)) mesh.indices.push_back(faceVertices[i]);
   }
+  // A mirroring transform flips the current coordinate system and, with it, the current
+  // orientation (RI spec, "Orientation"), so the polygon keeps its side: the winding the world
+  // points have after the mirror is reversed back, as the quadrics do (tessellate.cpp).
+  if (glm::determinant(glm::mat3(m)) < 0.0f)
+    for (size_t k = 0; k + 2 < mesh.indices.size(); k += 3) std::swap(mesh.indices[k + 1], mesh.indices[k + 2]);
   return addMesh(std::move(mesh), call.line);
 }
 

@@ -422,6 +422,53 @@ TEST(RibSurfaces, SidesAndOrientation) {
   EXPECT_FALSE(read(world("Orientation \"up\"")).scene);
 }
 
+// RI spec, "Orientation": the current orientation flips whenever the current coordinate system's
+// handedness does, and a primitive is inside out when the two differ. So a mirroring transform
+// keeps a polygon facing the way it faced (its winding is reversed back), and "lh"/"rh" are
+// judged against the handedness in force (camera space is left-handed; `Scale 1 1 -1` before
+// WorldBegin, as Maya exporters write, makes the world right-handed).
+TEST(RibSurfaces, OrientationFollowsTheHandednessOfTheCoordinateSystem) {
+  auto normalZ = [](const Mesh& m) {
+    const glm::vec3 a = m.P[m.indices[0]], b = m.P[m.indices[1]], c = m.P[m.indices[2]];
+    return glm::cross(b - a, c - a).z;
+  };
+  for (const char* prim : {"Polygon \"P\" [0 0 0  1 0 0  0 1 0]",
+                           "PointsPolygons [3] [0 1 2] \"P\" [0 0 0  1 0 0  0 1 0]",
+                           "GeneralPolygon [3] \"P\" [0 0 0  1 0 0  0 1 0]"}) {
+    SCOPED_TRACE(prim);
+    ReadResult plain = read(world(prim));
+    ASSERT_TRUE(plain.scene) << plain.error.format();
+    // The triangle lies in z = 0: its normal is the mirror image of the unmirrored one, so it
+    // keeps its z unless the mirror is in z.
+    for (const auto& [mirror, zSign] : {std::pair<const char*, float>{"Scale -1 1 1", 1.0f},
+                                        {"Scale 1 -1 1", 1.0f}, {"Scale -2 3 1", 1.0f},
+                                        {"Scale 2 3 -1", -1.0f}, {"Scale -2 -3 -1", -1.0f}}) {
+      SCOPED_TRACE(mirror);
+      ReadResult mirrored = read(world(std::string(mirror) + "\n" + prim));
+      ASSERT_TRUE(mirrored.scene) << mirrored.error.format();
+      EXPECT_GT(zSign * normalZ(mirrored.scene->meshes[0]) * normalZ(plain.scene->meshes[0]), 0.0f);
+      EXPECT_FALSE(materialOf(*mirrored.scene, 0).reverseOrientation);
+    }
+  }
+  const std::string maya = "Scale 1 1 -1\n";
+  ReadResult r = read(maya + world(std::string("Orientation \"rh\"\n") + kTriangle + "Orientation \"lh\"\n" +
+                                   kTriangle + "Orientation \"outside\"\n" + kTriangle));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  EXPECT_FALSE(materialOf(*r.scene, 0).reverseOrientation);  // rh in a right-handed world
+  EXPECT_TRUE(materialOf(*r.scene, 1).reverseOrientation);
+  EXPECT_FALSE(materialOf(*r.scene, 2).reverseOrientation);
+  // Set before the camera's mirror, "lh" is judged in camera space: it stays outside.
+  ReadResult before = read("Orientation \"lh\"\n" + maya + world(kTriangle));
+  ASSERT_TRUE(before.scene) << before.error.format();
+  EXPECT_FALSE(materialOf(*before.scene, 0).reverseOrientation);
+  // In a mirrored object space, "lh" is the other handedness: inside out.
+  ReadResult inner = read(world(std::string("Scale -1 1 1\nOrientation \"lh\"\n") + kTriangle +
+                                "Orientation \"rh\"\n" + kTriangle));
+  ASSERT_TRUE(inner.scene) << inner.error.format();
+  EXPECT_TRUE(materialOf(*inner.scene, 0).reverseOrientation);
+  EXPECT_FALSE(materialOf(*inner.scene, 1).reverseOrientation);
+}
+
 TEST(RibSurfaces, VisibilityTransmissionControlsShadowCasting) {
   ReadResult r = read(world(std::string(kTriangle) + "AttributeBegin\n" +
                             "Attribute \"visibility\" \"int transmission\" [0]\n" + kTriangle +
