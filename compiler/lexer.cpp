@@ -92,6 +92,9 @@ Lexer::Lexer(const SourceManager& sm, SourceManager::FileId file, DiagnosticsEng
   cur_ = begin_;
   end_ = begin_ + text.size();
   base_ = sm.startOf(file);
+  // A UTF-8 byte-order mark (Windows editors) starts no token; columns still count from the file's
+  // first byte.
+  if (text.substr(0, 3) == "\xEF\xBB\xBF") cur_ += 3;
 }
 
 void Lexer::skipWhitespaceAndComments() {

@@ -66,6 +66,8 @@ bool tokenizeRib(std::string_view text, const std::string& fileName, std::vector
   };
   int line = 1;
   size_t i = 0;
+  // A UTF-8 byte-order mark, as Windows editors write, is not part of the stream.
+  if (text.substr(0, 3) == "\xEF\xBB\xBF") i = 3;
   const size_t n = text.size();
   while (i < n) {
     const char c = text[i];
@@ -1192,8 +1194,13 @@ bool RibParser::executeCamera(const Call& call, bool* handled) {
       l.radius *= maxScale(w);
     }
     lightsBeforeWorld_.clear();
-    if (!scene_.camera.screenWindowSet && frameAspect_ > 0) {
-      const float a = frameAspect_;
+    // Format's pixel aspect ratio shapes the default frame (RI spec: the frame aspect ratio is
+    // xresolution * pixelaspectratio / yresolution) unless FrameAspectRatio or ScreenWindow say.
+    float frameAspect = frameAspect_;
+    if (frameAspect <= 0 && pixelAspect_ != 1.0f && scene_.width > 0 && scene_.height > 0)
+      frameAspect = float(scene_.width) * pixelAspect_ / float(scene_.height);
+    if (!scene_.camera.screenWindowSet && frameAspect > 0) {
+      const float a = frameAspect;
       const float sw[4] = {a >= 1 ? -a : -1.0f, a >= 1 ? a : 1.0f, a >= 1 ? -1.0f : -1.0f / a,
                            a >= 1 ? 1.0f : 1.0f / a};
       std::copy(sw, sw + 4, scene_.camera.screenWindow);

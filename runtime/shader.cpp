@@ -109,6 +109,13 @@ bool ShaderInstance::bindValue(const ParamInfo& infoRef, const ParamValue& value
     if (info->arrayLength) declared.append("[").append(std::to_string(info->arrayLength)).append("]");
     error->assign("parameter '").append(value.name).append("' of shader '");
     error->append(shader_->name()).append("' is declared '").append(declared);
+    if (value.type == info->type && value.type != ParamType::String) {
+      // The right type with the wrong count (`"color c" 0.1`): say the count.
+      const size_t need = size_t(paramComponents(info->type)) * elements;
+      error->append("' (").append(std::to_string(need)).append(need == 1 ? " number" : " numbers");
+      error->append(") but was given ").append(std::to_string(value.numbers.size()));
+      return false;
+    }
     error->append("' but was given '").append(paramTypeName(value.type)).append("'");
     return false;
   };

@@ -45,6 +45,15 @@ TEST(LexerTest, KeywordsIdentifiersAndPunctuators) {
   EXPECT_EQ(kinds(*l), expected);
 }
 
+// A UTF-8 byte-order mark at the start (as Windows editors save) is skipped; elsewhere U+FEFF is
+// an invalid character like any other.
+TEST(LexerTest, ByteOrderMarkAtTheStartIsSkipped) {
+  auto l = lex("\xEF\xBB\xBF" "float x;");
+  EXPECT_TRUE(l->messages.empty());
+  EXPECT_EQ(kinds(*l), (std::vector<Tok>{Tok::KwFloat, Tok::Identifier, Tok::Semi, Tok::Eof}));
+  EXPECT_EQ(lex("float \xEF\xBB\xBF" "x;")->messages.size(), 1u);
+}
+
 TEST(LexerTest, NumbersAndTheDotRule) {
   auto l = lex("1 1.0 1. .5 1e3 2.5e-3 0x1F a.5 7e");
   ASSERT_TRUE(l->messages.empty());

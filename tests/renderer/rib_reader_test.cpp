@@ -87,6 +87,15 @@ TEST(RibTokenizer, RejectsMalformedNumbersAndBinaryBytes) {
   EXPECT_EQ(error.line, 2);
   tokens.clear();
   EXPECT_FALSE(tokenizeRib("Scale 1e99 1 1", "t.rib", &tokens, &error));
+  // A UTF-8 byte-order mark opens the file without being a byte of the stream; later it is one.
+  tokens.clear();
+  EXPECT_TRUE(tokenizeRib("\xEF\xBB\xBF" "WorldBegin", "t.rib", &tokens, &error)) << error.message;
+  std::vector<RibToken> plain;
+  EXPECT_TRUE(tokenizeRib("WorldBegin", "t.rib", &plain, &error));
+  ASSERT_EQ(tokens.size(), plain.size());
+  EXPECT_EQ(tokens[0].text, plain[0].text);
+  tokens.clear();
+  EXPECT_FALSE(tokenizeRib("WorldBegin \xEF\xBB\xBF", "t.rib", &tokens, &error));
 }
 
 TEST(RibReader, ReadsImageAndCameraOptions) {
@@ -114,6 +123,22 @@ TEST(RibReader, FrameAspectRatioSetsTheScreenWindow) {
   EXPECT_TRUE(r.scene->camera.screenWindowSet);
   EXPECT_FLOAT_EQ(r.scene->camera.screenWindow[1], 1.0f);
   EXPECT_FLOAT_EQ(r.scene->camera.screenWindow[3], 2.0f);
+}
+
+// Format's third number: the frame aspect is xres * pixelaspect / yres (RI spec), so 160x120
+// pixels twice as wide as tall make a 8:3 frame; FrameAspectRatio, when given, wins.
+TEST(RibReader, PixelAspectRatioShapesTheDefaultFrame) {
+  ReadResult r = read("Format 160 120 2\n" + world(""));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  ASSERT_TRUE(r.scene->camera.screenWindowSet);
+  EXPECT_FLOAT_EQ(r.scene->camera.screenWindow[1], 160.0f * 2 / 120);
+  EXPECT_FLOAT_EQ(r.scene->camera.screenWindow[3], 1.0f);
+  ReadResult square = read("Format 160 120 1\n" + world(""));
+  ASSERT_TRUE(square.scene);
+  EXPECT_FALSE(square.scene->camera.screenWindowSet);  // the camera's own default
+  ReadResult given = read("Format 160 120 2\nFrameAspectRatio 0.5\n" + world(""));
+  ASSERT_TRUE(given.scene);
+  EXPECT_FLOAT_EQ(given.scene->camera.screenWindow[3], 2.0f);
 }
 
 TEST(RibReader, TransformAtWorldBeginIsCameraFromWorld) {

@@ -73,6 +73,9 @@ TEST(ShaderInstance, BindRejectsWhatDoesNotFit) {
   EXPECT_FALSE(inst.bind({"Km", ParamType::String, {}, {"x"}}, &error));
   EXPECT_FALSE(inst.bind({"arr", ParamType::Float, {1, 2, 3}, {}}, &error));  // too many
   EXPECT_FALSE(inst.bind({"Km", ParamType::Float, {}, {}}, &error));          // no value
+  // The right type with the wrong count says the count, not "declared 'color', given 'color'".
+  EXPECT_FALSE(inst.bind({"c", ParamType::Color, {0.1f}, {}}, &error));
+  EXPECT_NE(error.find("declared 'color' (3 numbers) but was given 1"), std::string::npos) << error;
   // A rejected bind leaves the previous value.
   EXPECT_FLOAT_EQ(read<float>(inst, 0), 0.5f);
 }
