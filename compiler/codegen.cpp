@@ -453,8 +453,10 @@ class ShaderCodegen {
     return r;
   }
   void storeElement(const Slot& s, Value* index, const Val& a) {
+    const bool lanes = s.type.kind != TypeKind::Matrix;  // as in store()
     for (int k = 0; k < elementComponents(s.type); ++k) {
       b_.CreateStore(a.c[k].v, elementPtr(s.v[k], index));
+      if (!lanes) continue;
       storeLane(s.du[k], index, a.c[k].du);
       storeLane(s.dv[k], index, a.c[k].dv);
     }
@@ -496,8 +498,12 @@ class ShaderCodegen {
         storeElement(s, ci(i), loadElement(*a.array, ci(i)));
       return;
     }
+    // Matrices carry no derivatives (docs/language.md): a matrix built from varying values (`q * k`)
+    // drops them here by design, which is no lost lane.
+    const bool lanes = s.type.kind != TypeKind::Matrix;
     for (int k = 0; k < numComponents(s.type); ++k) {
       b_.CreateStore(a.c[k].v, s.v[k]);
+      if (!lanes) continue;
       storeLane(s.du[k], nullptr, a.c[k].du);
       storeLane(s.dv[k], nullptr, a.c[k].dv);
     }
@@ -738,6 +744,10 @@ class ShaderCodegen {
       Value* facing = dot3(geo, ng).v;
       orientation_ = b_.CreateSelect(b_.CreateFCmpOLT(facing, cf(0)), cf(-1), cf(1));
     }
+    // Defaults evaluated below (those reading coordinate spaces) may loop (fBm): their iterations
+    // count like the body's, and past the limit the point aborts as the body's would.
+    abortBlock_ = abortPoint;
+    b_.CreateStore(ci(0), loopCounter_);
     for (const auto& prm : shader_.params) {
       if (prm->type.isArray())
         loadParamArray(*prm, params, slotFor(prm.get()));
@@ -2399,7 +2409,9 @@ std::unique_ptr<llvm::Module> generateModule(const TranslationUnit& unit, llvm::
   auto module = std::make_unique<llvm::Module>(unit.fileName, context);
   for (const auto& shader : unit.shaders) {
     LanePlan lanes;
+    bool everyLane = false;  // this pass allocates every lane: what it drops, no pass could keep
     for (int pass = 1;; ++pass) {
+      everyLane = lanes.allocate.empty();
       lanes.count = 0;
       ShaderCodegen cg(*module, *shader, std::max<uint32_t>(loopLimit, 1), lanes);
       cg.setGlobals(unit);
@@ -2408,7 +2420,7 @@ std::unique_ptr<llvm::Module> generateModule(const TranslationUnit& unit, llvm::
       bool converged = true;
       for (uint32_t id = 0; id < lanes.count; ++id)
         converged = converged && lanes.isLive(id) == lanes.allocates(id);
-      if (!lanes.dropped && (converged || pass >= kLanePasses || !pruneLanes)) {
+      if ((!lanes.dropped || everyLane) && (converged || pass >= kLanePasses || !pruneLanes || lanes.dropped)) {
         layouts.push_back(std::move(layout));
         break;
       }

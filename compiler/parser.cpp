@@ -375,6 +375,13 @@ bool Parser::parseFormals(std::vector<std::unique_ptr<VarDecl>>& params) {
 }
 
 // decltor := IDENT ["[" [int-const] "]"] ["=" init]; a ',' followed by an identifier continues.
+// After a declarator's comma, a keyword where the next name belongs (in a local declaration,
+// where a comma cannot start anything else).
+bool Parser::keywordAfterComma(Storage storage) const {
+  return storage == Storage::Local &&
+         (peek().kind >= Tok::KwBreak || peek().is(Tok::ReservedWord) || peek().is(Tok::ShaderKindWord));
+}
+
 bool Parser::parseDeclarators(std::vector<std::unique_ptr<VarDecl>>& out, Type type, bool isOutput,
                               bool isUniform, Storage storage) {
   for (;;) {
@@ -440,7 +447,7 @@ bool Parser::parseDeclarators(std::vector<std::unique_ptr<VarDecl>>& out, Type t
         list->range.end = prev().end();
         decl->init = std::move(list);
         out.push_back(std::move(decl));
-        if (tok().is(Tok::Comma) && peek().is(Tok::Identifier)) {
+        if (tok().is(Tok::Comma) && (peek().is(Tok::Identifier) || keywordAfterComma(storage))) {
           consume();
           continue;
         }
@@ -460,10 +467,8 @@ bool Parser::parseDeclarators(std::vector<std::unique_ptr<VarDecl>>& out, Type t
       consume();
       continue;
     }
-    // `float a = 1, color = 2;`: a keyword as the next name, said at the keyword (in a local
-    // declaration, where a comma cannot start anything else).
-    if (storage == Storage::Local && tok().is(Tok::Comma) &&
-        (peek().kind >= Tok::KwBreak || peek().is(Tok::ReservedWord) || peek().is(Tok::ShaderKindWord))) {
+    // `float a = 1, color = 2;`: a keyword as the next name, said at the keyword.
+    if (tok().is(Tok::Comma) && keywordAfterComma(storage)) {
       consume();
       continue;
     }

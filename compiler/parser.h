@@ -51,6 +51,7 @@ class Parser {
   std::unique_ptr<FunctionDecl> parseFunction();
   StmtPtr parseExtern();
   bool parseFormals(std::vector<std::unique_ptr<VarDecl>>& params);
+  bool keywordAfterComma(Storage storage) const;
   bool parseDeclarators(std::vector<std::unique_ptr<VarDecl>>& out, Type type, bool isOutput,
                         bool isUniform, Storage storage);
 

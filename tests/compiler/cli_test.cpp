@@ -122,10 +122,17 @@ TEST(CliTest, UsageAndInputErrorsExitWithTwo) {
   EXPECT_EQ(missing.err, ::testing::TempDir() + "/relief_no_such_shader.disp: error: cannot open file: No such file or "
                                                 "directory\n1 error generated.\n");
   EXPECT_EQ(reliefc("--help").exitCode, 0);
-  // Numeric options take digits only: a sign, a suffix or nothing is a usage error.
+  // Numeric options take digits only: a sign, a suffix or nothing is a usage error, said as such
+  // (the shader exists, so nothing else could make the run fail).
+  const fs::path ok = writeTemp("relief_limits.disp", "displacement d() { P += N; }\n");
+  EXPECT_EQ(reliefc("-ferror-limit=5 -floop-limit=100 " + quote(ok.string())).exitCode, 0);
   for (const char* bad : {"abc", "-3", "", "2x", "+4"}) {
-    EXPECT_EQ(reliefc(std::string("-ferror-limit=") + bad + " x.disp").exitCode, 2) << bad;
-    EXPECT_EQ(reliefc(std::string("-floop-limit=") + bad + " x.disp").exitCode, 2) << bad;
+    for (const char* option : {"-ferror-limit=", "-floop-limit="}) {
+      const CliRun r = reliefc(std::string(option) + bad + " " + quote(ok.string()));
+      EXPECT_EQ(r.exitCode, 2) << option << bad;
+      EXPECT_NE(r.err.find("bad value for " + std::string(option).substr(0, std::string(option).size() - 1)),
+                std::string::npos) << r.err;
+    }
   }
 }
 

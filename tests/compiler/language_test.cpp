@@ -382,6 +382,18 @@ TEST(MathTest, TwoArgumentAtanHasDerivatives) {
   EXPECT_NEAR(b.Pout[2][0], u / (u * u + v * v), 1e-5);
 }
 
+// Matrices carry no derivatives: one built from a varying float (`q * k`) drops them by design,
+// and compiles in one pass (it used to rerun code generation forever).
+TEST(MatrixTest, MatrixTimesAVaryingFloatCompiles) {
+  TestBatch b(1);
+  evaluate("displacement d(float k = 2; matrix m = k * matrix(\"object\", \"shader\"))\n"
+           "{ float kk = u; matrix q = 1; matrix mm = q * kk; P = point(comp(mm, 0, 0), comp(m, 1, 1), Du(kk)); }",
+           b);
+  EXPECT_FLOAT_EQ(b.Pout[0][0], 0.25f);
+  EXPECT_FLOAT_EQ(b.Pout[1][0], 2.0f);
+  EXPECT_FLOAT_EQ(b.Pout[2][0], 1.0f);
+}
+
 // §3: defaults may be constructors, also in a named space (RSL's `point "shader" (0, 0, 0)`).
 // Such a default, and one that reads it, is evaluated with the batch's spaces unless the host
 // binds the parameter; reflection reports it with every space the identity.
@@ -433,6 +445,20 @@ displacement d(float Km = 1; point c = point "shader" (1, 0, 0); vector w = vect
   EXPECT_FLOAT_EQ(b.Pout[1][0], 6);
   EXPECT_FLOAT_EQ(b.Pout[2][0], 7);
   EXPECT_FLOAT_EQ(b.Nout[2][0], 3);
+
+  // A space-reading default may loop (fBm is a loop in the stdlib): it counts against the loop
+  // limit in the entry as in the body. With identity spaces it is the reflected default.
+  CompileResult looping = compileSource("loop.disp",
+                                        "displacement d(float n = fBm(transform(\"shader\", point(1.3, 2.7, 0.4)), 4, 2, 0.5))"
+                                        " { P += n * N; }");
+  ASSERT_TRUE(looping.success()) << renderDiagnostics(looping) << looping.internalError;
+  TestBatch identity(1);
+  identity.N[2][0] = 1;
+  runtime::ShaderInstance loopInstance(looping.shaders.front());
+  loopInstance.evaluate(identity.all(), status);
+  const float reflected = looping.shaders.front()->findParam("n")->defaultNumbers.at(0);
+  EXPECT_NE(reflected, 0.0f);
+  EXPECT_FLOAT_EQ(identity.Pout[2][0], reflected);
 
   // Anything else that is not constant stays an error.
   CompileResult bad = compileSource("bad.disp", "displacement d(point c = P) { P = c; }");
