@@ -86,8 +86,9 @@ struct VarDecl {
   // Filled in by the type checker.
   unsigned reads = 0;
   bool written = false;
-  // A shader parameter whose default reads coordinate spaces (`point "shader" (0, 0, 0)`, or a
-  // parameter that does): evaluated with the batch's spaces unless the host binds the parameter.
+  // A shader parameter whose default reads coordinate spaces (`point "shader" (0, 0, 0)`) or
+  // another parameter: evaluated at shading time, with the batch's spaces and the parameters'
+  // bound values, unless the host binds the parameter itself.
   bool defaultUsesSpaces = false;
 };
 

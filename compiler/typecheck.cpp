@@ -325,7 +325,9 @@ class Checker {
     switch (e.kind) {
       case ExprKind::Identifier:
         if (e.decl && e.decl->storage == Storage::Parameter) {
-          usesSpaces |= e.decl->defaultUsesSpaces && !e.decl->invalid;
+          // A default that reads another parameter follows that parameter's bound value, so it
+          // is evaluated at shading time too.
+          usesSpaces |= !e.decl->invalid;
           return nullptr;
         }
         if (e.decl && e.decl->global == GlobalId::PI) return nullptr;

@@ -400,7 +400,7 @@ TEST(MatrixTest, MatrixTimesAVaryingFloatCompiles) {
 TEST(ParamDefaultTest, DefaultsInNamedSpacesUseTheBatchSpaces) {
   CompileResult r = compileSource("lang.disp", R"(
 displacement d(float Km = 1; point c = point "shader" (1, 0, 0); vector w = vector "shader" (0, 0, 1);
-               point c2 = c + w; matrix m = matrix("shader", "current"); float k = 2)
+               point c2 = c + w; matrix m = matrix("shader", "current"); float k = 2 * Km)
 {
     P = c;
     N = normal(c2 - c + vector(comp(m, 3, 0), k, Km));
@@ -412,8 +412,8 @@ displacement d(float Km = 1; point c = point "shader" (1, 0, 0); vector w = vect
   EXPECT_EQ(c->defaultNumbers, (std::vector<float>{1, 0, 0}));
   EXPECT_GE(c->boundFlagOffset, 0);
   EXPECT_GE(shader->findParam("c2")->boundFlagOffset, 0);  // reads c
+  EXPECT_GE(shader->findParam("k")->boundFlagOffset, 0);   // reads Km
   EXPECT_GE(shader->findParam("m")->boundFlagOffset, 0);
-  EXPECT_EQ(shader->findParam("k")->boundFlagOffset, -1);
   EXPECT_EQ(shader->findParam("Km")->boundFlagOffset, -1);
 
   // Shader space: current = shader scaled 2x, then moved by (10, 20, 30) (row vectors: p * M).
@@ -440,11 +440,14 @@ displacement d(float Km = 1; point c = point "shader" (1, 0, 0); vector w = vect
   runtime::ShaderInstance bound(shader);
   std::string error;
   ASSERT_TRUE(bound.bind({"c", runtime::ParamType::Point, {5, 6, 7}, {}}, &error)) << error;
+  ASSERT_TRUE(bound.bind({"Km", runtime::ParamType::Float, {4}, {}}, &error)) << error;
   bound.evaluate(b.all(), status);
   EXPECT_FLOAT_EQ(b.Pout[0][0], 5);
   EXPECT_FLOAT_EQ(b.Pout[1][0], 6);
   EXPECT_FLOAT_EQ(b.Pout[2][0], 7);
-  EXPECT_FLOAT_EQ(b.Nout[2][0], 3);
+  // N = (0, 0, 2) + (10, k, Km) with k = 2 * Km following the bound Km = 4.
+  EXPECT_FLOAT_EQ(b.Nout[1][0], 8);
+  EXPECT_FLOAT_EQ(b.Nout[2][0], 6);
 
   // A space-reading default may loop (fBm is a loop in the stdlib): it counts against the loop
   // limit in the entry as in the body. With identity spaces it is the reflected default.
