@@ -88,8 +88,8 @@ struct VarDecl {
   bool written = false;
   // A shader parameter whose default reads coordinate spaces (`point "shader" (0, 0, 0)`) or
   // another parameter: evaluated at shading time, with the batch's spaces and the parameters'
-  // bound values, unless the host binds the parameter itself.
-  bool defaultUsesSpaces = false;
+  // values, unless the host binds the parameter itself.
+  bool defaultAtShadingTime = false;
 };
 
 enum class StmtKind : uint8_t {

@@ -128,10 +128,10 @@ class ShaderCodegen {
       paramOffsets_[p.get()] = info.offset;
       layout.params.push_back(std::move(info));
     }
-    // The "bound" flags of defaults that read coordinate spaces, after the values.
+    // The "bound" flags of defaults evaluated at shading time (VarDecl::defaultAtShadingTime).
     offset = (offset + 3) & ~3u;
     for (size_t i = 0; i < shader_.params.size(); ++i) {
-      if (!shader_.params[i]->defaultUsesSpaces) continue;
+      if (!shader_.params[i]->defaultAtShadingTime) continue;
       layout.params[i].boundFlagOffset = int32_t(offset);
       boundFlagOffsets_[shader_.params[i].get()] = offset;
       offset += 4;
@@ -581,7 +581,8 @@ class ShaderCodegen {
     randomInputs_ = randomOrdinal_ = nullptr;
     indexClamped_ = unknownSpace_ = splineBasisProblems_ = nullptr;
     // Defaults that read coordinate spaces see identity transforms here (the values reflection
-    // reports); the entry evaluates them again with the batch's spaces (emitEntry).
+    // reports); the entry evaluates them again with the batch's spaces (emitEntry). Per point, as
+    // the parameters are loaded: a default that loops (fBm) then costs its loop at every point.
     {
       auto* spacesType = llvm::ArrayType::get(f32_, sizeof(RlfSpaces) / sizeof(float));
       llvm::AllocaInst* identitySpaces = entryAlloca(spacesType, "spaces.identity");
@@ -744,7 +745,7 @@ class ShaderCodegen {
       Value* facing = dot3(geo, ng).v;
       orientation_ = b_.CreateSelect(b_.CreateFCmpOLT(facing, cf(0)), cf(-1), cf(1));
     }
-    // Defaults evaluated below (those reading coordinate spaces) may loop (fBm): their iterations
+    // Defaults evaluated below (defaultAtShadingTime) may loop (fBm): their iterations
     // count like the body's, and past the limit the point aborts as the body's would.
     abortBlock_ = abortPoint;
     b_.CreateStore(ci(0), loopCounter_);
@@ -753,9 +754,9 @@ class ShaderCodegen {
         loadParamArray(*prm, params, slotFor(prm.get()));
       else
         store(slotFor(prm.get()), loadParam(*prm, params));
-      if (prm->defaultUsesSpaces) {
-        // Not bound by the host: the default again, now with this batch's coordinate spaces
-        // (after the parameters before it, which it may read).
+      if (prm->defaultAtShadingTime) {
+        // Not bound by the host: the default again, now with this batch's coordinate spaces and
+        // the values of the parameters before it, which it may read.
         Value* bound = b_.CreateLoad(i32_, bytePtr(params, boundFlagOffsets_.at(prm.get())));
         llvm::BasicBlock* evalB = newBlock("param.default");
         llvm::BasicBlock* doneB = newBlock("param.ready");
@@ -2409,9 +2410,10 @@ std::unique_ptr<llvm::Module> generateModule(const TranslationUnit& unit, llvm::
   auto module = std::make_unique<llvm::Module>(unit.fileName, context);
   for (const auto& shader : unit.shaders) {
     LanePlan lanes;
-    bool everyLane = false;  // this pass allocates every lane: what it drops, no pass could keep
     for (int pass = 1;; ++pass) {
-      everyLane = lanes.allocate.empty();
+      // A pass that allocates every lane is final even if it dropped a derivative: no pass
+      // could keep it.
+      const bool everyLane = lanes.allocate.empty();
       lanes.count = 0;
       ShaderCodegen cg(*module, *shader, std::max<uint32_t>(loopLimit, 1), lanes);
       cg.setGlobals(unit);
@@ -2420,7 +2422,8 @@ std::unique_ptr<llvm::Module> generateModule(const TranslationUnit& unit, llvm::
       bool converged = true;
       for (uint32_t id = 0; id < lanes.count; ++id)
         converged = converged && lanes.isLive(id) == lanes.allocates(id);
-      if ((!lanes.dropped || everyLane) && (converged || pass >= kLanePasses || !pruneLanes || lanes.dropped)) {
+      const bool done = lanes.dropped ? everyLane : converged || pass >= kLanePasses || !pruneLanes;
+      if (done) {
         layouts.push_back(std::move(layout));
         break;
       }

@@ -791,7 +791,7 @@ ExprPtr Parser::parseUnary() {
   const Token t = tok();
   if (t.is(Tok::Minus) || t.is(Tok::Plus) || t.is(Tok::Bang) || t.is(Tok::PlusPlus) ||
       t.is(Tok::MinusMinus)) {
-    if (t.is(Tok::Minus)) unaryMinusAt_ = pos_;
+    if (t.is(Tok::Minus)) unaryMinusOperand_ = pos_ + 1;
     consume();
     ExprPtr operand = parseUnary();
     if (!operand) return nullptr;
@@ -900,7 +900,7 @@ ExprPtr Parser::parsePrimary() {
       consume();
       // 2147483648 (the lexer's INT_MIN) fits only as the operand of a unary minus, as in C.
       if (t.intValue == INT32_MIN && !t.text.starts_with("0x") && !t.text.starts_with("0X") &&
-          unaryMinusAt_ + 2 != pos_)
+          unaryMinusOperand_ != pos_ - 1)
         diags_.report(DiagId::ErrIntegerTooLarge, t.loc).range(t.range());
       auto e = std::make_unique<Expr>(ExprKind::IntLiteral, t.range());
       e->intValue = t.intValue;

@@ -77,7 +77,7 @@ class Parser {
   DiagnosticsEngine& diags_;
   std::vector<Token> toks_;
   size_t pos_ = 0;
-  size_t unaryMinusAt_ = SIZE_MAX;  // the token position of the latest unary minus
+  size_t unaryMinusOperand_ = SIZE_MAX;  // token position right after the latest unary minus
   std::unique_ptr<TranslationUnit> unit_;
   bool recovering_ = false;  // a statement was kept despite an error: resync after it
   int nesting_ = 0;          // recursion depth of statements and unary expressions

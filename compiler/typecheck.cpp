@@ -300,10 +300,10 @@ class Checker {
         const unsigned errorsBefore = diags_.numErrors();
         checkInit(*p);
         if (!p->init->type.isError()) {
-          bool usesSpaces = false;
-          if (const Expr* bad = firstNonConstant(*p->init, usesSpaces))
+          bool atShadingTime = false;
+          if (const Expr* bad = firstNonConstant(*p->init, atShadingTime))
             report(DiagId::ErrNonConstantDefault, bad->range.begin).range(bad->range);
-          p->defaultUsesSpaces = usesSpaces;
+          p->defaultAtShadingTime = atShadingTime;
         }
         if (diags_.numErrors() != errorsBefore) p->invalid = true;
       }
@@ -318,16 +318,17 @@ class Checker {
     shader_ = nullptr;
   }
 
-  // A sub-expression that makes a default non-constant, or null. Coordinate spaces are allowed
-  // (RSL's `point center = point "shader" (0, 0, 0)`): `usesSpaces` says a default reads them, so
-  // that it is evaluated with the batch's spaces (codegen).
-  const Expr* firstNonConstant(const Expr& e, bool& usesSpaces) {
+  // A sub-expression that makes a default non-constant, or null. Coordinate spaces (RSL's
+  // `point center = point "shader" (0, 0, 0)`) and other parameters are allowed: `atShadingTime`
+  // says the default reads them, so that it is evaluated with the batch's spaces and the bound
+  // values (codegen).
+  const Expr* firstNonConstant(const Expr& e, bool& atShadingTime) {
     switch (e.kind) {
       case ExprKind::Identifier:
         if (e.decl && e.decl->storage == Storage::Parameter) {
           // A default that reads another parameter follows that parameter's bound value, so it
           // is evaluated at shading time too.
-          usesSpaces |= !e.decl->invalid;
+          atShadingTime |= !e.decl->invalid;
           return nullptr;
         }
         if (e.decl && e.decl->global == GlobalId::PI) return nullptr;
@@ -339,7 +340,7 @@ class Checker {
         // Components given in a named space, and matrix("from", "to"), read the transforms.
         if (!e.operands.empty() && e.operands[0]->type.kind == TypeKind::String &&
             e.constructType != TypeKind::Color)
-          usesSpaces = true;
+          atShadingTime = true;
         break;
       case ExprKind::Call:
         // Library functions are pure math over their arguments unless they read globals.
@@ -347,7 +348,7 @@ class Checker {
         if (!e.builtin) return &e;
         switch (e.builtin->shape) {
           case BuiltinShape::Transform:  // reads the batch's spaces (unless given a matrix)
-            if (e.operands.empty() || e.operands[0]->type.kind != TypeKind::Matrix) usesSpaces = true;
+            if (e.operands.empty() || e.operands[0]->type.kind != TypeKind::Matrix) atShadingTime = true;
             break;
           case BuiltinShape::Deriv:
           case BuiltinShape::CalcNormal:
@@ -365,7 +366,7 @@ class Checker {
       default: break;
     }
     for (const ExprPtr& c : e.operands)
-      if (const Expr* bad = firstNonConstant(*c, usesSpaces)) return bad;
+      if (const Expr* bad = firstNonConstant(*c, atShadingTime)) return bad;
     return nullptr;
   }
 

@@ -93,25 +93,24 @@ bool ShaderInstance::bind(const ParamValue& value, std::string* error) {
   }
   if (!bindValue(*info, value, error)) return false;
   if (info->boundFlagOffset >= 0) {
-    // The bound value replaces a default the shader would otherwise evaluate with the spaces.
+    // The bound value replaces a default the shader would otherwise evaluate at shading time.
     const int32_t bound = 1;
     std::memcpy(block_.data() + info->boundFlagOffset, &bound, 4);
   }
   return true;
 }
 
-bool ShaderInstance::bindValue(const ParamInfo& infoRef, const ParamValue& value, std::string* error) {
-  const ParamInfo* info = &infoRef;
-  const size_t elements = size_t(std::max(info->arrayLength, 1));
+bool ShaderInstance::bindValue(const ParamInfo& info, const ParamValue& value, std::string* error) {
+  const size_t elements = size_t(std::max(info.arrayLength, 1));
   auto mismatch = [&] {
     // Appended piecewise: GCC 12 reports a false -Wrestrict on long operator+ chains at -O3.
-    std::string declared(paramTypeName(info->type));
-    if (info->arrayLength) declared.append("[").append(std::to_string(info->arrayLength)).append("]");
+    std::string declared(paramTypeName(info.type));
+    if (info.arrayLength) declared.append("[").append(std::to_string(info.arrayLength)).append("]");
     error->assign("parameter '").append(value.name).append("' of shader '");
     error->append(shader_->name()).append("' is declared '").append(declared);
-    if (value.type == info->type && value.type != ParamType::String) {
+    if (value.type == info.type && value.type != ParamType::String) {
       // The right type with the wrong count (`"color c" 0.1`): say the count.
-      const size_t need = size_t(paramComponents(info->type)) * elements;
+      const size_t need = size_t(paramComponents(info.type)) * elements;
       error->append("' (").append(std::to_string(need)).append(need == 1 ? " number" : " numbers");
       error->append(") but was given ").append(std::to_string(value.numbers.size()));
       return false;
@@ -119,18 +118,18 @@ bool ShaderInstance::bindValue(const ParamInfo& infoRef, const ParamValue& value
     error->append("' but was given '").append(paramTypeName(value.type)).append("'");
     return false;
   };
-  if (info->type == ParamType::String || value.type == ParamType::String) {
-    if (info->type != value.type || value.strings.empty() || value.strings.size() > elements)
+  if (info.type == ParamType::String || value.type == ParamType::String) {
+    if (info.type != value.type || value.strings.empty() || value.strings.size() > elements)
       return mismatch();
-    storeStrings(*info, value.strings);
+    storeStrings(info, value.strings);
     return true;
   }
-  const bool compatible = info->type == value.type ||
-                          (isScalar(value.type) && info->type != ParamType::Matrix) ||
-                          (isSpatial(info->type) && isSpatial(value.type));
+  const bool compatible = info.type == value.type ||
+                          (isScalar(value.type) && info.type != ParamType::Matrix) ||
+                          (isSpatial(info.type) && isSpatial(value.type));
   if (!compatible) return mismatch();
 
-  const int components = paramComponents(info->type);
+  const int components = paramComponents(info.type);
   const int given = paramComponents(value.type);
   std::vector<float> numbers;
   if (given == components) {
@@ -144,7 +143,7 @@ bool ShaderInstance::bindValue(const ParamInfo& infoRef, const ParamValue& value
   if (numbers.empty() || numbers.size() > elements * components ||
       numbers.size() % components != 0)
     return mismatch();
-  storeNumbers(*info, numbers);
+  storeNumbers(info, numbers);
   return true;
 }
 

@@ -31,9 +31,10 @@ struct ParamInfo {
   bool isOutput = false;
   uint32_t offset = 0;  // byte offset in the block
   // Default value, flattened: arrayLength*components numbers (ints stored as floats), or strings.
-  // A default that reads coordinate spaces (`point "shader" (0, 0, 0)`) is reported as its value
-  // with every space the identity; the shader evaluates it with the batch's spaces at shading time
-  // unless the parameter is bound.
+  // A default that reads coordinate spaces (`point "shader" (0, 0, 0)`) or another parameter is
+  // reported as its value with every space the identity and the other parameters at their
+  // defaults; the shader evaluates it at shading time, with the batch's spaces and the bound
+  // values, unless the parameter is bound itself.
   std::vector<float> defaultNumbers;
   std::vector<std::string> defaultStrings;
   // Byte offset in the block of the int32 "bound" flag of such a parameter (bind sets it to 1),

@@ -59,6 +59,17 @@ struct Args {
   std::vector<std::string> disabledWarnings;
 };
 
+// A count given to an option: digits only, at most 2^31 - 1 (strtoul alone would take "-3" as a
+// huge number and "2x" as 2).
+bool parseCount(const char* text, uint32_t* out) {
+  if (!std::isdigit(static_cast<unsigned char>(*text))) return false;
+  char* end = nullptr;
+  const unsigned long n = std::strtoul(text, &end, 10);
+  if (*end || n > 0x7fffffffUL) return false;
+  *out = uint32_t(n);
+  return true;
+}
+
 int usageError(const std::string& message) {
   std::cerr << "reliefc: error: " << message << "\n" << kUsage;
   return 2;
@@ -203,15 +214,12 @@ int evaluate(const Args& args, const CompileResult& result) {
   if (status.textureErrors)
     std::cerr << "reliefc: warning: shader '" << shader->name() << "': " << status.textureErrors
               << " texture lookup(s) failed\n";
-  if (status.splineBasis)
-    std::cerr << "reliefc: warning: shader '" << shader->name()
-              << "': spline basis name unknown or unfit for the knot count; catmull-rom was used\n";
-  if (status.indexClamped)
-    std::cerr << "reliefc: warning: shader '" << shader->name()
-              << "': array or component indices were clamped into range\n";
-  if (status.unknownSpace)
-    std::cerr << "reliefc: warning: shader '" << shader->name()
-              << "': unknown coordinate space names were treated as 'current'\n";
+  const std::pair<uint32_t, const char*> warnings[] = {
+      {status.splineBasis, "spline basis name unknown or unfit for the knot count; catmull-rom was used"},
+      {status.indexClamped, "array or component indices were clamped into range"},
+      {status.unknownSpace, "unknown coordinate space names were treated as 'current'"}};
+  for (const auto& [count, what] : warnings)
+    if (count) std::cerr << "reliefc: warning: shader '" << shader->name() << "': " << what << "\n";
   return 0;
 }
 
@@ -261,19 +269,14 @@ int main(int argc, char** argv) {
       else if (off)
         args.disabledWarnings.push_back(name);
     } else if (a.rfind("-floop-limit=", 0) == 0) {
-      char* end = nullptr;
-      const unsigned long n = std::strtoul(a.c_str() + 13, &end, 10);
-      if (!*(a.c_str() + 13) || *end || !std::isdigit(static_cast<unsigned char>(a[13])) || n == 0 || n > 0x7fffffffUL)
+      uint32_t n = 0;
+      if (!parseCount(a.c_str() + 13, &n) || n == 0)
         return usageError("bad value for -floop-limit: '" + a.substr(13) + "'");
-      args.options.loopIterationLimit = uint32_t(n);
+      args.options.loopIterationLimit = n;
     } else if (a.rfind("-ferror-limit=", 0) == 0) {
-      // Digits only (0: no limit); strtoul alone would take "-3" as a huge number and "2x" as 2.
-      const char* text = a.c_str() + 14;
-      char* end = nullptr;
-      const unsigned long n = std::strtoul(text, &end, 10);
-      if (!*text || *end || !std::isdigit(static_cast<unsigned char>(*text)) || n > 0x7fffffffUL)
-        return usageError("bad value for -ferror-limit: '" + a.substr(14) + "'");
-      args.errorLimit = unsigned(n);
+      uint32_t n = 0;  // 0: no limit
+      if (!parseCount(a.c_str() + 14, &n)) return usageError("bad value for -ferror-limit: '" + a.substr(14) + "'");
+      args.errorLimit = n;
     } else if (a == "--emit-llvm") {
       args.emitLlvm = true;
     } else if (a == "--emit-ast") {
