@@ -181,7 +181,7 @@ RenderStats render(const Scene& scene, Accelerator& accel, const RenderOptions& 
   auto tracer = [&](int id) {
     RenderStats stats;  // local: neighbouring entries of perThread would share cache lines
     size_t begin = 0, end = 0;
-    while (claimAny(id, begin, end)) {
+    while (!subdivisionRanAway(scene) && claimAny(id, begin, end)) {
       for (size_t i = begin; i < end; ++i) {
         const uint32_t pixel = order[i];
         const int x = int(pixel % uint32_t(width)), y = int(pixel / uint32_t(width));
@@ -278,6 +278,7 @@ RenderStats render(const Scene& scene, Accelerator& accel, const RenderOptions& 
     total.reflectionRays += s.reflectionRays;
     total.refractionRays += s.refractionRays;
   }
+  total.stopped = subdivisionRanAway(scene);
   total.threads = numThreads;
   total.samplesPerPixel = spp;
   total.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -83,6 +83,15 @@ struct ShaderProblemCounts {
   // which order like the floats for non-negative values, so an atomic max needs no lock.
   std::atomic<uint64_t> outOfBound{0};
   std::atomic<uint32_t> maxExcessBits{0};
+  // Edges that still wanted splitting at the subdivision depth guard (coarser than edgelength).
+  std::atomic<uint64_t> depthLimited{0};
+  // Work guard (setSubdivisionLimits in subdivide.h): shader points evaluated beyond what each
+  // subdivision's undisplaced triangle could justify, the limit past which the subdivision is
+  // deemed runaway (0: unguarded), and whether it was passed. Once set, subdivisions stop early
+  // and the render loop stops; the caller reports it as an error.
+  std::atomic<uint64_t> excessPoints{0};
+  uint64_t pointLimit = 0;
+  std::atomic<bool> runaway{false};
 };
 
 // Everything needed to displace one mesh: the bound shader instance and the subdivision settings.
@@ -148,5 +157,13 @@ struct Scene {
   int frameIndex = 0;
   int numFrames() const { return frameNumbers.empty() ? 1 : int(frameNumbers.size()); }
 };
+
+// True once a Displacement of the scene passed its work guard (subdivide.h,
+// setSubdivisionLimits): the render stops and its caller reports the error.
+inline bool subdivisionRanAway(const Scene& scene) {
+  for (const Displacement& d : scene.displacements)
+    if (d.problems && d.problems->runaway.load(std::memory_order_relaxed)) return true;
+  return false;
+}
 
 }  // namespace relief

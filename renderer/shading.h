@@ -23,6 +23,9 @@ struct RenderStats {
   int samplesPerPixel = 0;
   uint64_t cameraRays = 0, shadowRays = 0, cameraHits = 0;
   uint64_t reflectionRays = 0, refractionRays = 0;
+  // The render stopped before every pixel was traced: a subdivision ran away (subdivide.h,
+  // setSubdivisionLimits). The film is then incomplete and must not be written.
+  bool stopped = false;
 };
 
 inline constexpr int kDefaultMaxDepth = 5;

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -69,7 +70,7 @@ class EdgeMap {
   // Returns the value slot for `key` and whether it was just inserted (then holding -1).
   std::pair<int64_t*, bool> tryEmplace(uint64_t key) {
     if (2 * (size_ + 1) > stamps_.size()) grow();
-    size_t i = hash(key) & (stamps_.size() - 1);
+    size_t i = hash(key);
     while (stamps_[i] == generation_) {
       if (keys_[i] == key) return {&values_[i], false};
       i = (i + 1) & (stamps_.size() - 1);
@@ -80,7 +81,7 @@ class EdgeMap {
   }
   int64_t find(uint64_t key) const {
     if (stamps_.empty()) return -1;
-    size_t i = hash(key) & (stamps_.size() - 1);
+    size_t i = hash(key);
     while (stamps_[i] == generation_) {
       if (keys_[i] == key) return values_[i];
       i = (i + 1) & (stamps_.size() - 1);
@@ -89,13 +90,16 @@ class EdgeMap {
   }
 
  private:
-  static size_t hash(uint64_t k) { return size_t((k * 0x9E3779B97F4A7C15ull) >> 20); }
+  // Fibonacci hashing: the product's top bits depend on every bit of the key (its low bits would
+  // see only the larger vertex index, so the edges around a vertex would share a slot).
+  size_t hash(uint64_t k) const { return size_t((k * 0x9E3779B97F4A7C15ull) >> shift_); }
   void grow() {
     std::vector<uint32_t> oldStamps = std::move(stamps_);
     std::vector<uint64_t> oldKeys = std::move(keys_);
     std::vector<int64_t> oldValues = std::move(values_);
     const size_t capacity = std::max<size_t>(64, oldStamps.size() * 2);
     stamps_.assign(capacity, 0u), keys_.resize(capacity), values_.resize(capacity);
+    shift_ = 64 - std::countr_zero(capacity);
     const uint32_t oldGeneration = generation_;
     generation_ = 1;
     size_ = 0;
@@ -107,6 +111,7 @@ class EdgeMap {
   std::vector<int64_t> values_;
   uint32_t generation_ = 1;
   size_t size_ = 0;
+  int shift_ = 63;
 };
 
 struct Scratch {
@@ -544,6 +549,7 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
     const TriangleFrame frame = makeFrame(p, n, uv, st, mesh.N.size() == mesh.P.size());
     const int maxDepth = std::clamp(disp.maxDepth, 0, kMaxSubdivisionDepth);
     const float edgeLength2 = disp.edgeLength * disp.edgeLength;
+    const uint64_t pointsBefore = counters.shaderPoints;
     displace(disp, frame, vs, 0, scratch.batch, counters);
 
     std::vector<uint32_t>& active = scratch.active;
@@ -560,6 +566,7 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
     // coarser subtrees are learnt only along with one of these.)
     bool learnable = !cull || !known;
     uint64_t samplePoints = 0;  // interior samples, evaluated and dropped
+    uint64_t depthLimited = 0;  // edges that wanted splitting at the depth guard
     edges.clear();
     // Edge-map values: a midpoint (>= 0), -1 (short or at the depth limit), or kFlat (wanted
     // splitting, but simplification found the whole edge flat).
@@ -578,6 +585,7 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
         const bool wants = glm::dot(d, d) > edgeLength2;
         const bool allowed = std::max(vs.level[a], vs.level[b]) + 1 <= maxDepth;
         if (wants && allowed) *value = addMidpoint(vs, a, b);
+        depthLimited += wants && !allowed;
       }
       return *value;
     };
@@ -768,7 +776,29 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
           round > kCullRounds ? std::min(scratch.ranks[code]++, (1u << kMicroRankBits) - 1) : 0;
       out.ids.push_back((code << kMicroRankBits) | rank);
     };
+    // The work guard (setSubdivisionLimits): points beyond kRunawayAllowance times what the
+    // undisplaced triangle asks for are excess, counted a round at a time (one runaway
+    // subdivision takes seconds), per Displacement.
+    const uint64_t allowance =
+        kRunawayAllowance << (2 * undisplacedLevels(p, disp.edgeLength, maxDepth));
+    uint64_t pointsCounted = allowance;  // points of this subdivision counted so far, past the allowance
+    auto countGuardWork = [&] {
+      ShaderProblemCounts* pc = disp.problems.get();
+      const uint64_t spent = counters.shaderPoints - pointsBefore;
+      if (!pc || !pc->pointLimit || spent <= pointsCounted) return;
+      const uint64_t excess = spent - pointsCounted;
+      pointsCounted = spent;
+      const uint64_t total = pc->excessPoints.fetch_add(excess, std::memory_order_relaxed) + excess;
+      if (total > pc->pointLimit) pc->runaway.store(true, std::memory_order_relaxed);
+    };
     for (int round = 0; !active.empty(); ++round) {
+      countGuardWork();
+      if (disp.problems && disp.problems->runaway.load(std::memory_order_relaxed)) {
+        // The render is stopping (setSubdivisionLimits): leave the rest, learn nothing.
+        active.clear();
+        learnable = false;
+        break;
+      }
       if (cull && round <= kCullRounds) {
         // Drop whole subtrees that cannot reach the box; ids of the kept ones do not change.
         size_t kept = 0;
@@ -873,6 +903,8 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
     }
     counters.trianglesBeforeSimplification += before;
     counters.trianglesAfterSimplification += after;
+    countGuardWork();
+    if (depthLimited && disp.problems) disp.problems->depthLimited.fetch_add(depthLimited, std::memory_order_relaxed);
     // Only subtrees kept whole and still unknown are learnt: when every kept one was known (a
     // refill of a voxel whose neighbourhood was filled before) there is nothing to learn.
     if (learnt && learnable) learnSubtrees(out, vs.displaced, scratch, known, *learnt);
@@ -884,6 +916,34 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
   out.P = vs.displaced;
   out.bary = vs.bary;
   out.level = vs.level;
+}
+
+int undisplacedLevels(const glm::vec3 p[3], float edgeLength, int maxDepth) {
+  const float longest = std::max({glm::length(p[1] - p[0]), glm::length(p[2] - p[1]), glm::length(p[0] - p[2])});
+  if (!std::isfinite(longest) || !(edgeLength > 0.0f)) return maxDepth;
+  int k = 0;
+  for (float l = longest; l > edgeLength && k < maxDepth; l *= 0.5f) ++k;
+  return k;
+}
+
+std::vector<double> setSubdivisionLimits(Scene& scene) {
+  std::vector<double> estimate(scene.displacements.size(), 0.0);
+  for (const Mesh& mesh : scene.meshes) {
+    if (mesh.displacementIndex >= scene.displacements.size()) continue;
+    const Displacement& d = scene.displacements[mesh.displacementIndex];
+    if (!d.shader) continue;
+    const int maxDepth = std::clamp(d.maxDepth, 0, kMaxSubdivisionDepth);
+    double sum = 0.0;
+    for (uint32_t t = 0; t < mesh.numTriangles(); ++t) {
+      const glm::vec3 p[3] = {mesh.P[mesh.indices[3 * size_t(t)]], mesh.P[mesh.indices[3 * size_t(t) + 1]],
+                              mesh.P[mesh.indices[3 * size_t(t) + 2]]};
+      sum += std::ldexp(1.0, 2 * undisplacedLevels(p, d.edgeLength, maxDepth));
+    }
+    estimate[mesh.displacementIndex] += sum;
+  }
+  for (Displacement& d : scene.displacements)
+    if (d.problems) d.problems->pointLimit = kRunawayPoints;
+  return estimate;
 }
 
 }  // namespace relief

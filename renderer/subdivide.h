@@ -144,4 +144,29 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
                        MicroMesh& out, SubdivideCounters& counters, const CullBox* cull = nullptr,
                        const SubtreeMemo* known = nullptr, std::vector<LearntSubtree>* learnt = nullptr);
 
+// Work guard against runaway subdivision. A tiny edgelength, or a shader whose displaced edges
+// never get short (points moved far beyond the bound, detail finer than edgelength everywhere),
+// subdivides every input triangle to the depth guard, 4^12 micro-triangles each, and a render
+// would run for hours without a word. The guard clamps nothing (that would change the surface,
+// and both sides of an edge must decide alike). A triangle whose longest undisplaced edge needs
+// k halvings to reach edgelength (k at most the depth guard) asks for 4^k micro-triangles, and
+//  - a Displacement whose triangles ask for more than kMaxEstimatedMicroTriangles in all is
+//    reported before rendering (the caller stops: no render could make that many);
+//  - a subdivision that evaluates more than kRunawayAllowance * 4^k shader points (a displaced
+//    surface 64 times the area of its triangle) counts the rest as excess, a round at a time;
+//    once a Displacement's excess passes kRunawayPoints (a few seconds of work) it is marked
+//    runaway: subdivisions stop early, the render loop stops, and the caller reports the error.
+//    Each subdivision is judged alone, so refills under a small cache budget, however many,
+//    never trip it.
+constexpr double kMaxEstimatedMicroTriangles = 68719476736.0;  // 2^36
+constexpr uint64_t kRunawayAllowance = 64;
+constexpr uint64_t kRunawayPoints = uint64_t(1) << 23;
+
+// The k above: halvings of the longest edge of triangle p to reach edgeLength, at most maxDepth.
+int undisplacedLevels(const glm::vec3 p[3], float edgeLength, int maxDepth);
+
+// Returns the estimate (the sum of 4^k) for each of scene.displacements, meshes without a shader
+// counting nothing, and arms the runaway guard of every Displacement (ShaderProblemCounts).
+std::vector<double> setSubdivisionLimits(Scene& scene);
+
 }  // namespace relief

@@ -29,6 +29,7 @@
 #include "renderer/grid_accelerator.h"
 #include "renderer/render.h"
 #include "renderer/rib_reader.h"
+#include "renderer/subdivide.h"
 #include "runtime/abi.h"
 #include "runtime/builtins_texture.h"
 
@@ -433,6 +434,10 @@ void reportShaderProblems(const relief::Scene& scene, std::ostream& out) {
     report(p->unknownSpace, "unknown coordinate space names were treated as 'current'");
     report(p->textureErrors, "texture lookups failed");
     report(p->splineBasis, "spline calls named an unknown or unfit basis (catmull-rom was used)");
+    if (const uint64_t n = p->depthLimited.load())
+      warn() << ": " << n << " edges were still longer than the edge length " << d.edgeLength
+             << " at the subdivision depth limit of " << d.maxDepth
+             << "; the surface is coarser there than asked\n";
     if (const uint64_t n = p->outOfBound.load()) {
       float excess;
       const uint32_t bits = p->maxExcessBits.load();
@@ -441,6 +446,42 @@ void reportShaderProblems(const relief::Scene& scene, std::ostream& out) {
           << d.boundWorld << " (world units), by up to " << excess
           << "; rays may miss those parts: raise Attribute \"displacementbound\"\n";
     }
+  }
+}
+
+// "3.4e+12" reads badly next to "68719476736": counts in the work guard's messages.
+std::string formatCount(double n) {
+  char text[32];
+  std::snprintf(text, sizeof text, n < 1e7 ? "%.0f" : "%.2g", n);
+  return text;
+}
+
+// The work guard stopped the render (subdivide.h, setSubdivisionLimits): name each Displacement
+// that ran away, with the likeliest cause from what its shader did.
+void reportRunaway(const relief::Scene& scene, const std::vector<double>& estimates, bool edgeFromCli,
+                   std::ostream& out) {
+  for (size_t i = 0; i < scene.displacements.size(); ++i) {
+    const relief::Displacement& d = scene.displacements[i];
+    const relief::ShaderProblemCounts* p = d.problems.get();
+    if (!p || !p->runaway.load() || !d.shader) continue;
+    out << d.sourceFile << ":" << d.sourceLine << ": error: displacement shader '" << d.shader->name()
+        << "': subdivision ran away: its input triangles split into over "
+        << relief::kRunawayAllowance
+        << " times as many micro-triangles as their size and the edge length ask for (about "
+        << formatCount(i < estimates.size() ? estimates[i] : 0.0) << " in all)";
+    if (p->outOfBound.load()) {
+      float excess;
+      const uint32_t bits = p->maxExcessBits.load();
+      std::memcpy(&excess, &bits, 4);
+      out << "; it moves points up to " << excess << " beyond its displacement bound of "
+          << d.boundWorld << ", so its edges never get as short as " << d.edgeLength;
+    } else if (p->depthLimited.load()) {
+      out << "; its edges stay longer than " << d.edgeLength
+          << " down to the subdivision depth limit of " << d.maxDepth
+          << " (detail finer than the edge length everywhere)";
+    }
+    out << "; rendering stopped: fix the shader or raise "
+        << (edgeFromCli ? "--edge-length" : "Attribute \"relief\" \"float edgelength\"") << "\n";
   }
 }
 
@@ -745,6 +786,26 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
   uint64_t inputTriangles = 0;
   for (const relief::Mesh& m : scene.meshes) inputTriangles += m.numTriangles();
 
+  // The work guard (subdivide.h): a scene asking for absurdly many micro-triangles stops here,
+  // before hours of subdivision, at the Displacement that asks.
+  std::vector<double> estimates;
+  if (cl.displace) {
+    estimates = relief::setSubdivisionLimits(scene);
+    bool tooMuch = false;
+    for (size_t i = 0; i < estimates.size(); ++i) {
+      if (estimates[i] <= relief::kMaxEstimatedMicroTriangles) continue;
+      const relief::Displacement& d = scene.displacements[i];
+      std::cerr << d.sourceFile << ":" << d.sourceLine << ": error: displacement shader '"
+                << d.shader->name() << "': an edge length of " << d.edgeLength << " asks for about "
+                << formatCount(estimates[i]) << " micro-triangles on the undisplaced surface alone, more than "
+                << formatCount(relief::kMaxEstimatedMicroTriangles) << "; raise "
+                << (cl.edgeLength > 0.0f ? "--edge-length" : "Attribute \"relief\" \"float edgelength\"")
+                << "\n";
+      tooMuch = true;
+    }
+    if (tooMuch) return 1;
+  }
+
   const auto buildStart = std::chrono::steady_clock::now();
   relief::AccelOptions accelOptions;
   accelOptions.cacheBudgetTriangles = cl.cacheTrianglesSet || scene.cacheBudgetTriangles == 0
@@ -810,6 +871,10 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
   }
   const relief::RenderStats renderStats = relief::render(scene, *accel, renderOptions, &film, aovs);
   if (!cl.quiet) progress.finish();
+  if (relief::subdivisionRanAway(scene)) {
+    reportRunaway(scene, estimates, cl.edgeLength > 0.0f, std::cerr);
+    return 1;
+  }
 
   const relief::AccelStats finalStats = accel->stats();
   std::vector<std::pair<std::string, std::string>> metadata = {

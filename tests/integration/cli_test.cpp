@@ -462,6 +462,47 @@ TEST(Relief, NanFromAShaderIsAWarningNamingIt) {
   EXPECT_EQ(r.err, "");
 }
 
+// subdivide.h, work guard: a scene whose undisplaced surface alone asks for more micro-triangles
+// than any render could make is an error at its Displacement line before rendering, and a shader
+// whose edges never get short (here: points moved a thousand times beyond the bound, rippling
+// fast) stops the render within seconds with an error naming the line, the cause and the remedy.
+// Neither writes an image.
+TEST(Relief, RunawaySubdivisionIsAnErrorNotAHang) {
+  const fs::path dir = scratchDir();
+  writeFile(dir / "push.disp",
+            "displacement push(float amount = 0.2) { P += amount * normalize(N); }\n");
+  auto sphereScene = [&](const std::string& name, const std::string& call) {
+    return writeFile(dir / name,
+                     "Format 16 12 1\nProjection \"perspective\" \"fov\" [40]\nTranslate 0 0 5\n"
+                     "WorldBegin\nAttribute \"displacementbound\" \"float sphere\" [0.1]\n" +
+                         call + "\nSphere 1 -1 1 360\nWorldEnd\n");
+  };
+  const fs::path sphere = sphereScene("sphere.rib", "Displacement \"push\"");
+  RunResult r = run(kRelief + " " + sphere.string() + " --edge-length 1e-9 -o " +
+                    (dir / "tiny.png").string());
+  EXPECT_EQ(r.exitCode, 1) << r.err;
+  EXPECT_NE(r.err.find(sphere.string() + ":6: error: displacement shader 'push': an edge length of 1e-09 asks for about "),
+            std::string::npos)
+      << r.err;
+  EXPECT_NE(r.err.find("raise --edge-length"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir / "tiny.png"));
+  // The same sphere at a sane edge length renders.
+  r = run(kRelief + " " + sphere.string() + " --edge-length 0.05 -o " + (dir / "sane.png").string());
+  EXPECT_EQ(r.exitCode, 0) << r.err;
+
+  writeFile(dir / "ripple.disp",
+            "displacement ripple(float Km = 1) { P += Km * sin(40 * xcomp(P)) * normalize(N); }\n");
+  const fs::path scene = sphereScene("ripple.rib", "Displacement \"ripple\" \"float Km\" [100]");
+  r = run(kRelief + " " + scene.string() + " -o " + (dir / "ripple.png").string());
+  EXPECT_EQ(r.exitCode, 1) << r.err;
+  EXPECT_NE(r.err.find(scene.string() + ":6: error: displacement shader 'ripple': subdivision ran away"),
+            std::string::npos)
+      << r.err;
+  EXPECT_NE(r.err.find("beyond its displacement bound of 0.1"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("rendering stopped"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir / "ripple.png"));
+}
+
 // language.md §7: a shader that moves points farther than the declared bound is not clamped, and the
 // host warns once per Displacement with the largest excess; one within its bound gets no warning.
 TEST(Relief, DisplacementBeyondTheBoundIsOneWarningWithTheLargestExcess) {

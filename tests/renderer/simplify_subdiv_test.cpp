@@ -277,5 +277,50 @@ TEST(Simplify, DepthGuardStopsRunawayShaders) {
   }
 }
 
+// subdivide.h, work guard: the estimate is 4^k per triangle (k halvings of the longest edge to
+// reach the edge length); a subdivision that evaluates more than kRunawayAllowance times that
+// counts the rest as excess, and past the limit the Displacement is marked runaway and its
+// subdivisions stop early. A surface that meets its edge length never counts, however often it is
+// subdivided again (refills under a budget).
+TEST(Simplify, WorkGuardStopsRunawaySubdivisionsOnly) {
+  Scene scene;
+  scene.meshes.push_back(makeQuad());  // longest edges sqrt(2): 2 halvings to 0.5, 8 to 0.01
+  scene.meshes[0].displacementIndex = 0;
+  scene.displacements.push_back(makeDisplacement(runawayEntry, 0.0f, 0.0f, 0.5f, 8, 0.0f));
+  Displacement& d = scene.displacements[0];
+  MicroMesh unguarded;
+  SubdivideCounters counters;
+  subdivideTriangle(scene.meshes[0], 0, &d, unguarded, counters);  // not armed yet: no guard
+  EXPECT_FALSE(d.problems->runaway.load());
+  EXPECT_EQ(d.problems->excessPoints.load(), 0u);
+
+  const std::vector<double> estimate = setSubdivisionLimits(scene);
+  ASSERT_EQ(estimate.size(), 1u);
+  EXPECT_EQ(estimate[0], 2 * 16.0);
+  EXPECT_EQ(d.problems->pointLimit, kRunawayPoints);
+  d.problems->pointLimit = 1000;  // a small limit keeps the test quick
+  MicroMesh guarded;
+  subdivideTriangle(scene.meshes[0], 0, &d, guarded, counters);
+  EXPECT_TRUE(d.problems->runaway.load());
+  EXPECT_TRUE(subdivisionRanAway(scene));
+  EXPECT_GT(d.problems->excessPoints.load(), 1000u);
+  EXPECT_LT(guarded.numTriangles(), unguarded.numTriangles() / 4);  // stopped rounds early
+  EXPECT_GT(unguarded.numTriangles(), 64u * 16u);
+
+  // A bumpy surface at the same settings stays within its allowance, subdivided 50 times over.
+  Scene bumpy;
+  bumpy.meshes.push_back(makeQuad());
+  bumpy.meshes[0].displacementIndex = 0;
+  bumpy.displacements.push_back(makeDisplacement(testing::bumpyEntry, 0.1f, 2.0f, 0.01f, 10, 0.0f));
+  EXPECT_EQ(setSubdivisionLimits(bumpy)[0], 2 * 65536.0);
+  bumpy.displacements[0].problems->pointLimit = 1;
+  for (int i = 0; i < 50; ++i) {
+    MicroMesh mm;
+    subdivideTriangle(bumpy.meshes[0], uint32_t(i % 2), &bumpy.displacements[0], mm, counters);
+  }
+  EXPECT_EQ(bumpy.displacements[0].problems->excessPoints.load(), 0u);
+  EXPECT_FALSE(subdivisionRanAway(bumpy));
+}
+
 }  // namespace
 }  // namespace relief
