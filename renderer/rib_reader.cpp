@@ -2147,6 +2147,10 @@ bool RibParser::buildPolygonMesh(const Call& call, const std::vector<int>& nloop
   };
   auto addVertex = [&](size_t face, size_t point, size_t corner) {
     mesh.P.push_back(world[point]);
+    // RI spec, "Polygons": the surface parameters of a polygon are its object-space (x, y), and
+    // its texture coordinates equal them unless given. Shared points get the same (u, v), so a
+    // shader reading u, v, s or t displaces shared edges alike.
+    mesh.uv.emplace_back(P[3 * point], P[3 * point + 1]);
     if (N) {
       const float* n = valueOf(*N, face, point, corner);
       mesh.N.push_back(glm::normalize(normalFromObject * glm::vec3(n[0], n[1], n[2])));
@@ -2430,6 +2434,10 @@ bool RibParser::doGeometry(const Call& call) {
   }
   const glm::mat4& m = attr_.ctm;
   const glm::mat3 normalFromObject = glm::transpose(glm::inverse(glm::mat3(m)));
+  // A polygon mesh: (u, v) is the object-space (x, y), as for RIB polygons (OBJ texture
+  // coordinates, when present, are st).
+  object.uv.clear();
+  for (const glm::vec3& p : object.P) object.uv.emplace_back(p.x, p.y);
   for (glm::vec3& p : object.P) p = glm::vec3(m * glm::vec4(p, 1.0f));
   for (glm::vec3& n : object.N) n = glm::normalize(normalFromObject * n);
   return addMesh(std::move(object), call.line);

@@ -408,7 +408,7 @@ TEST(Relief, TexturesFollowTheSearchPathAndAMissingOneIsOneError) {
   }
   writeFile(dir / "lift.disp",
             "displacement lift(string texname = \"\") {\n"
-            "  P += 0.25 * float texture(texname, s, t) * normalize(N);\n"
+            "  P += 0.25 * float texture(texname, s, t, \"wrap\", \"periodic\") * normalize(N);\n"
             "  N = normalize(calculatenormal(P));\n}\n");
   auto sceneWith = [&](const std::string& name, const std::string& file) {
     return smallScene(dir, "Option \"searchpath\" \"string texture\" [\"maps\"]\n"

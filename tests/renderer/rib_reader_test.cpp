@@ -367,6 +367,34 @@ TEST(RibReader, SeparateSAndTBecomeSt) {
   EXPECT_FLOAT_EQ(r.scene->meshes[0].st[2].y, 1.0f);
 }
 
+// RI spec, "Polygons": the surface parameters are the object-space (x, y), and st equals them
+// unless given; so a point shared by two faces has one (u, v), also when uniform primvars split
+// the mesh per corner, and the transform does not enter.
+TEST(RibReader, PolygonSurfaceParametersAreObjectXY) {
+  ReadResult r = read(world("Translate 5 6 7\nRotate 90 0 0 1\n"
+                            "PointsPolygons [4 3] [0 1 2 3  0 3 4] \"P\" [0 0 0  2 0 0  2 3 0  0 3 0  -1 0 0]\n"
+                            "PointsPolygons [3 3] [0 1 2  0 2 3] \"P\" [0 0 0  1 0 0  1 1 0  0 1 0]"
+                            " \"uniform color Cs\" [1 0 0  0 1 0]\n"
+                            "Polygon \"P\" [0 0 0  1 0 0  0 1 0] \"st\" [0.5 0.5  0.75 0.5  0.5 0.75]"));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  ASSERT_EQ(r.scene->meshes.size(), 3u);
+  const Mesh& m = r.scene->meshes[0];
+  const std::vector<glm::vec2> xy = {{0, 0}, {2, 0}, {2, 3}, {0, 3}, {-1, 0}};
+  EXPECT_EQ(m.uv, xy);
+  EXPECT_TRUE(m.st.empty());  // st defaults to uv
+  const Mesh& split = r.scene->meshes[1];  // per-corner vertices: shared points agree
+  ASSERT_EQ(split.uv.size(), split.P.size());
+  for (size_t i = 0; i < split.P.size(); ++i)
+    for (size_t j = 0; j < split.P.size(); ++j)
+      if (split.P[i] == split.P[j]) {
+        EXPECT_EQ(split.uv[i], split.uv[j]);
+      }
+  const Mesh& given = r.scene->meshes[2];
+  ASSERT_EQ(given.st.size(), 3u);
+  EXPECT_EQ(given.st[1], glm::vec2(0.75f, 0.5f));
+  EXPECT_EQ(given.uv[1], glm::vec2(1, 0));
+}
+
 TEST(RibReader, PolygonErrorsNameTheProblem) {
   ReadResult r = read(world("PointsPolygons [3] [0 1 5] \"P\" [0 0 0  1 0 0  0 1 0]"));
   ASSERT_FALSE(r.scene);
