@@ -1023,6 +1023,19 @@ bool RibParser::execute(const Call& call) {
 bool RibParser::executeCamera(const Call& call, bool* handled) {
   *handled = true;
   const std::string& n = call.name;
+  // Options are frozen at WorldBegin (RI spec): one inside the world block is reported and
+  // ignored, as RenderMan's default error handler does, never applied half-way through.
+  static const char* const kOptions[] = {"Format", "PixelSamples", "PixelFilter", "Projection",
+                                         "Clipping", "ScreenWindow", "FrameAspectRatio",
+                                         "Display", "Option", "CropWindow", "Exposure",
+                                         "Hider", "PixelVariance", "Quantize", "DepthOfField",
+                                         "Shutter"};
+  if (inWorld_ && std::find(std::begin(kOptions), std::end(kOptions), n) != std::end(kOptions)) {
+    warnOnce(call.line, "inworld/" + std::to_string(call.line),
+             "'" + n + "' inside the world block (WorldBegin at line " + std::to_string(worldLine_) +
+                 ") is ignored: options must come before WorldBegin");
+    return true;
+  }
   std::vector<float> v;
   size_t next = 0;
   if (n == "Format") {

@@ -116,6 +116,27 @@ TEST(RibReader, ReadsImageAndCameraOptions) {
   EXPECT_EQ(r.warnings, "");
 }
 
+// RI spec: options are frozen at WorldBegin. One inside the world block is a warning naming its
+// line and the WorldBegin, and changes nothing.
+TEST(RibReader, OptionsInsideTheWorldBlockAreIgnoredWithAWarning) {
+  ReadResult r = read("Format 320 200 1\nPixelSamples 2 2\nWorldBegin\nFormat 64 48 1\n"
+                      "Projection \"perspective\"\nPixelSamples 4 4\nDisplay \"x.png\" \"file\" \"rgb\"\n"
+                      "Option \"relief\" \"int cachebudget\" [10]\nWorldEnd\n");
+  ASSERT_TRUE(r.scene) << r.error.format();
+  EXPECT_EQ(r.scene->width, 320);
+  EXPECT_EQ(r.scene->pixelSamples, 4);
+  EXPECT_FALSE(r.scene->camera.perspective);  // the default projection, orthographic
+  EXPECT_TRUE(r.scene->displays.empty());
+  EXPECT_EQ(r.scene->cacheBudgetTriangles, 0u);
+  EXPECT_NE(r.warnings.find(":4: warning: 'Format' inside the world block (WorldBegin at line 3) is ignored: "
+                            "options must come before WorldBegin"),
+            std::string::npos)
+      << r.warnings;
+  for (const char* name : {"Projection", "PixelSamples", "Display", "Option"})
+    EXPECT_NE(r.warnings.find(std::string("'") + name + "' inside the world block"), std::string::npos)
+        << name << "\n" << r.warnings;
+}
+
 TEST(RibReader, FrameAspectRatioSetsTheScreenWindow) {
   ReadResult r = read("FrameAspectRatio 0.5\nProjection \"orthographic\"\n" + world(""));
   ASSERT_TRUE(r.scene) << r.error.format();
