@@ -188,6 +188,9 @@ struct Call {
   std::string name;
   int line = 0;
   std::vector<Arg> args;
+  // The bare word that ended the arguments when it is on the same line (`Sphere nan 1 -1 360`
+  // reads as `Sphere` and a request `nan`): named when the arguments fall short.
+  std::string wordAfter;
 };
 
 // A parameter of a request: `"[class] type[n] name" value` or an untyped `"name" value`.
@@ -443,9 +446,11 @@ class RibParser {
     call->name = t.text;
     call->line = t.line;
     call->args.clear();
+    call->wordAfter.clear();
     ++pos_;
     while (true) {
       const RibToken& a = tokens_[pos_];
+      if (a.kind == RibToken::Kind::Request && a.line == call->line) call->wordAfter = a.text;
       if (a.kind == RibToken::Kind::Request || a.kind == RibToken::Kind::End) return true;
       Arg arg;
       arg.line = a.line;
@@ -525,7 +530,12 @@ class RibParser {
     if (out->size() < count) {
       return fail(call.line, "'" + call.name + "' expects " + std::to_string(count) +
                                  " number" + (count == 1 ? "" : "s") + ", got " +
-                                 std::to_string(out->size()));
+                                 std::to_string(out->size()) +
+                                 (i < call.args.size() && call.args[i].kind == Arg::Kind::String
+                                      ? " (then '" + call.args[i].strings[0] + "', a string)"
+                                  : i == call.args.size() && !call.wordAfter.empty()
+                                      ? " ('" + call.wordAfter + "' is not a number)"
+                                      : ""));
     }
     size_t extra = out->size() - count;
     for (; i < call.args.size() && call.args[i].isNumeric(); ++i)

@@ -436,7 +436,14 @@ TEST(RibReader, PolygonErrorsNameTheProblem) {
 TEST(RibReader, WrongArgumentTypesAreErrors) {
   ReadResult r = read("Format 32 24 1\nWorldBegin\nSphere 1 -1 \"x\" 360\nWorldEnd\n");
   ASSERT_FALSE(r.scene);
-  EXPECT_EQ(r.error.format(), "/scenes/test.rib:3: error: 'Sphere' expects 4 numbers, got 2");
+  EXPECT_EQ(r.error.format(), "/scenes/test.rib:3: error: 'Sphere' expects 4 numbers, got 2 (then 'x', a string)");
+  // A bare word ends a request's arguments (it is the next request): named when on the same line.
+  r = read(world("Sphere nan 1 -1 360"));
+  ASSERT_FALSE(r.scene);
+  EXPECT_EQ(r.error.message, "'Sphere' expects 4 numbers, got 0 ('nan' is not a number)");
+  r = read(world("Sphere 1 -1\nTranslate 0 0 1"));
+  ASSERT_FALSE(r.scene);
+  EXPECT_EQ(r.error.message, "'Sphere' expects 4 numbers, got 2");
   r = read("Projection \"perspective\" \"fov\" \"wide\"\n" + world(""));
   ASSERT_FALSE(r.scene);
   EXPECT_EQ(r.error.line, 1);
