@@ -63,6 +63,10 @@ struct AccelOptions {
   // for the rest of the render, and rays that would enter no leaf there pass the voxel without
   // the cache (after an eviction, a refill avoided). Never changes the image.
   bool voxelProxies = true;
+  // Undisplaced triangles reaching beyond the displaced geometry are left out of the grid and
+  // intersected through their own BVH (contributor_grid.h). Off: every triangle in the grid (for
+  // measurement; RELIEF_OUTSIDE=0).
+  bool outsideTriangles = true;
   // Dense voxels get a BVH (default) or, when set, the paper's uniform sub-voxel grid; kept to
   // measure one against the other (docs/cache.md). Never changes the image. relief sets it from
   // the environment variable RELIEF_SUBVOXEL=grid.
@@ -81,6 +85,7 @@ struct AccelStats {
   uint64_t createdBytes = 0;                // bytes of all filled voxels, refills included
   uint64_t evictions = 0;
   uint64_t contributorEntries = 0;          // contributor-grid entries at build time
+  uint64_t outsideTriangles = 0;            // undisplaced triangles left out of the grid
   uint64_t droppedContributors = 0;         // entries removed by refinement
   uint64_t budgetViolations = 0;            // only counted with AccelOptions::checkBudget
   uint64_t maxVoxelTriangles = 0;           // largest voxel filled (bounds budget overshoot)

@@ -39,6 +39,7 @@ ContributorGrid::ContributorGrid(const Scene& scene, const AccelOptions& options
   // Triangle boxes grown by the displacement bound. Triangles with non-finite corners are left
   // out: the scene reader reports them; here they must not poison the grid.
   std::vector<Bounds3> boxes(numTriangles());
+  Bounds3 displacedReach;
   for (uint32_t m = 0; m < scene.meshes.size(); ++m) {
     const Mesh& mesh = scene.meshes[m];
     const float grow = displacements_[m] ? std::max(0.0f, displacements_[m]->boundWorld) : 0.0f;
@@ -46,9 +47,30 @@ ContributorGrid::ContributorGrid(const Scene& scene, const AccelOptions& options
       const Bounds3 box = triangleReach(mesh, t, grow);
       if (box.empty()) continue;
       boxes[meshOffsets_[m] + t] = box;
-      bounds_.extend(box.lo), bounds_.extend(box.hi);
+      if (displacements_[m]) displacedReach.extend(box.lo), displacedReach.extend(box.hi);
     }
   }
+  // Undisplaced triangles reaching outside the displaced geometry's neighbourhood stay out of the
+  // grid (header).
+  if (!displacedReach.empty()) {
+    const glm::vec3 extent = displacedReach.hi - displacedReach.lo;
+    const float grow = kOutsideMargin * std::max({extent.x, extent.y, extent.z});
+    displacedReach.lo -= glm::vec3(grow), displacedReach.hi += glm::vec3(grow);
+  }
+  for (uint32_t m = 0; options.outsideTriangles && m < scene.meshes.size() && !displacedReach.empty(); ++m) {
+    if (displacements_[m]) continue;
+    for (uint32_t t = 0; t < scene.meshes[m].numTriangles(); ++t) {
+      Bounds3& box = boxes[meshOffsets_[m] + t];
+      if (box.empty()) continue;
+      if (glm::any(glm::lessThan(box.lo, displacedReach.lo)) || glm::any(glm::greaterThan(box.hi, displacedReach.hi))) {
+        outside_.push_back(meshOffsets_[m] + t);
+        box = {};
+      }
+    }
+  }
+  uint32_t inGrid = 0;
+  for (const Bounds3& box : boxes)
+    if (!box.empty()) bounds_.extend(box.lo), bounds_.extend(box.hi), ++inGrid;
   if (bounds_.empty()) bounds_ = {glm::vec3(-1), glm::vec3(1)};
 
   const glm::vec3 extent = bounds_.hi - bounds_.lo;
@@ -57,7 +79,7 @@ ContributorGrid::ContributorGrid(const Scene& scene, const AccelOptions& options
   bounds_.lo -= glm::vec3(2 * padding_), bounds_.hi += glm::vec3(2 * padding_);
   int n = options.gridResolution;
   if (n <= 0) {
-    n = int(std::lround(kAutoGridFactor * std::cbrt(double(std::max(1u, numTriangles())))));
+    n = int(std::lround(kAutoGridFactor * std::cbrt(double(std::max(1u, inGrid)))));
     float maxBound = 0.0f;
     for (const Displacement* d : displacements_)
       if (d) maxBound = std::max(maxBound, d->boundWorld);

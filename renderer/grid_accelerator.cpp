@@ -490,6 +490,17 @@ GridAccelerator::GridAccelerator(const Scene& scene, const AccelOptions& options
   // slower than the displaced render.
   cache_ = std::make_unique<GeometryCache>(grid_.numVoxels(), options.cacheBudgetTriangles);
   positionStep_ = choosePositionStep();
+  if (!grid_.outside().empty()) {
+    std::vector<glm::vec3> corners;
+    corners.reserve(3 * grid_.outside().size());
+    for (uint32_t id : grid_.outside()) {
+      const auto [m, t] = grid_.split(id);
+      // Snapped like the triangles in voxels, so every form of a triangle is the same bits.
+      for (int c = 0; c < 3; ++c)
+        corners.push_back(snapToLattice(scene.meshes[m].P[scene.meshes[m].indices[3 * size_t(t) + c]], positionStep_));
+    }
+    outside_ = TriangleBvh(std::move(corners), std::vector<uint32_t>(grid_.outside().begin(), grid_.outside().end()));
+  }
 #if defined(__x86_64__)
   // The counter serves as a clock only where it is invariant (CPUID 0x80000007, EDX bit 8).
   unsigned eax = 0, ebx = 0, ecx = 0, edx = 0;
@@ -1004,10 +1015,31 @@ void GridAccelerator::traverse(const Ray& ray, Best& best) {
   const glm::vec3 o = ray.origin, d = ray.direction;
   // A ray with NaN/Inf parts, or no direction, hits nothing (callers get no hit, never a hang).
   if (!std::isfinite(o.x + o.y + o.z + d.x + d.y + d.z) || d == glm::vec3(0.0f)) return;
-  float t0 = std::max(ray.tMin, 0.0f), t1 = ray.tMax;
+  const WatertightRay wr(ray);
+  if (!outside_.empty()) {
+    // The undisplaced triangles outside the grid first: a hit there shortens the walk below.
+    // Hits up to and including best.t count, ties going to the smaller key, as in the voxels.
+    constexpr float kInfinity = std::numeric_limits<float>::infinity();
+    auto limit = [&] { return best.found ? std::nextafter(best.t, kInfinity) : ray.tMax; };
+    const glm::vec2 corner[3] = {{0, 0}, {1, 0}, {0, 1}};
+    outside_.forEach(ray, std::max(ray.tMin, 0.0f), limit,
+                     [&](uint32_t id, const glm::vec3& a, const glm::vec3& b, const glm::vec3& c) {
+                       TriangleHit h;
+                       if (!intersectTriangle(wr, a, b, c, ray.tMin, limit(), h) ||
+                           !best.better(h.t, id, kWholeTriangleId))
+                         return false;
+                       best.found = true, best.t = h.t, best.triangleId = id;
+                       best.microId = kWholeTriangleId, best.hit = h;
+                       best.p[0] = a, best.p[1] = b, best.p[2] = c;
+                       for (int k = 0; k < 3; ++k) best.bary[k] = corner[k];
+                       return kAnyHit;
+                     });
+    if (kAnyHit && best.found) return;
+  }
+  float t0 = std::max(ray.tMin, 0.0f);
+  float t1 = best.found ? std::min(ray.tMax, std::nextafter(best.t, std::numeric_limits<float>::infinity())) : ray.tMax;
   if (!clipToBox(ray.origin, ray.direction, bounds.lo, bounds.hi, t0, t1)) return;
   Dda dda(ray.origin, ray.direction, bounds.lo, grid_.voxelSize(), grid_.resolution(), t0);
-  const WatertightRay wr(ray);
   const SlabRay sr(ray);
   const uint64_t stamp = nextStamp();
   for (;;) {
@@ -1065,6 +1097,7 @@ AccelStats GridAccelerator::stats() const {
   AccelStats s;
   s.budgetTriangles = options_.cacheBudgetTriangles;
   s.contributorEntries = grid_.numEntries();
+  s.outsideTriangles = grid_.outside().size();
   s.gridResolution = grid_.resolution();
   uint64_t traverse = 0;
   for (const TimeShard& shard : traverseNanos_) traverse += shard.ticks.load(std::memory_order_relaxed);

@@ -19,6 +19,7 @@
 
 #include "renderer/accel.h"
 #include "renderer/contributor_grid.h"
+#include "renderer/triangle_bvh.h"
 #include "renderer/geometry_cache.h"
 #include "renderer/subdivide.h"
 
@@ -69,6 +70,7 @@ class GridAccelerator final : public Accelerator {
   const Scene& scene_;
   AccelOptions options_;
   ContributorGrid grid_;
+  TriangleBvh outside_;  // the undisplaced triangles the grid leaves out (contributor_grid.h)
   std::unique_ptr<GeometryCache> cache_;
   // LRU stamps (nextStamp): one per ray, from a shared clock in blocks per thread. id_ tells
   // accelerators apart in the thread's block (a new one may reuse an old one's address).

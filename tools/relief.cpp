@@ -361,6 +361,7 @@ StatList collectStats(const CommandLine& cl, const relief::Scene& scene,
       {"grid.resolution_y", u(uint64_t(a.gridResolution.y))},
       {"grid.resolution_z", u(uint64_t(a.gridResolution.z))},
       {"grid.contributor_entries", u(a.contributorEntries)},
+      {"grid.outside_triangles", u(a.outsideTriangles)},
       {"grid.refinement", cl.refine ? "true" : "false"},
       {"grid.dropped_contributors", u(a.droppedContributors)},
       {"cache.budget_triangles",
@@ -822,6 +823,7 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
   if (const char* env = std::getenv("RELIEF_SUBVOXEL")) accelOptions.subVoxelGrid = std::string_view(env) == "grid";
   if (const char* env = std::getenv("RELIEF_SUBTREES")) accelOptions.learnSubtrees = std::string_view(env) != "0";
   if (const char* env = std::getenv("RELIEF_PROXIES")) accelOptions.voxelProxies = std::string_view(env) != "0";
+  if (const char* env = std::getenv("RELIEF_OUTSIDE")) accelOptions.outsideTriangles = std::string_view(env) != "0";
   std::unique_ptr<relief::Accelerator> accel;
   if (cl.accel == "grid") {
     accel = relief::makeGridAccelerator(scene, accelOptions);

@@ -437,10 +437,19 @@ TEST(VoxelStorage, MixedPackedAndFloatVerticesAndCoarseLatticesMatchBruteForce) 
   floor.P = {{-40, -40, -1.3f}, {40, -40, -1.3f}, {40, 40, -1.3f}, {-40, 40, -1.3f}, {0.5f, 0.5f, -1.3f}};
   floor.indices = {0, 1, 4, 1, 2, 4, 2, 3, 4, 3, 0, 4};
   scene.meshes.push_back(floor);
+  // Two tiny displaced triangles at the floor's far corners stretch the displaced geometry over
+  // the floor, so the floor is in the grid (not outside it, contributor_grid.h).
+  Mesh markers;
+  markers.P = {{-40, -40, -1.3f}, {-39.99f, -40, -1.3f}, {-40, -39.99f, -1.3f},
+               {40, 40, -1.3f}, {39.99f, 40, -1.3f}, {40, 39.99f, -1.3f}};
+  markers.indices = {0, 1, 2, 3, 4, 5};
+  markers.displacementIndex = 0;
+  scene.meshes.push_back(markers);
   for (int resolution : {0, 1, 2, 3}) {
     AccelOptions options;
     options.gridResolution = resolution;  // 0: automatic
     GridAccelerator accel(scene, options);
+    ASSERT_TRUE(accel.grid().outside().empty());
     ASSERT_GT(accel.positionStep(), 0.0f);
     EXPECT_LE(accel.positionStep(), accel.grid().padding());
     expectHitsMatchBruteForce(accel, scene, 200, 21);
@@ -452,6 +461,40 @@ TEST(VoxelStorage, MixedPackedAndFloatVerticesAndCoarseLatticesMatchBruteForce) 
     for (glm::vec3& p : m.P) p += offset;
   GridAccelerator accel(far, AccelOptions{});
   expectHitsMatchBruteForce(accel, far, 200, 23, offset);
+}
+
+// contributor_grid.h, "outside": with displaced geometry in the scene, the grid spans its reach
+// only; undisplaced triangles reaching beyond it (a wide floor, one far vertex) are intersected
+// through their own BVH, and hits, occlusion and the nearest-hit ties agree exactly with brute
+// force. An undisplaced triangle inside the reach stays in the grid; without displaced geometry
+// nothing is outside.
+TEST(VoxelStorage, UndisplacedTrianglesOutsideTheDisplacedGeometryMatchBruteForce) {
+  Scene scene = makeSphereScene(cacheOptions());
+  Mesh floor;
+  floor.P = {{-40, -40, -1.3f}, {40, -40, -1.3f}, {40, 40, -1.3f}, {-40, 40, -1.3f}, {0.5f, 0.5f, -1.3f},
+             {0.2f, 0.1f, 0.0f}, {0.3f, 0.1f, 0.0f}, {0.2f, 0.2f, 0.0f},     // inside the sphere's reach
+             {-0.9f, 0.0f, 0.2f}, {0.9f, 0.0f, 0.2f}, {0.0f, 900.0f, 0.3f}};  // one vertex far away
+  floor.indices = {0, 1, 4, 1, 2, 4, 2, 3, 4, 3, 0, 4, 5, 6, 7, 8, 9, 10};
+  scene.meshes.push_back(floor);
+  GridAccelerator accel(scene, AccelOptions{});
+  const uint32_t first = accel.grid().globalId(1, 0);
+  const std::vector<uint32_t> outside = {first, first + 1, first + 2, first + 3, first + 5};
+  EXPECT_EQ(std::vector<uint32_t>(accel.grid().outside().begin(), accel.grid().outside().end()), outside);
+  EXPECT_LT(accel.grid().bounds().hi.x, 2.0f);  // the grid fits the sphere, not the floor
+  expectHitsMatchBruteForce(accel, scene, 400, 31);
+  testing::BruteForce expected(scene, accel.positionStep());
+  int floorHits = 0;
+  for (const Ray& ray : testing::randomRays(400, 37, 3.0f, 1.2f)) {
+    const auto ref = expected.intersect(ray);
+    floorHits += ref && ref->mesh == 1;
+    EXPECT_EQ(accel.occluded(ray), ref.has_value());
+  }
+  EXPECT_GT(floorHits, 20);
+
+  Scene plain = scene;
+  for (Mesh& m : plain.meshes) m.displacementIndex = UINT32_MAX;
+  GridAccelerator undisplaced(plain, AccelOptions{});
+  EXPECT_TRUE(undisplaced.grid().outside().empty());
 }
 
 }  // namespace
