@@ -930,6 +930,10 @@ class RibParser {
   std::string recordingName_;
   int recordingLine_ = 0;
   int instanceDepth_ = 0;
+  // Budgets on what a scene expands to (execute, addMesh), past which reading stops with an error.
+  static constexpr uint64_t kMaxExpandedRequests = uint64_t(1) << 24;
+  static constexpr uint64_t kMaxInputTriangles = uint64_t(1) << 28;
+  uint64_t executedCalls_ = 0, inputTriangles_ = 0;
   int frameDepth_ = 0;
   int frameLine_ = 0;
   const bool listFrames_;
@@ -950,6 +954,11 @@ class RibParser {
 
 bool RibParser::execute(const Call& call) {
   const std::string& name = call.name;
+  // Nested ObjectInstance and ReadArchive multiply: 32 levels of two instances each are 4 billion
+  // requests. A budget on what the scene expands to keeps such a file from running for hours.
+  if (++executedCalls_ > kMaxExpandedRequests)
+    return fail(call.line, "the scene expands to more than " + std::to_string(kMaxExpandedRequests) +
+                               " requests (ObjectInstance or ReadArchive nested within each other?)");
   // Calls that cannot reach the frame being read: another frame's (FrameEnd restores the options
   // and the world ends inside the frame), or any after the frame was rendered. Only frame blocks
   // are followed, so that all are numbered and each must be closed.
@@ -2588,6 +2597,10 @@ bool RibParser::readArchive(const Call& call, const std::string& name) {
 
 bool RibParser::addMesh(Mesh mesh, int line) {
   if (mesh.indices.empty()) return true;
+  inputTriangles_ += mesh.numTriangles();
+  if (inputTriangles_ > kMaxInputTriangles)
+    return fail(line, "the scene has more than " + std::to_string(kMaxInputTriangles) +
+                          " input triangles (ObjectInstance or ReadArchive nested within each other?)");
   for (const glm::vec3& p : mesh.P)
     if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
       return fail(line, "geometry has non-finite coordinates after transformation");

@@ -483,6 +483,19 @@ TEST(RibReader, TruncatedFilesAreErrors) {
   EXPECT_NE(r.error.message.find("no 'WorldBegin'"), std::string::npos);
 }
 
+// Objects instancing the one before twice, 26 deep, expand to 2^26 requests: an error naming the
+// line where the budget ran out, within seconds, not hours.
+TEST(RibReader, ExponentialInstancingIsAnError) {
+  std::string text = "ObjectBegin 0\nColor 1 1 1\nObjectEnd\n";
+  for (int i = 1; i <= 26; ++i)
+    text += "ObjectBegin " + std::to_string(i) + "\nObjectInstance " + std::to_string(i - 1) +
+            "\nObjectInstance " + std::to_string(i - 1) + "\nObjectEnd\n";
+  ReadResult r = read(world(text + "ObjectInstance 26"));
+  ASSERT_FALSE(r.scene);
+  EXPECT_NE(r.error.message.find("the scene expands to more than 16777216 requests"), std::string::npos)
+      << r.error.format();
+}
+
 TEST(RibReader, MismatchedBlocksAreErrors) {
   ReadResult r = read(world("TransformBegin\nAttributeEnd"));
   ASSERT_FALSE(r.scene);
