@@ -9,6 +9,32 @@ namespace {
 
 bool finite(glm::vec3 v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
 
+// Whether triangle (a, b, c) may touch the box [lo, hi]: the separating-axis test on the
+// triangle's normal and the nine edge-by-axis directions (the three box axes are the caller's box
+// overlap). In double, with a relative slack, so rounding never separates a touching pair: a
+// false "may touch" costs a contributor entry, a false "cannot" a hole.
+bool triangleMayTouchBox(const glm::dvec3& lo, const glm::dvec3& hi, const glm::dvec3& a,
+                         const glm::dvec3& b, const glm::dvec3& c) {
+  const glm::dvec3 centre = 0.5 * (lo + hi), half = 0.5 * (hi - lo);
+  const glm::dvec3 v[3] = {a - centre, b - centre, c - centre};
+  const glm::dvec3 e[3] = {v[1] - v[0], v[2] - v[1], v[0] - v[2]};
+  auto separated = [&](const glm::dvec3& axis) {
+    const double p0 = glm::dot(v[0], axis), p1 = glm::dot(v[1], axis), p2 = glm::dot(v[2], axis);
+    const double r = half.x * std::fabs(axis.x) + half.y * std::fabs(axis.y) + half.z * std::fabs(axis.z);
+    const double scale = std::fabs(p0) + std::fabs(p1) + std::fabs(p2) + r;
+    const double slack = 1e-9 * scale;
+    return std::min({p0, p1, p2}) > r + slack || std::max({p0, p1, p2}) < -r - slack;
+  };
+  if (separated(glm::cross(e[0], e[1]))) return false;
+  for (const glm::dvec3& edge : e)
+    for (int k = 0; k < 3; ++k) {
+      glm::dvec3 unit(0.0);
+      unit[k] = 1.0;
+      if (separated(glm::cross(edge, unit))) return false;
+    }
+  return true;
+}
+
 }  // namespace
 
 Bounds3 triangleReach(const Mesh& mesh, uint32_t triangle, float grow) {
@@ -104,6 +130,20 @@ ContributorGrid::ContributorGrid(const Scene& scene, const AccelOptions& options
     lo = glm::clamp(glm::ivec3(glm::floor(a)), glm::ivec3(0), resolution_ - 1);
     hi = glm::clamp(glm::ivec3(glm::floor(b)), glm::ivec3(0), resolution_ - 1);
   };
+  // A triangle spanning several voxels is listed only in those its plane-and-edges shape may
+  // reach (the voxel grown by the padding and the displacement bound: the grown triangle lies
+  // within the triangle swept by a cube of that half-size), not in every voxel of its box: a
+  // sliver across the scene (a fan of a 100,000-point polygon) would otherwise fill whole planes
+  // of voxels.
+  auto mayTouch = [&](uint32_t id, int x, int y, int z) {
+    const auto [m, t] = split(id);
+    const Mesh& mesh = scene.meshes[m];
+    const float grow = displacements_[m] ? std::max(0.0f, displacements_[m]->boundWorld) : 0.0f;
+    const glm::dvec3 lo = glm::dvec3(bounds_.lo) + glm::dvec3(x, y, z) * double(voxelSize_) - double(padding_ + grow);
+    const glm::dvec3 hi = lo + glm::dvec3(double(voxelSize_) + 2.0 * double(padding_ + grow));
+    return triangleMayTouchBox(lo, hi, mesh.P[mesh.indices[3 * size_t(t)]], mesh.P[mesh.indices[3 * size_t(t) + 1]],
+                               mesh.P[mesh.indices[3 * size_t(t) + 2]]);
+  };
   for (int pass = 0; pass < 2; ++pass) {
     std::vector<uint32_t> cursor;
     if (pass == 1) {
@@ -115,9 +155,11 @@ ContributorGrid::ContributorGrid(const Scene& scene, const AccelOptions& options
       if (boxes[id].empty()) continue;
       glm::ivec3 lo, hi;
       cellRange(boxes[id], lo, hi);
+      const bool single = lo == hi;
       for (int z = lo.z; z <= hi.z; ++z)
         for (int y = lo.y; y <= hi.y; ++y)
           for (int x = lo.x; x <= hi.x; ++x) {
+            if (!single && !mayTouch(id, x, y, z)) continue;
             const uint32_t v = voxelIndex({x, y, z});
             if (pass == 0) ++offsets_[v + 1];
             else ids_[cursor[v]++] = id;

@@ -1050,7 +1050,7 @@ bool RibParser::executeCamera(const Call& call, bool* handled) {
                                          "Hider", "PixelVariance", "Quantize", "DepthOfField",
                                          "Shutter"};
   if (inWorld_ && std::find(std::begin(kOptions), std::end(kOptions), n) != std::end(kOptions)) {
-    warnOnce(call.line, "inworld/" + std::to_string(call.line),
+    warnOnce(call.line, "inworld/" + fileName_ + ":" + std::to_string(call.line) + "/" + n,
              "'" + n + "' inside the world block (WorldBegin at line " + std::to_string(worldLine_) +
                  ") is ignored: options must come before WorldBegin");
     return true;

@@ -86,8 +86,8 @@ struct ShaderProblemCounts {
   // Edges that still wanted splitting at the subdivision depth guard (coarser than edgelength).
   std::atomic<uint64_t> depthLimited{0};
   // Work guard (setSubdivisionLimits in subdivide.h): shader points evaluated beyond what each
-  // subdivision's undisplaced triangle could justify, the limit past which the subdivision is
-  // deemed runaway (0: unguarded), and whether it was passed. Once set, subdivisions stop early
+  // subdivision's undisplaced triangle could justify (summed, for reports), the excess past which
+  // one subdivision is deemed runaway (0: unguarded), and whether one passed it. Once set, subdivisions stop early
   // and the render loop stops; the caller reports it as an error.
   std::atomic<uint64_t> excessPoints{0};
   uint64_t pointLimit = 0;

@@ -777,8 +777,8 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
       out.ids.push_back((code << kMicroRankBits) | rank);
     };
     // The work guard (setSubdivisionLimits): points beyond kRunawayAllowance times what the
-    // undisplaced triangle asks for are excess, counted a round at a time (one runaway
-    // subdivision takes seconds), per Displacement.
+    // undisplaced triangle asks for are this subdivision's excess, checked a round at a time (one
+    // runaway subdivision takes seconds).
     const uint64_t allowance =
         kRunawayAllowance << (2 * undisplacedLevels(p, disp.edgeLength, maxDepth));
     uint64_t pointsCounted = allowance;  // points of this subdivision counted so far, past the allowance
@@ -788,8 +788,12 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
       if (!pc || !pc->pointLimit || spent <= pointsCounted) return;
       const uint64_t excess = spent - pointsCounted;
       pointsCounted = spent;
-      const uint64_t total = pc->excessPoints.fetch_add(excess, std::memory_order_relaxed) + excess;
-      if (total > pc->pointLimit) pc->runaway.store(true, std::memory_order_relaxed);
+      bool runaway = spent - allowance > pc->pointLimit;
+      if (spent > kGrossExcess * allowance) {
+        const uint64_t total = pc->excessPoints.fetch_add(excess, std::memory_order_relaxed) + excess;
+        runaway = runaway || total > kRunawaySubdivisions * pc->pointLimit;
+      }
+      if (runaway) pc->runaway.store(true, std::memory_order_relaxed);
     };
     for (int round = 0; !active.empty(); ++round) {
       countGuardWork();

@@ -152,15 +152,20 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
 // k halvings to reach edgelength (k at most the depth guard) asks for 4^k micro-triangles, and
 //  - a Displacement whose triangles ask for more than kMaxEstimatedMicroTriangles in all is
 //    reported before rendering (the caller stops: no render could make that many);
-//  - a subdivision that evaluates more than kRunawayAllowance * 4^k shader points (a displaced
-//    surface 64 times the area of its triangle) counts the rest as excess, a round at a time;
-//    once a Displacement's excess passes kRunawayPoints (a few seconds of work) it is marked
-//    runaway: subdivisions stop early, the render loop stops, and the caller reports the error.
-//    Each subdivision is judged alone, so refills under a small cache budget, however many,
-//    never trip it.
+//  - points a subdivision evaluates beyond kRunawayAllowance * 4^k (a displaced surface 64 times
+//    the area of its triangle) are its excess, checked a round at a time. A Displacement is
+//    marked runaway when one subdivision's excess passes kRunawayPoints (about a second of
+//    work), or when the excess of its grossly excessive subdivisions (more than kGrossExcess
+//    times the allowance: a surface over 1000 times its triangle's area) adds up to
+//    kRunawaySubdivisions times that; per-voxel fills cull a runaway triangle to pieces that
+//    each stay under the first limit. Then subdivisions stop early, the render loop stops, and
+//    the caller reports the error. A surface within 1000 times its area never adds up, however
+//    often refills under a small budget subdivide it again.
 constexpr double kMaxEstimatedMicroTriangles = 68719476736.0;  // 2^36
 constexpr uint64_t kRunawayAllowance = 64;
-constexpr uint64_t kRunawayPoints = uint64_t(1) << 23;
+constexpr uint64_t kGrossExcess = 16;
+constexpr uint64_t kRunawayPoints = uint64_t(1) << 20;
+constexpr uint64_t kRunawaySubdivisions = 8;
 
 // The k above: halvings of the longest edge of triangle p to reach edgeLength, at most maxDepth.
 int undisplacedLevels(const glm::vec3 p[3], float edgeLength, int maxDepth);

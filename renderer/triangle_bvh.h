@@ -43,13 +43,15 @@ class TriangleBvh {
 template <class TMax, class Visit>
 void TriangleBvh::forEach(const Ray& ray, float tMin, TMax tMax, Visit visit) const {
   if (nodes_.empty()) return;
-  const glm::vec3 inv = 1.0f / ray.direction;  // infinities on zero components are fine below
+  // + 0.0f turns -0 into +0, so a zero component gives +inf on both slabs alike (an origin on a
+  // face then gives NaN, which the comparisons below ignore).
+  const glm::vec3 inv = 1.0f / (ray.direction + 0.0f);
   auto enter = [&](const Node& n, float& tNear) {
     float t0 = tMin, t1 = tMax();
     for (int a = 0; a < 3; ++a) {
       float ta = (n.lo[a] - ray.origin[a]) * inv[a], tb = (n.hi[a] - ray.origin[a]) * inv[a];
       if (ta > tb) std::swap(ta, tb);
-      // NaN (0 * inf on a face) must not exclude the box: comparisons keep the other bound.
+      // NaN (0 * inf on a face) must not exclude the box: the comparisons keep the other bound.
       t0 = ta > t0 ? ta : t0;
       t1 = tb < t1 ? tb : t1;
     }

@@ -213,7 +213,11 @@ TEST(GridAccelerator, MalformedRaysNeverHit) {
 
 // The contributor grid lists every triangle in every voxel its box, grown by the displacement
 // bound, overlaps; an explicit resolution is honoured along the longest axis.
-TEST(ContributorGrid, ListsTrianglesInEveryOverlappedVoxel) {
+// Each triangle is listed in every voxel its shape, grown by the displacement bound, may reach
+// (checked on a lattice of points on the triangle: a point within the grown voxel means listed),
+// never in a voxel its grown box misses, and not in every voxel of its box: the diagonal triangles
+// of a coarse sphere skip voxels their box covers but their plane does not.
+TEST(ContributorGrid, ListsTrianglesInEveryVoxelTheirShapeMayReach) {
   SphereOptions o;
   o.nu = 12, o.nv = 6;
   const Scene scene = makeSphereScene(o);
@@ -223,28 +227,39 @@ TEST(ContributorGrid, ListsTrianglesInEveryOverlappedVoxel) {
   EXPECT_EQ(std::max({grid.resolution().x, grid.resolution().y, grid.resolution().z}), 7);
   const Mesh& mesh = scene.meshes[0];
   const float bound = scene.displacements[0].boundWorld;
-  uint64_t expectedEntries = 0;
+  uint64_t expectedEntries = 0, boxEntries = 0;
   for (uint32_t v = 0; v < grid.numVoxels(); ++v) {
     const Bounds3 box = grid.voxelBounds(v);
+    Bounds3 reach = box;  // shrunk a little: shapes that merely touch may go either way
+    reach.lo -= glm::vec3(bound - 1e-3f), reach.hi += glm::vec3(bound - 1e-3f);
     std::set<uint32_t> listed(grid.contributors(v).begin(), grid.contributors(v).end());
     for (uint32_t t = 0; t < mesh.numTriangles(); ++t) {
-      Bounds3 tb;
-      for (int c = 0; c < 3; ++c) tb.extend(mesh.P[mesh.indices[3 * t + c]]);
-      // Shrunk a little: boxes that merely touch may go either way.
-      tb.lo -= glm::vec3(bound) - glm::vec3(1e-3f), tb.hi += glm::vec3(bound) - glm::vec3(1e-3f);
-      if (tb.overlaps(box)) {
+      const glm::vec3 a = mesh.P[mesh.indices[3 * t]], b = mesh.P[mesh.indices[3 * t + 1]],
+                      c = mesh.P[mesh.indices[3 * t + 2]];
+      bool reaches = false;
+      constexpr int kSteps = 24;
+      for (int i = 0; i <= kSteps && !reaches; ++i)
+        for (int j = 0; i + j <= kSteps && !reaches; ++j) {
+          const glm::vec3 p = a + (b - a) * (float(i) / kSteps) + (c - a) * (float(j) / kSteps);
+          reaches = glm::all(glm::greaterThanEqual(p, reach.lo)) && glm::all(glm::lessThanEqual(p, reach.hi));
+        }
+      if (reaches) {
         EXPECT_TRUE(listed.count(grid.globalId(0, t))) << "voxel " << v << " triangle " << t;
       }
-      // Far away triangles are not listed.
+      Bounds3 tb;
+      for (const glm::vec3& p : {a, b, c}) tb.extend(p);
       Bounds3 grown = tb;
-      grown.lo -= glm::vec3(0.01f), grown.hi += glm::vec3(0.01f);
+      grown.lo -= glm::vec3(bound + 0.01f), grown.hi += glm::vec3(bound + 0.01f);
       if (!grown.overlaps(box)) {
         EXPECT_FALSE(listed.count(grid.globalId(0, t)));
       }
+      tb.lo -= glm::vec3(bound), tb.hi += glm::vec3(bound);
+      boxEntries += tb.overlaps(box);  // what listing by boxes gives
     }
     expectedEntries += listed.size();
   }
   EXPECT_EQ(expectedEntries, grid.numEntries());
+  EXPECT_LT(grid.numEntries(), boxEntries);  // fewer than listing by boxes
   // Automatic resolution: bounded, and at least 4 displacement bounds per voxel.
   const ContributorGrid automatic(scene, AccelOptions{});
   EXPECT_GE(automatic.voxelSize(), 4.0f * bound * 0.99f);

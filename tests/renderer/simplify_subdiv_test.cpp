@@ -298,14 +298,37 @@ TEST(Simplify, WorkGuardStopsRunawaySubdivisionsOnly) {
   ASSERT_EQ(estimate.size(), 1u);
   EXPECT_EQ(estimate[0], 2 * 16.0);
   EXPECT_EQ(d.problems->pointLimit, kRunawayPoints);
-  d.problems->pointLimit = 1000;  // a small limit keeps the test quick
+  // One subdivision past the limit (small, to keep the test quick) stops at once.
+  d.problems->pointLimit = 1000;
   MicroMesh guarded;
   subdivideTriangle(scene.meshes[0], 0, &d, guarded, counters);
   EXPECT_TRUE(d.problems->runaway.load());
   EXPECT_TRUE(subdivisionRanAway(scene));
-  EXPECT_GT(d.problems->excessPoints.load(), 1000u);
   EXPECT_LT(guarded.numTriangles(), unguarded.numTriangles() / 4);  // stopped rounds early
   EXPECT_GT(unguarded.numTriangles(), 64u * 16u);
+
+  // Subdivisions each under the limit but over 16 times the allowance add up to a stop, after a
+  // few (their sum must pass 8 times the limit).
+  const uint64_t perSubdivision = [&] {
+    SubdivideCounters c;
+    MicroMesh mm;
+    Displacement free = makeDisplacement(runawayEntry, 0.0f, 0.0f, 0.5f, 8, 0.0f);
+    subdivideTriangle(scene.meshes[0], 0, &free, mm, c);
+    return c.shaderPoints;
+  }() - 64 * 16;
+  ASSERT_GT(perSubdivision, 16u * 64 * 16);
+  d.problems->runaway = false;
+  d.problems->excessPoints = 0;
+  d.problems->pointLimit = perSubdivision + 1000;
+  int subdivisions = 0;
+  while (!d.problems->runaway.load() && subdivisions < 20) {
+    MicroMesh mm;
+    subdivideTriangle(scene.meshes[0], 0, &d, mm, counters);
+    ++subdivisions;
+  }
+  EXPECT_TRUE(d.problems->runaway.load());
+  EXPECT_GE(subdivisions, 8);
+  EXPECT_LT(subdivisions, 20);
 
   // A bumpy surface at the same settings stays within its allowance, subdivided 50 times over.
   Scene bumpy;
