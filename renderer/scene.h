@@ -83,7 +83,8 @@ struct ShaderProblemCounts {
   // which order like the floats for non-negative values, so an atomic max needs no lock.
   std::atomic<uint64_t> outOfBound{0};
   std::atomic<uint32_t> maxExcessBits{0};
-  // Edges that still wanted splitting at the subdivision depth guard (coarser than edgelength).
+  // Edges that still wanted splitting at the subdivision depth guard. Not a warning of its own:
+  // every step in a displacement (grooves) leaves such edges; it names the cause of a runaway.
   std::atomic<uint64_t> depthLimited{0};
   // Work guard (setSubdivisionLimits in subdivide.h): shader points evaluated beyond what each
   // subdivision's undisplaced triangle could justify (summed, for reports), the excess past which

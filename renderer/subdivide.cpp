@@ -163,8 +163,22 @@ struct TriangleFrame {
 
 bool finite(glm::vec3 v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
 
-TriangleFrame makeFrame(const glm::vec3 p[3], const glm::vec3 n[3], const glm::vec2 uv[3],
+// Whether (u, v) corners q map the triangle one to one: degenerate relative to their own edges,
+// since polygons take object-space (x, y) as (u, v) and an absolute threshold would depend on units.
+bool regularMap(const glm::vec2 q[3]) {
+  const glm::vec2 d1 = q[1] - q[0], d2 = q[2] - q[0];
+  const float det = d1.x * d2.y - d1.y * d2.x;
+  return det != 0.0f && std::fabs(det) > 1e-6f * glm::length(d1) * glm::length(d2) && std::isfinite(det);
+}
+
+TriangleFrame makeFrame(const glm::vec3 p[3], const glm::vec3 n[3], const glm::vec2 uvIn[3],
                         const glm::vec2 st[3], bool smoothNormals) {
+  // The derivatives (dPdu, dPdv, the s, t and N seeds, du and dv) need a regular map from the
+  // triangle. Where (u, v) is degenerate (a polygon seen edge-on from the z axis takes its
+  // object-space (x, y) as (u, v), RI spec) they come from st when that is regular, else from
+  // the corners' barycentric map; the shader still reads the true u and v.
+  static const glm::vec2 corner[3] = {{0, 0}, {1, 0}, {0, 1}};
+  const glm::vec2* uv = regularMap(uvIn) ? uvIn : regularMap(st) ? st : corner;
   TriangleFrame f;
   glm::vec3 e1 = p[1] - p[0], e2 = p[2] - p[0];
   glm::vec3 ng = glm::cross(e1, e2);

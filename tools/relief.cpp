@@ -435,10 +435,6 @@ void reportShaderProblems(const relief::Scene& scene, std::ostream& out) {
     report(p->unknownSpace, "unknown coordinate space names were treated as 'current'");
     report(p->textureErrors, "texture lookups failed");
     report(p->splineBasis, "spline calls named an unknown or unfit basis (catmull-rom was used)");
-    if (const uint64_t n = p->depthLimited.load())
-      warn() << ": " << n << " edges were still longer than the edge length " << d.edgeLength
-             << " at the subdivision depth limit of " << d.maxDepth
-             << "; the surface is coarser there than asked\n";
     if (const uint64_t n = p->outOfBound.load()) {
       float excess;
       const uint32_t bits = p->maxExcessBits.load();

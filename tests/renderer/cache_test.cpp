@@ -490,6 +490,23 @@ TEST(VoxelStorage, UndisplacedTrianglesOutsideTheDisplacedGeometryMatchBruteForc
     EXPECT_EQ(accel.occluded(ray), ref.has_value());
   }
   EXPECT_GT(floorHits, 20);
+  // Segments (shadow rays) and rays starting past the first hit agree too.
+  for (Ray ray : testing::randomRays(300, 41, 3.0f, 1.2f)) {
+    const auto first = expected.intersect(ray);
+    if (!first) continue;
+    Ray shorter = ray, later = ray;
+    shorter.tMax = first->t * 0.999f;
+    later.tMin = first->t * 1.001f;
+    EXPECT_FALSE(accel.occluded(shorter));
+    EXPECT_FALSE(accel.intersect(shorter).has_value());
+    const auto beyond = expected.intersect(later);
+    const auto got = accel.intersect(later);
+    ASSERT_EQ(got.has_value(), beyond.has_value());
+    if (got) {
+      EXPECT_EQ(got->t, beyond->t);
+    }
+    EXPECT_EQ(accel.occluded(later), beyond.has_value());
+  }
 
   Scene plain = scene;
   for (Mesh& m : plain.meshes) m.displacementIndex = UINT32_MAX;

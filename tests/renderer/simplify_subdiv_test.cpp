@@ -345,5 +345,36 @@ TEST(Simplify, WorkGuardStopsRunawaySubdivisionsOnly) {
   EXPECT_FALSE(subdivisionRanAway(bumpy));
 }
 
+// Records the first point's dPdu and dPdv, and leaves P where it is.
+glm::vec3 seenDPdu, seenDPdv;
+void recordFrameEntry(const RlfShadingBatch* b, const void*, RlfStatus*) {
+  seenDPdu = {b->dPdu.x[0], b->dPdu.y[0], b->dPdu.z[0]};
+  seenDPdv = {b->dPdv.x[0], b->dPdv.y[0], b->dPdv.z[0]};
+  for (uint32_t i = 0; i < b->count; ++i) {
+    b->Pout.x[i] = b->P.x[i], b->Pout.y[i] = b->P.y[i], b->Pout.z[i] = b->P.z[i];
+    b->Nout.x[i] = b->N.x[i], b->Nout.y[i] = b->N.y[i], b->Nout.z[i] = b->N.z[i];
+  }
+}
+
+// A polygon in the plane x = 0 has a degenerate (u, v) = object (x, y) (RI spec); its derivatives
+// then follow st, so texture filter widths stay right on walls seen edge-on from z.
+TEST(Subdivide, DegenerateSurfaceParametersTakeTheFrameFromSt) {
+  Mesh wall;
+  wall.P = {{0, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+  wall.uv = {{0, 0}, {0, 1}, {0, 0}};
+  wall.st = {{0, 0}, {2, 0}, {0, 4}};
+  wall.indices = {0, 1, 2};
+  const Displacement d = makeDisplacement(recordFrameEntry, 0.0f, 0.0f, 10.0f, 4, 0.0f);
+  MicroMesh mm;
+  SubdivideCounters counters;
+  subdivideTriangle(wall, 0, &d, mm, counters);
+  EXPECT_EQ(seenDPdu, glm::vec3(0, 0.5f, 0));   // dP/ds
+  EXPECT_EQ(seenDPdv, glm::vec3(0, 0, 0.25f));  // dP/dt
+  wall.uv = {{0, 0}, {1, 0}, {0, 1}};           // a regular (u, v) is used as it is
+  subdivideTriangle(wall, 0, &d, mm, counters);
+  EXPECT_EQ(seenDPdu, glm::vec3(0, 1, 0));
+  EXPECT_EQ(seenDPdv, glm::vec3(0, 0, 1));
+}
+
 }  // namespace
 }  // namespace relief
