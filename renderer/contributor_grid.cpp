@@ -121,7 +121,6 @@ ContributorGrid::ContributorGrid(const Scene& scene, const AccelOptions& options
     bounds_.hi[a] = bounds_.lo[a] + float(resolution_[a]) * voxelSize_;
   }
 
-  // Two passes over the triangles (count, then fill) give compressed rows without per-voxel vectors.
   const size_t numVoxels = size_t(resolution_.x) * resolution_.y * resolution_.z;
   offsets_.assign(numVoxels + 1, 0);
   auto cellRange = [&](const Bounds3& box, glm::ivec3& lo, glm::ivec3& hi) {
@@ -135,37 +134,54 @@ ContributorGrid::ContributorGrid(const Scene& scene, const AccelOptions& options
   // within the triangle swept by a cube of that half-size), not in every voxel of its box: a
   // sliver across the scene (a fan of a 100,000-point polygon) would otherwise fill whole planes
   // of voxels.
-  auto mayTouch = [&](uint32_t id, int x, int y, int z) {
+  // Blocks of voxels [lo, hi] are tested whole and halved until single voxels, so a big triangle
+  // costs tests near its surface only (the 100,000-point fan: 9.5 s of tests voxel by voxel).
+  // A block's grown box holds its voxels' grown boxes, so a block ruled out rules them all out.
+  struct Block {
+    glm::ivec3 lo, hi;
+  };
+  std::vector<Block> blocks;
+  auto forEachVoxel = [&](uint32_t id, glm::ivec3 lo, glm::ivec3 hi, auto&& emit) {
+    if (lo == hi) return emit(lo);
     const auto [m, t] = split(id);
     const Mesh& mesh = scene.meshes[m];
-    const float grow = displacements_[m] ? std::max(0.0f, displacements_[m]->boundWorld) : 0.0f;
-    const glm::dvec3 lo = glm::dvec3(bounds_.lo) + glm::dvec3(x, y, z) * double(voxelSize_) - double(padding_ + grow);
-    const glm::dvec3 hi = lo + glm::dvec3(double(voxelSize_) + 2.0 * double(padding_ + grow));
-    return triangleMayTouchBox(lo, hi, mesh.P[mesh.indices[3 * size_t(t)]], mesh.P[mesh.indices[3 * size_t(t) + 1]],
-                               mesh.P[mesh.indices[3 * size_t(t) + 2]]);
+    const double reach = double(padding_) + double(displacements_[m] ? std::max(0.0f, displacements_[m]->boundWorld) : 0.0f);
+    const glm::dvec3 a = mesh.P[mesh.indices[3 * size_t(t)]], b = mesh.P[mesh.indices[3 * size_t(t) + 1]],
+                     c = mesh.P[mesh.indices[3 * size_t(t) + 2]];
+    blocks.assign(1, Block{lo, hi});
+    while (!blocks.empty()) {
+      const Block k = blocks.back();
+      blocks.pop_back();
+      const glm::dvec3 boxLo = glm::dvec3(bounds_.lo) + glm::dvec3(k.lo) * double(voxelSize_) - reach;
+      const glm::dvec3 boxHi = glm::dvec3(bounds_.lo) + glm::dvec3(k.hi + 1) * double(voxelSize_) + reach;
+      if (!triangleMayTouchBox(boxLo, boxHi, a, b, c)) continue;
+      const glm::ivec3 size = k.hi - k.lo;
+      if (size == glm::ivec3(0)) {
+        emit(k.lo);
+        continue;
+      }
+      const int axis = size.x >= size.y && size.x >= size.z ? 0 : size.y >= size.z ? 1 : 2;
+      Block first = k, second = k;
+      first.hi[axis] = k.lo[axis] + size[axis] / 2;
+      second.lo[axis] = first.hi[axis] + 1;
+      blocks.push_back(second);
+      blocks.push_back(first);
+    }
   };
-  for (int pass = 0; pass < 2; ++pass) {
-    std::vector<uint32_t> cursor;
-    if (pass == 1) {
-      for (size_t v = 0; v < numVoxels; ++v) offsets_[v + 1] += offsets_[v];
-      ids_.resize(offsets_[numVoxels]);
-      cursor.assign(offsets_.begin(), offsets_.end() - 1);
-    }
-    for (uint32_t id = 0; id < numTriangles(); ++id) {
-      if (boxes[id].empty()) continue;
-      glm::ivec3 lo, hi;
-      cellRange(boxes[id], lo, hi);
-      const bool single = lo == hi;
-      for (int z = lo.z; z <= hi.z; ++z)
-        for (int y = lo.y; y <= hi.y; ++y)
-          for (int x = lo.x; x <= hi.x; ++x) {
-            if (!single && !mayTouch(id, x, y, z)) continue;
-            const uint32_t v = voxelIndex({x, y, z});
-            if (pass == 0) ++offsets_[v + 1];
-            else ids_[cursor[v]++] = id;
-          }
-    }
+  // The (voxel, triangle) pairs in triangle order, then a counting sort by voxel: each voxel's
+  // row lists its triangles in id order.
+  std::vector<std::pair<uint32_t, uint32_t>> pairs;
+  for (uint32_t id = 0; id < numTriangles(); ++id) {
+    if (boxes[id].empty()) continue;
+    glm::ivec3 lo, hi;
+    cellRange(boxes[id], lo, hi);
+    forEachVoxel(id, lo, hi, [&](glm::ivec3 cell) { pairs.emplace_back(voxelIndex(cell), id); });
   }
+  for (const auto& [v, id] : pairs) ++offsets_[v + 1];
+  for (size_t v = 0; v < numVoxels; ++v) offsets_[v + 1] += offsets_[v];
+  ids_.resize(offsets_[numVoxels]);
+  std::vector<uint32_t> cursor(offsets_.begin(), offsets_.end() - 1);
+  for (const auto& [v, id] : pairs) ids_[cursor[v]++] = id;
   live_ = std::make_unique<std::atomic<uint32_t>[]>(numVoxels);
   for (size_t v = 0; v < numVoxels; ++v)
     live_[v].store(offsets_[v + 1] - offsets_[v], std::memory_order_relaxed);
