@@ -133,10 +133,10 @@ ContributorGrid::ContributorGrid(const Scene& scene, const AccelOptions& options
   // reach (the voxel grown by the padding and the displacement bound: the grown triangle lies
   // within the triangle swept by a cube of that half-size), not in every voxel of its box: a
   // sliver across the scene (a fan of a 100,000-point polygon) would otherwise fill whole planes
-  // of voxels.
-  // Blocks of voxels [lo, hi] are tested whole and halved until single voxels, so a big triangle
-  // costs tests near its surface only (the 100,000-point fan: 9.5 s of tests voxel by voxel).
-  // A block's grown box holds its voxels' grown boxes, so a block ruled out rules them all out.
+  // of voxels. Blocks of voxels [lo, hi] are tested whole and halved until single voxels, so a
+  // big triangle costs tests near its surface only (the 100,000-point fan: 9.5 s of tests voxel
+  // by voxel); a block's grown box holds its voxels' grown boxes, so a block ruled out rules
+  // them all out.
   struct Block {
     glm::ivec3 lo, hi;
   };

@@ -600,10 +600,7 @@ SubtreeMemo* GridAccelerator::subtreeMemo(uint32_t id, int rounds) {
   if (d && d->edgeLength > 0.0f) {
     glm::vec3 p[3];
     for (int c = 0; c < 3; ++c) p[c] = mesh.P[mesh.indices[3 * size_t(triangle) + c]];
-    const float longest = std::max({glm::length(p[1] - p[0]), glm::length(p[2] - p[1]), glm::length(p[0] - p[2])});
-    int estimate = 1;
-    for (float l = longest; l > d->edgeLength && estimate <= kCullRounds; l *= 0.5f) ++estimate;
-    rounds = std::max(rounds, estimate);
+    rounds = std::max(rounds, 1 + undisplacedLevels(p, d->edgeLength, kCullRounds));
   }
   auto made = std::make_unique<SubtreeMemo>(reference, std::min(rounds, kCullRounds));
   if (subtreeMemos_[id].compare_exchange_strong(boxes, made.get(), std::memory_order_acq_rel)) {

@@ -87,9 +87,9 @@ struct ShaderProblemCounts {
   // every step in a displacement (grooves) leaves such edges; it names the cause of a runaway.
   std::atomic<uint64_t> depthLimited{0};
   // Work guard (setSubdivisionLimits in subdivide.h): shader points evaluated beyond what each
-  // subdivision's undisplaced triangle could justify (summed, for reports), the excess past which
-  // one subdivision is deemed runaway (0: unguarded), and whether one passed it. Once set, subdivisions stop early
-  // and the render loop stops; the caller reports it as an error.
+  // subdivision's undisplaced triangle could justify (summed over grossly excessive ones), the
+  // excess past which one subdivision is deemed runaway (0: unguarded), and whether one passed
+  // it. Once set, subdivisions stop early and the render loop stops; the caller reports it.
   std::atomic<uint64_t> excessPoints{0};
   uint64_t pointLimit = 0;
   std::atomic<bool> runaway{false};

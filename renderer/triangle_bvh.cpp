@@ -15,20 +15,27 @@ TriangleBvh::TriangleBvh(std::vector<glm::vec3> corners, std::vector<uint32_t> i
   std::vector<glm::vec3> centroids(n);
   for (uint32_t i = 0; i < n; ++i)
     centroids[i] = (corners[3 * size_t(i)] + corners[3 * size_t(i) + 1] + corners[3 * size_t(i) + 2]) / 3.0f;
-  corners_ = std::move(corners);
-  ids_ = std::move(ids);
-  // build() permutes corners_, ids_ and centroids together, range by range.
+  // build() reorders one permutation in place; corners and ids follow it once at the end.
+  std::vector<uint32_t> order(n);
+  std::iota(order.begin(), order.end(), 0u);
   nodes_.reserve(2 * size_t(n) / kLeafTriangles + 1);
-  build(0, n, centroids);
+  build(0, n, order, corners, centroids);
+  corners_.resize(corners.size());
+  ids_.resize(n);
+  for (uint32_t i = 0; i < n; ++i) {
+    for (int c = 0; c < 3; ++c) corners_[3 * size_t(i) + c] = corners[3 * size_t(order[i]) + c];
+    ids_[i] = ids[order[i]];
+  }
 }
 
-uint32_t TriangleBvh::build(uint32_t first, uint32_t end, std::vector<glm::vec3>& centroids) {
+uint32_t TriangleBvh::build(uint32_t first, uint32_t end, std::vector<uint32_t>& order,
+                            const std::vector<glm::vec3>& corners, const std::vector<glm::vec3>& centroids) {
   const uint32_t index = uint32_t(nodes_.size());
   nodes_.emplace_back();
   glm::vec3 lo(INFINITY), hi(-INFINITY), clo(INFINITY), chi(-INFINITY);
   for (uint32_t i = first; i < end; ++i) {
-    for (int c = 0; c < 3; ++c) lo = glm::min(lo, corners_[3 * size_t(i) + c]), hi = glm::max(hi, corners_[3 * size_t(i) + c]);
-    clo = glm::min(clo, centroids[i]), chi = glm::max(chi, centroids[i]);
+    for (int c = 0; c < 3; ++c) lo = glm::min(lo, corners[3 * size_t(order[i]) + c]), hi = glm::max(hi, corners[3 * size_t(order[i]) + c]);
+    clo = glm::min(clo, centroids[order[i]]), chi = glm::max(chi, centroids[order[i]]);
   }
   // A little slack so a triangle lying in a box face is never excluded by the box's rounding.
   const glm::vec3 pad = 1e-5f * (glm::abs(lo) + glm::abs(hi) + (hi - lo)) + 1e-30f;
@@ -40,25 +47,13 @@ uint32_t TriangleBvh::build(uint32_t first, uint32_t end, std::vector<glm::vec3>
     return index;
   }
   // Median split on the widest centroid axis: balanced, so the depth stays under the stack of
-  // forEach. Ties are broken by position in the range, which keeps the build deterministic.
+  // forEach. Ties are broken by triangle index, which keeps the build deterministic.
   const uint32_t mid = first + (end - first) / 2;
-  std::vector<uint32_t> perm(end - first);
-  std::iota(perm.begin(), perm.end(), first);
-  std::nth_element(perm.begin(), perm.begin() + (mid - first), perm.end(), [&](uint32_t a, uint32_t b) {
+  std::nth_element(order.begin() + first, order.begin() + mid, order.begin() + end, [&](uint32_t a, uint32_t b) {
     return centroids[a][axis] < centroids[b][axis] || (centroids[a][axis] == centroids[b][axis] && a < b);
   });
-  std::vector<glm::vec3> c(3 * perm.size()), cen(perm.size());
-  std::vector<uint32_t> id(perm.size());
-  for (size_t k = 0; k < perm.size(); ++k) {
-    for (int j = 0; j < 3; ++j) c[3 * k + size_t(j)] = corners_[3 * size_t(perm[k]) + size_t(j)];
-    cen[k] = centroids[perm[k]];
-    id[k] = ids_[perm[k]];
-  }
-  std::copy(c.begin(), c.end(), corners_.begin() + 3 * std::ptrdiff_t(first));
-  std::copy(cen.begin(), cen.end(), centroids.begin() + first);
-  std::copy(id.begin(), id.end(), ids_.begin() + first);
-  build(first, mid, centroids);
-  const uint32_t right = build(mid, end, centroids);
+  build(first, mid, order, corners, centroids);
+  const uint32_t right = build(mid, end, order, corners, centroids);
   nodes_[index].right = right;
   return index;
 }

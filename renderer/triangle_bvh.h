@@ -34,7 +34,9 @@ class TriangleBvh {
     uint32_t first = 0, count = 0;  // leaf: triangles [first, first + count); inner: count == 0
     uint32_t right = 0;             // inner: the second child (the first follows the node)
   };
-  uint32_t build(uint32_t first, uint32_t end, std::vector<glm::vec3>& centroids);
+  // Builds the node over triangles order[first, end) (and its subtree), reordering that range.
+  uint32_t build(uint32_t first, uint32_t end, std::vector<uint32_t>& order,
+                 const std::vector<glm::vec3>& corners, const std::vector<glm::vec3>& centroids);
   std::vector<Node> nodes_;
   std::vector<glm::vec3> corners_;  // 3 per triangle, in leaf order
   std::vector<uint32_t> ids_;       // in leaf order

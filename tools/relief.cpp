@@ -414,6 +414,19 @@ void printStats(const StatList& stats) {
     std::printf("%-*s  %s\n", int(width), key.c_str(), value.c_str());
 }
 
+// The largest distance beyond its bound a shader moved a point (kept as float bits, scene.h).
+float maxExcess(const relief::ShaderProblemCounts& p) {
+  float excess;
+  const uint32_t bits = p.maxExcessBits.load();
+  std::memcpy(&excess, &bits, 4);
+  return excess;
+}
+
+// Where the edge length of a Displacement came from, for the remedies of the work guard's errors.
+const char* edgeLengthSetting(bool fromCommandLine) {
+  return fromCommandLine ? "--edge-length" : "Attribute \"relief\" \"float edgelength\"";
+}
+
 // Runtime problems inside displacement shaders are counted, not thrown (abi.h); say so once per
 // Displacement call, naming the shader and where the scene bound it.
 void reportShaderProblems(const relief::Scene& scene, std::ostream& out) {
@@ -436,11 +449,8 @@ void reportShaderProblems(const relief::Scene& scene, std::ostream& out) {
     report(p->textureErrors, "texture lookups failed");
     report(p->splineBasis, "spline calls named an unknown or unfit basis (catmull-rom was used)");
     if (const uint64_t n = p->outOfBound.load()) {
-      float excess;
-      const uint32_t bits = p->maxExcessBits.load();
-      std::memcpy(&excess, &bits, 4);
       warn() << " moved " << n << " points beyond the displacement bound "
-          << d.boundWorld << " (world units), by up to " << excess
+          << d.boundWorld << " (world units), by up to " << maxExcess(*p)
           << "; rays may miss those parts: raise Attribute \"displacementbound\"\n";
     }
   }
@@ -467,18 +477,14 @@ void reportRunaway(const relief::Scene& scene, const std::vector<double>& estima
         << " times as many micro-triangles as their size and the edge length ask for (about "
         << formatCount(i < estimates.size() ? estimates[i] : 0.0) << " in all)";
     if (p->outOfBound.load()) {
-      float excess;
-      const uint32_t bits = p->maxExcessBits.load();
-      std::memcpy(&excess, &bits, 4);
-      out << "; it moves points up to " << excess << " beyond its displacement bound of "
+      out << "; it moves points up to " << maxExcess(*p) << " beyond its displacement bound of "
           << d.boundWorld << ", so its edges never get as short as " << d.edgeLength;
     } else if (p->depthLimited.load()) {
       out << "; its edges stay longer than " << d.edgeLength
           << " down to the subdivision depth limit of " << d.maxDepth
           << " (detail finer than the edge length everywhere)";
     }
-    out << "; rendering stopped: fix the shader or raise "
-        << (edgeFromCli ? "--edge-length" : "Attribute \"relief\" \"float edgelength\"") << "\n";
+    out << "; rendering stopped: fix the shader or raise " << edgeLengthSetting(edgeFromCli) << "\n";
   }
 }
 
@@ -796,8 +802,7 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
                 << d.shader->name() << "': an edge length of " << d.edgeLength << " asks for about "
                 << formatCount(estimates[i]) << " micro-triangles on the undisplaced surface alone, more than "
                 << formatCount(relief::kMaxEstimatedMicroTriangles) << "; raise "
-                << (cl.edgeLength > 0.0f ? "--edge-length" : "Attribute \"relief\" \"float edgelength\"")
-                << "\n";
+                << edgeLengthSetting(cl.edgeLength > 0.0f) << "\n";
       tooMuch = true;
     }
     if (tooMuch) return 1;
@@ -869,7 +874,7 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
   }
   const relief::RenderStats renderStats = relief::render(scene, *accel, renderOptions, &film, aovs);
   if (!cl.quiet) progress.finish();
-  if (relief::subdivisionRanAway(scene)) {
+  if (renderStats.stopped) {
     reportRunaway(scene, estimates, cl.edgeLength > 0.0f, std::cerr);
     return 1;
   }
