@@ -21,6 +21,7 @@
 #include "compiler/shader_library.h"
 #include "renderer/rib_reader.h"
 #include "renderer/subdivide.h"
+#include "renderer/ticks.h"
 #include "runtime/shader.h"
 
 namespace relief::bench {
@@ -125,7 +126,7 @@ void fill(benchmark::State& state, const std::string& sceneName, bool trivial, f
   }
   state.counters["tris/s"] = benchmark::Counter(double(triangles), benchmark::Counter::kIsRate);
   state.counters["shader_points/s"] = benchmark::Counter(
-      counters.displaceNanos ? 1e9 * double(counters.shaderPoints) / double(counters.displaceNanos) : 0.0,
+      counters.displaceTicks ? 1e9 * double(counters.shaderPoints) / (double(counters.displaceTicks) * nanosPerTick()) : 0.0,
       benchmark::Counter::kAvgThreads);
   state.counters["shader_points"] =
       benchmark::Counter(double(counters.shaderPoints), benchmark::Counter::kAvgIterations);

@@ -19,7 +19,7 @@ CameraRays::CameraRays(const Camera& camera, int width, int height)
     std::copy(camera.screenWindow, camera.screenWindow + 4, window_);
   } else {
     // RenderMan's default: [-1, 1] along the shorter image axis, the aspect ratio along the other.
-    const float aspect = width_ / height_;
+    const float aspect = width_ * camera.pixelAspect / height_;
     if (aspect >= 1.0f) {
       window_[0] = -aspect, window_[1] = aspect, window_[2] = -1.0f, window_[3] = 1.0f;
     } else {

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "renderer/subdivide.h"
+#include "renderer/ticks.h"
 
 #if RELIEF_HAVE_EMBREE
 #include <embree3/rtcore.h>
@@ -191,14 +192,14 @@ void EmbreeAccelerator::tessellate(const AccelOptions& options, int threads) {
   }
   for (const Chunk& c : chunks_) stats_.displacedTrianglesCreated += c.triangle.size();
   if (outOfMemory) throw std::bad_alloc();
-  uint64_t displaceNanos = 0;
+  uint64_t displaceTicks = 0;
   for (const SubdivideCounters& c : counters) {
     stats_.shaderPoints += c.shaderPoints;
-    displaceNanos += c.displaceNanos;
+    displaceTicks += c.displaceTicks;
   }
   stats_.uniqueDisplacedTriangles = stats_.displacedTrianglesCreated;
   stats_.peakResidentTriangles = stats_.residentTriangles = stats_.displacedTrianglesCreated;
-  stats_.displaceSeconds = double(displaceNanos) * 1e-9 / double(threads);
+  stats_.displaceSeconds = double(displaceTicks) * nanosPerTick() * 1e-9 / double(threads);
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   stats_.subdivideSeconds = std::max(0.0, wall - stats_.displaceSeconds);
 }

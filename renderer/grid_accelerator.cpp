@@ -12,13 +12,10 @@
 #include <unordered_map>
 
 #include "renderer/intersect.h"
+#include "renderer/ticks.h"
 
 #if defined(__SSE2__)
 #include <emmintrin.h>
-#endif
-#if defined(__x86_64__)
-#include <cpuid.h>
-#include <x86intrin.h>
 #endif
 
 namespace relief {
@@ -501,13 +498,6 @@ GridAccelerator::GridAccelerator(const Scene& scene, const AccelOptions& options
     }
     outside_ = TriangleBvh(std::move(corners), std::vector<uint32_t>(grid_.outside().begin(), grid_.outside().end()));
   }
-#if defined(__x86_64__)
-  // The counter serves as a clock only where it is invariant (CPUID 0x80000007, EDX bit 8).
-  unsigned eax = 0, ebx = 0, ecx = 0, edx = 0;
-  useTsc_ = __get_cpuid(0x80000007, &eax, &ebx, &ecx, &edx) && (edx >> 8 & 1);
-  tick0_ = useTsc_ ? __rdtsc() : 0;
-#endif
-  steady0_ = std::chrono::steady_clock::now();
   const char* env = std::getenv("RELIEF_CHECK_BUDGET");
   cache_->setCheckBudget(options.checkBudget || (env && std::string_view(env) == "1"));
   if (grid_.anyDisplaced() && (options.sideCacheTriangles || options.learnSubtrees)) {
@@ -549,7 +539,7 @@ float GridAccelerator::choosePositionStep() const {
 
 void GridAccelerator::addCounters(const SubdivideCounters& counters) {
   shaderPoints_.fetch_add(counters.shaderPoints, std::memory_order_relaxed);
-  displaceNanos_.fetch_add(counters.displaceNanos, std::memory_order_relaxed);
+  displaceTicks_.fetch_add(counters.displaceTicks, std::memory_order_relaxed);
   simplifyBefore_.fetch_add(counters.trianglesBeforeSimplification, std::memory_order_relaxed);
   simplifyAfter_.fetch_add(counters.trianglesAfterSimplification, std::memory_order_relaxed);
   if (counters.status.nonFinite) nonFinite_.fetch_add(counters.status.nonFinite);
@@ -965,24 +955,6 @@ void GridAccelerator::intersectVoxel(uint32_t voxel, const WatertightRay& wr, co
   cache_->release(voxel);
 }
 
-uint64_t GridAccelerator::rayTicks() const {
-#if defined(__x86_64__)
-  if (useTsc_) return __rdtsc();
-#endif
-  return uint64_t(std::chrono::duration_cast<std::chrono::nanoseconds>(
-                      std::chrono::steady_clock::now().time_since_epoch())
-                      .count());
-}
-
-double GridAccelerator::tickNanos() const {
-  if (!useTsc_) return 1.0;
-  const double nanos = double(std::chrono::duration_cast<std::chrono::nanoseconds>(
-                                  std::chrono::steady_clock::now() - steady0_)
-                                  .count());
-  const uint64_t ticks = rayTicks() - tick0_;
-  return ticks > 0 && nanos > 0.0 ? nanos / double(ticks) : 0.0;
-}
-
 uint64_t GridAccelerator::nextStamp() {
   // Stamps are taken from the shared clock in blocks, so the one shared write on the ray path
   // happens once per kStampBlock rays: threads' stamps then agree to within a block, which LRU
@@ -1000,7 +972,7 @@ uint64_t GridAccelerator::nextStamp() {
 }
 
 void GridAccelerator::addTraverseTime(uint64_t startTicks) {
-  const uint64_t end = rayTicks();
+  const uint64_t end = readTicks();
   // A thread moved between cores whose counters disagree must not add a wrapped-around span.
   if (end <= startTicks) return;
   traverseNanos_[cacheThreadShard() % kTimeShards].ticks.fetch_add(end - startTicks, std::memory_order_relaxed);
@@ -1053,7 +1025,7 @@ void GridAccelerator::traverse(const Ray& ray, Best& best) {
 
 std::optional<Hit> GridAccelerator::intersect(const Ray& ray) {
   Best best;
-  const uint64_t start = rayTicks();
+  const uint64_t start = readTicks();
   traverse<false>(ray, best);
   addTraverseTime(start);
   if (!best.found) return std::nullopt;
@@ -1084,7 +1056,7 @@ std::optional<Hit> GridAccelerator::intersect(const Ray& ray) {
 
 bool GridAccelerator::occluded(const Ray& ray) {
   Best best;
-  const uint64_t start = rayTicks();
+  const uint64_t start = readTicks();
   traverse<true>(ray, best);
   addTraverseTime(start);
   return best.found;
@@ -1098,7 +1070,7 @@ AccelStats GridAccelerator::stats() const {
   s.gridResolution = grid_.resolution();
   uint64_t traverse = 0;
   for (const TimeShard& shard : traverseNanos_) traverse += shard.ticks.load(std::memory_order_relaxed);
-  traverse = uint64_t(double(traverse) * tickNanos());
+  traverse = uint64_t(double(traverse) * nanosPerTick());
   // Without displacement the cache holds input triangles only: none of its counts are about
   // displaced geometry, which is what the statistics report (docs/statistics.md), and building a
   // voxel of input triangles counts as intersecting it.
@@ -1126,7 +1098,7 @@ AccelStats GridAccelerator::stats() const {
   s.shaderPoints = shaderPoints_.load(std::memory_order_relaxed);
   s.trianglesBeforeSimplification = simplifyBefore_.load(std::memory_order_relaxed);
   s.trianglesAfterSimplification = simplifyAfter_.load(std::memory_order_relaxed);
-  const double displace = double(displaceNanos_.load(std::memory_order_relaxed)) * 1e-9;
+  const double displace = double(displaceTicks_.load(std::memory_order_relaxed)) * nanosPerTick() * 1e-9;
   s.displaceSeconds = displace;
   const double fill = double(fillNanos_.load(std::memory_order_relaxed)) * 1e-9;
   s.subdivideSeconds = std::max(0.0, fill - displace);

@@ -61,10 +61,6 @@ class GridAccelerator final : public Accelerator {
   SubtreeMemo* subtreeMemo(uint32_t id, int rounds);
   void addCounters(const SubdivideCounters& counters);
   float choosePositionStep() const;
-  // Reads of the per-ray clock: CPU time-stamp counter ticks where it is invariant (x86-64),
-  // nanoseconds otherwise; tickNanos() converts (docs/statistics.md, time.intersect_s).
-  uint64_t rayTicks() const;
-  double tickNanos() const;
   void addTraverseTime(uint64_t startTicks);
 
   const Scene& scene_;
@@ -85,7 +81,7 @@ class GridAccelerator final : public Accelerator {
   std::vector<std::atomic<uint8_t>> voxelCounted_;  // per voxel: its unique triangles counted
   std::vector<std::atomic<uint8_t>> knownEmpty_;    // per voxel: filled once with no triangles
   std::vector<uint8_t> sharedContributor_;  // per input triangle: listed in 2+ voxels (side cache, memo)
-  std::atomic<uint64_t> uniqueTriangles_{0}, shaderPoints_{0}, fillNanos_{0}, displaceNanos_{0};
+  std::atomic<uint64_t> uniqueTriangles_{0}, shaderPoints_{0}, fillNanos_{0}, displaceTicks_{0};
   std::atomic<uint64_t> maxVoxelTriangles_{0};
   std::atomic<uint64_t> droppedContributors_{0};
   std::atomic<uint64_t> simplifyBefore_{0}, simplifyAfter_{0};
@@ -107,14 +103,9 @@ class GridAccelerator final : public Accelerator {
   std::atomic<uint64_t> proxyBytes_{0};
   std::atomic<uint64_t> sideHits_{0}, sideMisses_{0}, sidePeak_{0};
   // Traversal time per ray, fills included (they are subtracted in stats()), summed per thread
-  // shard so that the two clock reads per ray are the only cost on the ray path. They read the
-  // time-stamp counter where it runs at a constant rate (clock_gettime cost 25 ns a call here:
-  // 5% of an intersection-bound render), calibrated against steady_clock between construction
-  // and stats().
+  // shard so that the two clock reads per ray (readTicks, ticks.h) are the only cost on the ray
+  // path.
   static constexpr int kTimeShards = 16;
-  bool useTsc_ = false;
-  uint64_t tick0_ = 0;
-  std::chrono::steady_clock::time_point steady0_;
   struct alignas(64) TimeShard {
     std::atomic<uint64_t> ticks{0};
     std::atomic<uint64_t> proxySkips{0};  // voxels a ray passed on their proxy alone

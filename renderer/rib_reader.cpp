@@ -12,6 +12,7 @@
 #include <functional>
 #include <map>
 #include <ostream>
+#include <optional>
 #include <set>
 #include <sstream>
 #include <utility>
@@ -320,6 +321,9 @@ struct StackEntry {
   AttributeState state;
   bool attribute = true;  // AttributeBegin (else TransformBegin)
   int line = 0;
+  // ScopedCoordinateSystem names defined in this attribute block, with what they meant before
+  // (nothing: undefined), restored at its AttributeEnd.
+  std::vector<std::pair<std::string, std::optional<glm::mat4>>> scopedSpaces;
 };
 
 class RibParser {
@@ -947,9 +951,11 @@ class RibParser {
   bool inWorld_ = false, worldDone_ = false;
   int worldLine_ = 0;
   int archiveDepth_ = 0;
-  std::map<std::string, glm::mat4> coordinateSystems_;  // name -> worldFromNamed (or camera)
+  // name -> worldFromNamed; before WorldBegin, cameraFromNamed for the names in
+  // spacesBeforeWorld_ (the world is not placed yet), made world-relative at WorldBegin.
+  std::map<std::string, glm::mat4> coordinateSystems_;
+  std::set<std::string> spacesBeforeWorld_;
   float frameAspect_ = 0.0f;
-  float pixelAspect_ = 1.0f;
 };
 
 bool RibParser::execute(const Call& call) {
@@ -1066,7 +1072,13 @@ bool RibParser::executeCamera(const Call& call, bool* handled) {
                                  " pixels");
     scene_.width = int(v[0]);
     scene_.height = int(v[1]);
-    pixelAspect_ = v[2] > 0 ? v[2] : 1.0f;
+    if (!(v[2] > 0)) {
+      // -1 asks for the default (RI convention); other values are probably mistakes.
+      if (v[2] != -1.0f)
+        warnOnce(call.line, "pixelaspect", "'Format' pixel aspect ratio must be positive; 1 used");
+      v[2] = 1.0f;
+    }
+    scene_.camera.pixelAspect = v[2];
   } else if (n == "PixelSamples") {
     if (!positionalNumbers(call, 2, &v, &next)) return false;
     // Clamped before rounding so that absurd counts reach the check below without overflowing.
@@ -1226,13 +1238,16 @@ bool RibParser::executeCamera(const Call& call, bool* handled) {
       l.radius *= maxScale(w);
     }
     lightsBeforeWorld_.clear();
-    // Format's pixel aspect ratio shapes the default frame (RI spec: the frame aspect ratio is
-    // xresolution * pixelaspectratio / yresolution) unless FrameAspectRatio or ScreenWindow say.
-    float frameAspect = frameAspect_;
-    if (frameAspect <= 0 && pixelAspect_ != 1.0f && scene_.width > 0 && scene_.height > 0)
-      frameAspect = float(scene_.width) * pixelAspect_ / float(scene_.height);
-    if (!scene_.camera.screenWindowSet && frameAspect > 0) {
-      const float a = frameAspect;
+    for (const std::string& name : spacesBeforeWorld_) {
+      glm::mat4& space = coordinateSystems_[name];
+      space = w * space;
+    }
+    spacesBeforeWorld_.clear();
+    // FrameAspectRatio shapes the default frame unless ScreenWindow says; without either, the
+    // camera derives it from the rendered resolution and Format's pixel aspect ratio (which a
+    // command-line resolution may still change).
+    if (!scene_.camera.screenWindowSet && frameAspect_ > 0) {
+      const float a = frameAspect_;
       const float sw[4] = {a >= 1 ? -a : -1.0f, a >= 1 ? a : 1.0f, a >= 1 ? -1.0f : -1.0f / a,
                            a >= 1 ? 1.0f : 1.0f / a};
       std::copy(sw, sw + 4, scene_.camera.screenWindow);
@@ -1279,7 +1294,24 @@ bool RibParser::executeTransform(const Call& call, bool* handled) {
   } else if (n == "CoordinateSystem" || n == "ScopedCoordinateSystem") {
     std::string name;
     if (!positionalString(call, 0, &name)) return false;
+    if (n == "ScopedCoordinateSystem") {
+      // Scoped to the innermost attribute block (PRMan): remember what the name meant before.
+      for (auto entry = stack_.rbegin(); entry != stack_.rend(); ++entry) {
+        if (!entry->attribute) continue;
+        auto& saved = entry->scopedSpaces;
+        if (std::none_of(saved.begin(), saved.end(), [&](const auto& p) { return p.first == name; })) {
+          const auto old = coordinateSystems_.find(name);
+          saved.emplace_back(name, old == coordinateSystems_.end() ? std::nullopt
+                                                                   : std::optional<glm::mat4>(old->second));
+        }
+        break;
+      }
+    }
     coordinateSystems_[name] = attr_.ctm;
+    if (inWorld_)
+      spacesBeforeWorld_.erase(name);
+    else
+      spacesBeforeWorld_.insert(name);
   } else if (n == "CoordSysTransform") {
     std::string name;
     if (!positionalString(call, 0, &name)) return false;
@@ -1293,7 +1325,7 @@ bool RibParser::executeTransform(const Call& call, bool* handled) {
       return fail(call.line, "unknown coordinate system '" + name + "'");
     }
   } else if (n == "TransformBegin" || n == "AttributeBegin") {
-    stack_.push_back(StackEntry{attr_, n == "AttributeBegin", call.line});
+    stack_.push_back(StackEntry{attr_, n == "AttributeBegin", call.line, {}});
   } else if (n == "TransformEnd" || n == "AttributeEnd") {
     const bool attribute = n == "AttributeEnd";
     if (stack_.empty())
@@ -1307,6 +1339,12 @@ bool RibParser::executeTransform(const Call& call, bool* handled) {
       attr_ = stack_.back().state;
     else
       attr_.ctm = stack_.back().state.ctm;
+    for (auto restore = stack_.back().scopedSpaces.rbegin(); restore != stack_.back().scopedSpaces.rend(); ++restore) {
+      if (restore->second)
+        coordinateSystems_[restore->first] = *restore->second;
+      else
+        coordinateSystems_.erase(restore->first);
+    }
     stack_.pop_back();
   } else {
     *handled = false;
@@ -2301,7 +2339,8 @@ bool RibParser::buildPatchMesh(const Call& call, bool bicubic, int nu, bool uPer
   if (size_t(columns) * size_t(rows) > (size_t(1) << 24))
     return fail(call.line, "'" + call.name + "' is too large to tessellate");
 
-  // Control point indices and weights of one direction at global parameter g in [0, patches].
+  // Control point indices and weights of one direction at parameter `local` in [0, 1] of patch
+  // `patch`.
   struct Span {
     int index[4];
     float w[4], dw[4];
@@ -2309,10 +2348,10 @@ bool RibParser::buildPatchMesh(const Call& call, bool bicubic, int nu, bool uPer
     int patch;
     float local;
   };
-  auto span = [&](float g, int patches, int n, bool periodic, const CubicBasis& basis) {
+  auto spanAt = [&](int patch, float local, int n, const CubicBasis& basis) {
     Span sp{};
-    sp.patch = std::min(int(std::floor(g)), patches - 1);
-    sp.local = g - float(sp.patch);
+    sp.patch = patch;
+    sp.local = local;
     if (bicubic) {
       sp.count = 4;
       basis.weights(sp.local, sp.w);
@@ -2324,8 +2363,12 @@ bool RibParser::buildPatchMesh(const Call& call, bool bicubic, int nu, bool uPer
       sp.dw[0] = -1.0f, sp.dw[1] = 1.0f;
       sp.index[0] = sp.patch, sp.index[1] = (sp.patch + 1) % n;
     }
-    (void)periodic;
     return sp;
+  };
+  // The same at global parameter g in [0, patches]: a border belongs to the patch after it.
+  auto span = [&](float g, int patches, int n, const CubicBasis& basis) {
+    const int patch = std::min(int(std::floor(g)), patches - 1);
+    return spanAt(patch, g - float(patch), n, basis);
   };
   auto evaluate = [&](const Span& su, const Span& sv, const float* data, int components,
                       float* out, float* du, float* dv) {
@@ -2375,9 +2418,7 @@ bool RibParser::buildPatchMesh(const Call& call, bool bicubic, int nu, bool uPer
       out[k] = (1 - w) * ((1 - u) * c[0][k] + u * c[1][k]) + w * ((1 - u) * c[2][k] + u * c[3][k]);
   };
 
-  Mesh mesh;
   const glm::mat3 normalFromObject = glm::transpose(glm::inverse(glm::mat3(m)));
-  bool normalsOk = true;
   const Primvar *st = nullptr, *s = nullptr, *t = nullptr, *Cs = nullptr, *N = nullptr;
   for (const Primvar& v : vars) {
     if (v.name == "st") st = &v;
@@ -2386,56 +2427,110 @@ bool RibParser::buildPatchMesh(const Call& call, bool bicubic, int nu, bool uPer
     if (v.name == "Cs") Cs = &v;
     if (v.name == "N") N = &v;
   }
+  // Uniform and facevarying values change across patch borders, which vertices shared by two
+  // patches cannot hold: such meshes get vertices of their own per patch, with their positions and
+  // continuous values from the shared grid (so neighbouring patches still meet bit for bit) and
+  // their uniform and facevarying values from their own patch.
+  auto perPatchClass = [](const Primvar* v) {
+    return v && (v->storage == PrimvarClass::Uniform || v->storage == PrimvarClass::FaceVarying);
+  };
+  const bool perPatch = perPatchClass(st) || perPatchClass(s) || perPatchClass(t) || perPatchClass(Cs) ||
+                        perPatchClass(N);
+  // The values of primvars `st`, `s`, `t`, `Cs` at spans su, sv, over `stValue` (uv by default).
+  auto stAt = [&](const Span& su, const Span& sv, bool discontinuous, glm::vec2& stValue) {
+    float value[3];
+    if (st) {
+      if (perPatchClass(st) == discontinuous) varyingValue(*st, su, sv, value), stValue = glm::vec2(value[0], value[1]);
+    } else {
+      if (s && perPatchClass(s) == discontinuous) varyingValue(*s, su, sv, value), stValue.x = value[0];
+      if (t && perPatchClass(t) == discontinuous) varyingValue(*t, su, sv, value), stValue.y = value[0];
+    }
+  };
+  auto normalAt = [&](const Span& su, const Span& sv) {
+    float value[3];
+    varyingValue(*N, su, sv, value);
+    return normalFromObject * glm::vec3(value[0], value[1], value[2]);
+  };
+  // The shared grid in world space. A periodic mesh's wrap-around copy of its first column/row
+  // takes that column's position and normal bits, so the seam cannot crack.
+  const size_t gridSize = size_t(columns) * size_t(rows);
+  std::vector<glm::vec3> gridP(gridSize), gridN(gridSize), gridCs(Cs ? gridSize : 0);
+  std::vector<glm::vec2> gridUv(gridSize), gridSt(gridSize);
   for (int row = 0; row < rows; ++row)
     for (int col = 0; col < columns; ++col) {
+      const size_t k = size_t(row) * size_t(columns) + size_t(col);
       const float gu = float(col) / float(samples), gv = float(row) / float(samples);
-      const Span su = span(gu, nuPatches, nu, uPeriodic, ub);
-      const Span sv = span(gv, nvPatches, nv, vPeriodic, vb);
-      glm::vec3 p, dPdu, dPdv;
-      evaluate(su, sv, P.data(), 3, &p[0], &dPdu[0], &dPdv[0]);
+      const Span su = span(gu, nuPatches, nu, ub), sv = span(gv, nvPatches, nv, vb);
       const bool seamU = uPeriodic && col == columns - 1, seamV = vPeriodic && row == rows - 1;
       if (seamU || seamV) {
-        // The wrap-around copy of the first column/row, bit for bit, so the seam cannot crack.
         const size_t source = size_t(seamV ? 0 : row) * size_t(columns) + size_t(seamU ? 0 : col);
-        mesh.P.push_back(mesh.P[source]);
-        if (normalsOk) mesh.N.push_back(mesh.N[source]);
+        gridP[k] = gridP[source], gridN[k] = gridN[source];
       } else {
-        mesh.P.push_back(glm::vec3(m * glm::vec4(p, 1.0f)));
-        glm::vec3 normal = normalFromObject * glm::cross(dPdu, dPdv);
-        if (N) {
-          float value[3];
-          varyingValue(*N, su, sv, value);
-          normal = normalFromObject * glm::vec3(value[0], value[1], value[2]);
-        }
-        const float len = glm::length(normal);
-        if (len > 1e-20f && std::isfinite(len) && normalsOk) {
-          mesh.N.push_back(normal / len);
-        } else {
-          normalsOk = false;  // a degenerate point (a pole): shade with face normals instead
-        }
+        glm::vec3 p, dPdu, dPdv;
+        evaluate(su, sv, P.data(), 3, &p[0], &dPdu[0], &dPdv[0]);
+        gridP[k] = glm::vec3(m * glm::vec4(p, 1.0f));
+        gridN[k] = N && !perPatchClass(N) ? normalAt(su, sv) : normalFromObject * glm::cross(dPdu, dPdv);
       }
-      mesh.uv.emplace_back(gu / float(nuPatches), gv / float(nvPatches));
-      glm::vec2 stValue = mesh.uv.back();
-      float value[3];
-      if (st) {
-        varyingValue(*st, su, sv, value);
-        stValue = glm::vec2(value[0], value[1]);
-      } else {
-        if (s) varyingValue(*s, su, sv, value), stValue.x = value[0];
-        if (t) varyingValue(*t, su, sv, value), stValue.y = value[0];
-      }
-      mesh.st.push_back(stValue);
-      if (Cs) {
+      gridUv[k] = glm::vec2(gu / float(nuPatches), gv / float(nvPatches));
+      gridSt[k] = gridUv[k];
+      stAt(su, sv, false, gridSt[k]);
+      if (Cs && !perPatchClass(Cs)) {
+        float value[3];
         varyingValue(*Cs, su, sv, value);
-        mesh.Cs.emplace_back(value[0], value[1], value[2]);
+        gridCs[k] = glm::vec3(value[0], value[1], value[2]);
       }
     }
-  if (!normalsOk) mesh.N.clear();
-  for (int j = 0; j + 1 < rows; ++j)
-    for (int i = 0; i + 1 < columns; ++i) {
-      const uint32_t a = uint32_t(j * columns + i), b = a + 1, c = a + uint32_t(columns), d = c + 1;
-      mesh.indices.insert(mesh.indices.end(), {a, b, d, a, d, c});
+  Mesh mesh;
+  bool normalsOk = true;
+  // Appends grid point (row, col), with the uniform and facevarying values of patch spans su, sv.
+  auto emit = [&](int row, int col, const Span& su, const Span& sv) {
+    const size_t k = size_t(row) * size_t(columns) + size_t(col);
+    mesh.P.push_back(gridP[k]);
+    const glm::vec3 normal = perPatchClass(N) ? normalAt(su, sv) : gridN[k];
+    const float len = glm::length(normal);
+    if (len > 1e-20f && std::isfinite(len) && normalsOk)
+      mesh.N.push_back(normal / len);
+    else
+      normalsOk = false;  // a degenerate point (a pole): shade with face normals instead
+    mesh.uv.push_back(gridUv[k]);
+    glm::vec2 stValue = gridSt[k];
+    stAt(su, sv, true, stValue);
+    mesh.st.push_back(stValue);
+    if (Cs) {
+      glm::vec3 c = gridCs[k];
+      if (perPatchClass(Cs)) {
+        float value[3];
+        varyingValue(*Cs, su, sv, value);
+        c = glm::vec3(value[0], value[1], value[2]);
+      }
+      mesh.Cs.push_back(c);
     }
+  };
+  auto quads = [&](uint32_t first, int width, int height) {
+    for (int j = 0; j + 1 < height; ++j)
+      for (int i = 0; i + 1 < width; ++i) {
+        const uint32_t a = first + uint32_t(j * width + i), b = a + 1, c = a + uint32_t(width), d = c + 1;
+        mesh.indices.insert(mesh.indices.end(), {a, b, d, a, d, c});
+      }
+  };
+  if (!perPatch) {
+    for (int row = 0; row < rows; ++row)
+      for (int col = 0; col < columns; ++col)
+        emit(row, col, span(float(col) / float(samples), nuPatches, nu, ub),
+             span(float(row) / float(samples), nvPatches, nv, vb));
+    quads(0, columns, rows);
+  } else {
+    for (int pv = 0; pv < nvPatches; ++pv)
+      for (int pu = 0; pu < nuPatches; ++pu) {
+        const auto first = uint32_t(mesh.P.size());
+        for (int r = 0; r <= samples; ++r)
+          for (int c = 0; c <= samples; ++c)
+            emit(pv * samples + r, pu * samples + c, spanAt(pu, float(c) / float(samples), nu, ub),
+                 spanAt(pv, float(r) / float(samples), nv, vb));
+        quads(first, samples + 1, samples + 1);
+      }
+  }
+  if (!normalsOk) mesh.N.clear();
   return addMesh(std::move(mesh), call.line);
 }
 

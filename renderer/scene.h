@@ -22,6 +22,9 @@ struct Camera {
   float fovDegrees = 90.0f;  // RenderMan: the full angle across the shorter image dimension
   float screenWindow[4] = {-1, 1, -1, 1};  // left right bottom top; set from the aspect by default
   bool screenWindowSet = false;
+  // Format's pixel aspect ratio: without a ScreenWindow or FrameAspectRatio, the frame's aspect
+  // ratio is width * pixelAspect / height (RI spec), for whatever resolution is finally rendered.
+  float pixelAspect = 1.0f;
   float nearClip = 1e-4f, farClip = 1e30f;
 };
 

@@ -171,8 +171,13 @@ bool Integrator::resolve(const Ray& ray, const Hit& hit, Surface* s) const {
   const glm::vec3 d = glm::normalize(ray.direction);
   s->V = -d;
   s->front = glm::dot(d, s->Ng) < 0.0f;
-  // One-sided surfaces are invisible from behind; glass needs its inside, so it never culls.
-  if (!s->front && !material.twoSided && material.type != SurfaceType::Glass) return false;
+  // One-sided surfaces are invisible from behind, behind being the side the winding and
+  // orientation give (RI spec, Sides), whatever normals the primitive supplies for shading; glass
+  // needs its inside, so it never culls.
+  if (!material.twoSided && material.type != SurfaceType::Glass) {
+    const glm::vec3 outward = material.reverseOrientation ? -hit.Ng : hit.Ng;
+    if (!(glm::dot(d, outward) < 0.0f)) return false;
+  }
   s->Ngf = s->front ? s->Ng : -s->Ng;
   s->Nf = s->front ? s->N : -s->N;
   s->Cs = surfaceColor(mesh, material, hit);

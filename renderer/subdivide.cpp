@@ -4,11 +4,12 @@
 #include <algorithm>
 #include <array>
 #include <bit>
-#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <limits>
 #include <tuple>
+
+#include "renderer/ticks.h"
 
 namespace relief {
 namespace {
@@ -276,11 +277,9 @@ void displace(const Displacement& disp, const TriangleFrame& frame, Vertices& vs
   b.services = nullptr;
   b.Pout = batch.Pout.view(), b.Nout = batch.Nout.view();
   RlfStatus status{};
-  auto start = std::chrono::steady_clock::now();
+  const uint64_t start = readTicks();
   disp.shader->evaluate(b, status);
-  counters.displaceNanos += uint64_t(std::chrono::duration_cast<std::chrono::nanoseconds>(
-                                         std::chrono::steady_clock::now() - start)
-                                         .count());
+  counters.displaceTicks += readTicks() - start;
   counters.shaderPoints += n;
   counters.status.loopLimit += status.loopLimit;
   counters.status.indexClamped += status.indexClamped;

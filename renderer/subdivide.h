@@ -125,7 +125,7 @@ struct MicroMesh {
 
 struct SubdivideCounters {
   uint64_t shaderPoints = 0;
-  uint64_t displaceNanos = 0;  // time spent inside the shader
+  uint64_t displaceTicks = 0;  // time spent inside the shader, in readTicks() ticks (ticks.h)
   RlfStatus status{};          // summed over batches; nonFinite also counts host replacements
   // Micro-triangles out (after simplification) and the estimate of what the same points would
   // give unsimplified (equal when flatness is 0): 1 - after / before is the share simplification

@@ -283,6 +283,14 @@ TEST(RenderMaterial, OneSidedSurfacesAreInvisibleFromBehind) {
   scene.materials[f].reverseOrientation = false;
   scene.materials[f].twoSided = true;
   EXPECT_EQ(test::renderWith(scene).pixel(4, 4), glm::vec3(1, 0, 0));
+  // The side is the winding's, whatever normals the mesh supplies for shading: normals toward
+  // the camera do not make the back visible, normals away do not hide the front.
+  scene.materials[f].twoSided = false;
+  scene.meshes[0].N.assign(scene.meshes[0].P.size(), glm::vec3(0, 0, -1));
+  EXPECT_EQ(test::renderWith(scene).pixel(4, 4), glm::vec3(0, 0, 1));
+  scene.materials[f].reverseOrientation = true;
+  scene.meshes[0].N.assign(scene.meshes[0].P.size(), glm::vec3(0, 0, 1));
+  EXPECT_EQ(test::renderWith(scene).pixel(4, 4), glm::vec3(1, 0, 0));
 }
 
 // An undisplaced mesh with normals is shaded with them (interpolated), not with its face normal.

@@ -12,6 +12,7 @@
 #include <gtest/gtest.h>
 
 #include "render_test_util.h"
+#include "renderer/camera.h"
 
 namespace relief {
 namespace {
@@ -147,19 +148,35 @@ TEST(RibReader, FrameAspectRatioSetsTheScreenWindow) {
 }
 
 // Format's third number: the frame aspect is xres * pixelaspect / yres (RI spec), so 160x120
-// pixels twice as wide as tall make a 8:3 frame; FrameAspectRatio, when given, wins.
+// pixels twice as wide as tall make a 8:3 frame, and the same pixels rendered at 120x120 (a
+// command-line resolution) a 2:1 frame; FrameAspectRatio, when given, wins.
 TEST(RibReader, PixelAspectRatioShapesTheDefaultFrame) {
-  ReadResult r = read("Format 160 120 2\n" + world(""));
+  // The frame's half extents, right over top, as the camera rays span them.
+  auto frameAspect = [](const Camera& camera, int width, int height) {
+    const CameraRays rays(camera, width, height);
+    const Ray right = rays.generate(float(width), 0.5f * float(height));
+    const Ray top = rays.generate(0.5f * float(width), 0.0f);
+    return (right.direction.x / right.direction.z) / (top.direction.y / top.direction.z);
+  };
+  ReadResult r = read("Format 160 120 2\nProjection \"perspective\"\n" + world(""));
   ASSERT_TRUE(r.scene) << r.error.format();
-  ASSERT_TRUE(r.scene->camera.screenWindowSet);
-  EXPECT_FLOAT_EQ(r.scene->camera.screenWindow[1], 160.0f * 2 / 120);
-  EXPECT_FLOAT_EQ(r.scene->camera.screenWindow[3], 1.0f);
-  ReadResult square = read("Format 160 120 1\n" + world(""));
+  EXPECT_FALSE(r.scene->camera.screenWindowSet);
+  EXPECT_NEAR(frameAspect(r.scene->camera, 160, 120), 160.0f * 2 / 120, 1e-5f);
+  EXPECT_NEAR(frameAspect(r.scene->camera, 120, 120), 2.0f, 1e-5f);
+  ReadResult square = read("Format 160 120 1\nProjection \"perspective\"\n" + world(""));
   ASSERT_TRUE(square.scene);
-  EXPECT_FALSE(square.scene->camera.screenWindowSet);  // the camera's own default
+  EXPECT_NEAR(frameAspect(square.scene->camera, 160, 120), 160.0f / 120, 1e-5f);
   ReadResult given = read("Format 160 120 2\nFrameAspectRatio 0.5\n" + world(""));
   ASSERT_TRUE(given.scene);
   EXPECT_FLOAT_EQ(given.scene->camera.screenWindow[3], 2.0f);
+  // Not positive: the default 1, with a warning unless it is RenderMan's "default" -1.
+  ReadResult zero = read("Format 160 120 0\n" + world(""));
+  ASSERT_TRUE(zero.scene);
+  EXPECT_EQ(zero.scene->camera.pixelAspect, 1.0f);
+  EXPECT_NE(zero.warnings.find("pixel aspect ratio must be positive"), std::string::npos) << zero.warnings;
+  ReadResult byDefault = read("Format 160 120 -1\n" + world(""));
+  ASSERT_TRUE(byDefault.scene);
+  EXPECT_EQ(byDefault.warnings, "");
 }
 
 TEST(RibReader, TransformAtWorldBeginIsCameraFromWorld) {
@@ -633,6 +650,29 @@ TEST(RibReader, NamedCoordinateSystems) {
   r = read(world("CoordSysTransform \"nowhere\""));
   ASSERT_FALSE(r.scene);
   EXPECT_EQ(r.error.message, "unknown coordinate system 'nowhere'");
+
+  // Named before WorldBegin, a space is relative to the camera (the world is not placed yet): the
+  // camera sits at world z = -5, so the space 5 units in front of it is the world's origin.
+  r = read("CoordinateSystem \"front\"\nTranslate 0 0 5\nCoordinateSystem \"atOrigin\"\n" +
+           world("CoordSysTransform \"front\"\nTranslate 1 0 5\nPolygon \"P\" [0 0 0  1 0 0  0 1 0]\n"
+                 "CoordSysTransform \"atOrigin\"\nPolygon \"P\" [0 0 0  1 0 0  0 1 0]"));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  expectNear(r.scene->meshes[0].P[0], glm::vec3(1, 0, 0));
+  expectNear(r.scene->meshes[1].P[1], glm::vec3(1, 0, 0));
+
+  // ScopedCoordinateSystem lasts until the end of its attribute block, then the name means what
+  // it meant before (or nothing).
+  r = read(world("AttributeBegin\nTranslate -1 0 0\nCoordinateSystem \"a\"\nAttributeEnd\n"
+                 "AttributeBegin\nTranslate 1 0 0\nScopedCoordinateSystem \"a\"\n"
+                 "ScopedCoordinateSystem \"b\"\nCoordSysTransform \"a\"\n"
+                 "Polygon \"P\" [0 0 0  1 0 0  0 1 0]\nAttributeEnd\n"
+                 "CoordSysTransform \"a\"\nPolygon \"P\" [0 0 0  1 0 0  0 1 0]\n"));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  expectNear(r.scene->meshes[0].P[0], glm::vec3(1, 0, 0));
+  expectNear(r.scene->meshes[1].P[0], glm::vec3(-1, 0, 0));
+  r = read(world("AttributeBegin\nScopedCoordinateSystem \"b\"\nAttributeEnd\nCoordSysTransform \"b\""));
+  ASSERT_FALSE(r.scene);
+  EXPECT_EQ(r.error.message, "unknown coordinate system 'b'");
 }
 
 TEST(RibReader, ReadArchiveIncludesFilesRelativeToTheReader) {

@@ -784,6 +784,53 @@ TEST(RibPatches, PatchMeshBasesAndWrapping) {
   EXPECT_FALSE(read(world("Patch \"bicubic\" \"P\" [0 0 0]")).scene);
 }
 
+TEST(RibPatches, UniformAndFaceVaryingValuesStayInTheirPatch) {
+  // Two flat bilinear patches side by side (x in [0, 1] and [1, 2]), and the same as a curved
+  // bicubic mesh: a uniform Cs colours each patch whole, facevarying s gives each patch its own
+  // corners, and every triangle lies in one patch, whose value all its corners carry.
+  const std::string flatP = "\"P\" [0 0 0  1 0 0  2 0 0  0 1 0  1 1 0  2 1 0]";
+  for (const std::string& request :
+       {"PatchMesh \"bilinear\" 3 \"nonperiodic\" 2 \"nonperiodic\" " + flatP +
+            " \"uniform color Cs\" [1 0 0  0 0 1] \"facevarying float s\" [0 0 0 0  5 5 5 5]",
+        std::string("Basis \"b-spline\" 1 \"b-spline\" 1\n"
+                    "PatchMesh \"bicubic\" 5 \"nonperiodic\" 4 \"nonperiodic\" \"P\" [") +
+            [] {
+              std::string P;
+              for (int j = 0; j < 4; ++j)
+                for (int i = 0; i < 5; ++i)
+                  P += std::to_string(i - 1) + " " + std::to_string(j) + " " + (i == 2 ? "0.5" : "0") + "  ";
+              return P;
+            }() +
+            "] \"uniform color Cs\" [1 0 0  0 0 1] \"facevarying float s\" [0 0 0 0  5 5 5 5]"}) {
+    SCOPED_TRACE(request);
+    ReadResult r = read(world(request));
+    ASSERT_TRUE(r.scene) << r.error.format();
+    const Mesh& m = r.scene->meshes.at(0);
+    ASSERT_EQ(m.Cs.size(), m.P.size());
+    ASSERT_EQ(m.st.size(), m.P.size());
+    int red = 0, blue = 0;
+    for (uint32_t tri = 0; tri < m.numTriangles(); ++tri) {
+      const uint32_t* corner = &m.indices[3 * size_t(tri)];
+      const bool left = m.Cs[corner[0]] == glm::vec3(1, 0, 0);
+      (left ? red : blue)++;
+      for (int c = 0; c < 3; ++c) {
+        EXPECT_EQ(m.Cs[corner[c]], left ? glm::vec3(1, 0, 0) : glm::vec3(0, 0, 1));
+        EXPECT_EQ(m.st[corner[c]].x, left ? 0.0f : 5.0f);
+        EXPECT_LE(m.uv[corner[c]].x, left ? 0.5f : 1.0f);
+        EXPECT_GE(m.uv[corner[c]].x, left ? 0.0f : 0.5f);
+      }
+    }
+    EXPECT_EQ(red, blue);
+    EXPECT_GT(red, 0);
+    // Where the patches meet, both copies of a border vertex have the same position bits.
+    for (size_t i = 0; i < m.P.size(); ++i)
+      for (size_t k = i + 1; k < m.P.size(); ++k)
+        if (m.uv[i] == m.uv[k]) {
+          EXPECT_EQ(m.P[i], m.P[k]);
+        }
+  }
+}
+
 // --- OBJ meshes ---
 
 TEST(RibObjMesh, LoadsAnObjFileRelativeToTheScene) {
