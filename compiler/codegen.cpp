@@ -591,6 +591,12 @@ class ShaderCodegen {
       spaces_ = identitySpaces;
     }
     unknownSpace_ = nullptr;
+    // The globals a default reads here: PI is PI (a default using only it and constants is not
+    // evaluated again at shading time); the geometric ones read zero, a value only reflection
+    // reports, since defaults that read them are evaluated again per point (emitEntry).
+    for (size_t g = 0; g < size_t(GlobalId::Count); ++g)
+      if (const VarDecl* d = globals_[g])
+        store(slotFor(d), GlobalId(g) == GlobalId::PI ? makeFloat(dconst(3.14159265358979f)) : zeroOf(d->type));
     // Defaults may call library functions with loops (fBm): they count like the entry's, and
     // past the limit the remaining defaults stay zero.
     loopCounter_ = entryAlloca(i32_, "iterations");

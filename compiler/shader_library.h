@@ -29,7 +29,8 @@ struct CompileOptions {
 };
 
 // Compiles `<name>.disp` found on a search path (first match wins), caches compiled files, and returns
-// the shader named `name` in it. Diagnostics are printed clang-style to `diagnosticStream` (stderr by
+// the shader named `name` in it. A name with a directory or the .disp extension is a path, absolute
+// or under each search directory, naming the shader by its stem (RenderMan's convention). Diagnostics are printed clang-style to `diagnosticStream` (stderr by
 // default). Thread-compatible (callers serialize).
 class ShaderLibrary : public runtime::ShaderProvider {
  public:

@@ -74,7 +74,8 @@ void bridgeHole(const std::vector<glm::dvec2>& pts, std::vector<uint32_t>* outer
 
 }  // namespace
 
-std::vector<uint32_t> triangulatePolygon(const std::vector<std::vector<glm::vec3>>& loops) {
+std::vector<uint32_t> triangulatePolygon(const std::vector<std::vector<glm::vec3>>& loops, bool* fanned) {
+  if (fanned) *fanned = false;
   std::vector<uint32_t> triangles;
   if (loops.empty() || loops[0].size() < 3) return triangles;
   if (loops.size() == 1 && loops[0].size() == 3) return {0, 1, 2};
@@ -119,7 +120,10 @@ std::vector<uint32_t> triangulatePolygon(const std::vector<std::vector<glm::vec3
     if (convex) return fan();
   }
   // Ear clipping is quadratic or worse; beyond this size a fan is the bounded-time answer.
-  if (pts.size() > kMaxEarClippingPoints) return fan();
+  if (pts.size() > kMaxEarClippingPoints) {
+    if (fanned) *fanned = true;
+    return fan();
+  }
 
   std::vector<uint32_t> polygon = loopIndices[0];
   std::vector<std::vector<uint32_t>> holes;

@@ -56,6 +56,12 @@ bool isNumberChar(char c) {
   return std::isdigit(static_cast<unsigned char>(c)) || c == '-' || c == '+' || c == '.' ||
          c == 'e' || c == 'E';
 }
+// The words strtod would read as NaN or infinity, which RIB does not have.
+bool isNonFiniteWord(const std::string& word) {
+  std::string lower;
+  for (char c : word) lower.push_back(char(std::tolower(static_cast<unsigned char>(c))));
+  return lower == "nan" || lower == "inf" || lower == "infinity";
+}
 
 }  // namespace
 
@@ -125,6 +131,13 @@ bool tokenizeRib(std::string_view text, const std::string& fileName, std::vector
     } else if (isNumberStart(c)) {
       size_t j = i;
       while (j < n && isNumberChar(text[j])) ++j;
+      // A letter straight after a number is a typo ('36O', '0x168'), not a request: 'Sphere 1 -1 1
+      // 36O' must not render a wedge and warn about a request 'O'.
+      if (j < n && isRequestStart(text[j])) {
+        size_t k = j;
+        while (k < n && isRequestChar(text[k])) ++k;
+        return fail(line, "malformed number '" + std::string(text.substr(i, k - i)) + "'");
+      }
       const std::string word(text.substr(i, j - i));
       char* end = nullptr;
       const double value = std::strtod(word.c_str(), &end);
@@ -481,6 +494,8 @@ class RibParser {
             arg.numbers.push_back(e.number);
           } else if (e.kind == RibToken::Kind::String) {
             arg.strings.push_back(e.text);
+          } else if (e.kind == RibToken::Kind::Request && isNonFiniteWord(e.text)) {
+            return fail(e.line, "'" + e.text + "' is not a number: RIB numbers must be finite");
           } else if (e.kind == RibToken::Kind::End || e.kind == RibToken::Kind::Request) {
             return fail(a.line, "unterminated array: missing ']' for the '[' opened here");
           } else {
@@ -933,6 +948,7 @@ class RibParser {
   std::vector<RecordedCall>* recording_ = nullptr;
   std::string recordingName_;
   int recordingLine_ = 0;
+  std::vector<std::pair<std::string, int>> recordingBlocks_;  // blocks open in the object (name, line)
   int instanceDepth_ = 0;
   // Budgets on what a scene expands to (execute, addMesh), past which reading stops with an error.
   static constexpr uint64_t kMaxExpandedRequests = uint64_t(1) << 24;
@@ -978,9 +994,24 @@ bool RibParser::execute(const Call& call) {
     return true;
   }
   if (recording_) {
+    // An object's blocks must balance within it: checked here, where the lines are known, and even
+    // if the object is never instanced.
     if (name == "ObjectEnd") {
+      if (!recordingBlocks_.empty())
+        return fail(call.line, "'ObjectEnd' leaves '" + recordingBlocks_.back().first + "' (line " +
+                                   std::to_string(recordingBlocks_.back().second) + ") open in object '" +
+                                   recordingName_ + "'");
       recording_ = nullptr;
       return true;
+    }
+    if (name == "AttributeBegin" || name == "TransformBegin" || name == "MotionBegin") {
+      recordingBlocks_.emplace_back(name, call.line);
+    } else if (name == "AttributeEnd" || name == "TransformEnd" || name == "MotionEnd") {
+      const std::string opener = name.substr(0, name.size() - 3) + "Begin";
+      if (recordingBlocks_.empty() || recordingBlocks_.back().first != opener)
+        return fail(call.line, "'" + name + "' without '" + opener + "' in object '" + recordingName_ +
+                                   "' (ObjectBegin at line " + std::to_string(recordingLine_) + ")");
+      recordingBlocks_.pop_back();
     }
     if (name == "ObjectBegin" || name == "WorldBegin" || name == "WorldEnd" ||
         name == "FrameBegin" || name == "FrameEnd")
@@ -997,6 +1028,7 @@ bool RibParser::execute(const Call& call) {
     recording_->clear();
     recordingName_ = handle;
     recordingLine_ = call.line;
+    recordingBlocks_.clear();
     return true;
   }
   // MotionBegin [times] sample... MotionEnd: each call inside is one sample of the same request.
@@ -1094,6 +1126,9 @@ bool RibParser::executeCamera(const Call& call, bool* handled) {
     std::vector<float> widths;
     for (size_t i = 1; i < call.args.size() && call.args[i].isNumeric(); ++i)
       for (double d : call.args[i].numbers) widths.push_back(float(d));
+    if (widths.size() < 2)
+      return fail(call.line, "'PixelFilter' expects a filter name and 2 widths, got " +
+                                 std::to_string(widths.size()) + " width" + (widths.size() == 1 ? "" : "s"));
     FilterType type = FilterType::Gaussian;
     if (parseFilter(name, &type)) {
       scene_.pixelFilter = name;
@@ -1391,6 +1426,8 @@ bool RibParser::executeAttributes(const Call& call, bool* handled) {
     }
     attr_.reversed = false;
   } else if (n == "ReverseOrientation") {
+    if (!call.args.empty())
+      warnOnce(call.line, "args/ReverseOrientation", "'ReverseOrientation' takes no arguments; ignored them");
     attr_.reversed = !attr_.reversed;
   } else if (n == "Illuminate") {
     if (call.args.size() != 2 || !call.args[1].isNumeric() || call.args[1].numbers.size() != 1)
@@ -1761,8 +1798,7 @@ bool RibParser::doDisplacement(const Call& call) {
     std::string path;
     for (const std::string& d : searchPath_) path += (path.empty() ? "" : ":") + d;
     return fail(call.line, "cannot load displacement shader '" + name + "'" +
-                               (why.empty() ? std::string() : ": " + why) +
-                               " (search path: '" + path + "')");
+                               (why.empty() ? " (search path: '" + path + "')" : ": " + why));
   }
   // Binding errors are located at the Displacement call, as shader loading errors are: that is
   // the line a user looks for, even when the parameter list continues on later lines.
@@ -1891,8 +1927,12 @@ bool RibParser::executeGeometry(const Call& call, bool* handled) {
         return fail(call.line, "'PatchMesh' wrap must be \"periodic\" or \"nonperiodic\", got '" +
                                    *wrap + "'");
     const double nu = call.args[1].numbers[0], nv = call.args[3].numbers[0];
-    if (nu != std::floor(nu) || nv != std::floor(nv) || nu < 1 || nv < 1 || nu > 1e6 || nv > 1e6)
+    if (nu != std::floor(nu) || nv != std::floor(nv) || nu < 1 || nv < 1)
       return fail(call.line, "'PatchMesh': nu and nv must be positive integers");
+    if (nu > 1e6 || nv > 1e6)
+      return fail(call.line, "'PatchMesh': nu and nv must be at most 1000000 (got " +
+                                 std::to_string(int64_t(std::min(nu, 9e18))) + " x " +
+                                 std::to_string(int64_t(std::min(nv, 9e18))) + ")");
     return buildPatchMesh(call, type == "bicubic", int(nu), uwrap == "periodic", int(nv),
                           vwrap == "periodic", 5);
   }
@@ -2260,7 +2300,13 @@ bool RibParser::buildPolygonMesh(const Call& call, const std::vector<int>& nloop
       }
       loops.push_back(std::move(points));
     }
-    for (uint32_t i : triangulatePolygon(loops)) mesh.indices.push_back(faceVertices[i]);
+    bool fanned = false;
+    for (uint32_t i : triangulatePolygon(loops, &fanned)) mesh.indices.push_back(faceVertices[i]);
+    if (fanned)
+      warnOnce(call.line, "fanned",
+               "'" + call.name + "': a polygon of more than " + std::to_string(kMaxEarClippingPoints) +
+                   " points that is not convex is fanned from its first corner, its holes ignored; "
+                   "split it into smaller polygons");
   }
   // A mirroring transform flips the current coordinate system and, with it, the current
   // orientation (RI spec, "Orientation"), so the polygon keeps its side: the winding the world

@@ -526,6 +526,32 @@ displacement p(float Km = 0.5, freq = Km * 4; point c = point(1, 2, 3), color k 
   EXPECT_EQ(b.Pout[2][0], 3);
 }
 
+// PI is a constant, so a default that uses only it is not evaluated again at shading time: the
+// defaults function must give it its value (it once read an uninitialised slot: 0, or NaN).
+TEST(JitTest, PiInDefaultsIsPi) {
+  CompileResult r = compileSource("pi.disp", R"(
+displacement pi(float h = 2 * PI; float g = degrees(PI); point q = point(PI, 0, 0); float a[2] = {PI, 1})
+{
+    P += N * (h + g + xcomp(q) + a[0]);
+})");
+  ASSERT_TRUE(r.success()) << renderDiagnostics(r);
+  auto shader = r.find("pi");
+  ASSERT_TRUE(shader);
+  auto params = shader->params();
+  ASSERT_EQ(params.size(), 4u);
+  EXPECT_NEAR(params[0].defaultNumbers.at(0), 2 * kPi, 1e-5);
+  EXPECT_NEAR(params[1].defaultNumbers.at(0), 180.0, 1e-4);
+  EXPECT_NEAR(params[2].defaultNumbers.at(0), kPi, 1e-6);
+  EXPECT_NEAR(params[3].defaultNumbers.at(0), kPi, 1e-6);
+  runtime::ShaderInstance instance(shader);
+  TestBatch b(1);
+  fillSphere(b, 0, 0.0, 0.0);
+  RlfStatus status{};
+  RlfShadingBatch view = b.all();
+  instance.evaluate(view, status);
+  EXPECT_NEAR(b.Pout[2][0], 1 + 4 * kPi + 180.0, 1e-3);
+}
+
 TEST(JitTest, DefinesReplaceIdentifiers) {
   CompileOptions options;
   options.defines = {{"AMOUNT", "0.5"}};
@@ -900,6 +926,19 @@ TEST(ShaderLibraryTest, FindsCompilesAndCaches) {
   EXPECT_FALSE(library.find("nosuchshader", path, &error));
   EXPECT_NE(error.find("nosuchshader"), std::string::npos);
   EXPECT_TRUE(diagnostics.str().empty()) << diagnostics.str();
+
+  // A name with a directory or the extension is a path (RenderMan's convention), relative to the
+  // search directories or absolute; the shader is the file's stem.
+  const std::vector<std::string> root = {RELIEF_SOURCE_DIR};
+  auto relative = library.find("examples/shaders/bumps", root, &error);
+  ASSERT_TRUE(relative) << error;
+  EXPECT_EQ(relative->name(), "bumps");
+  auto absolute = library.find(RELIEF_SOURCE_DIR "/examples/shaders/bumps.disp", {}, &error);
+  ASSERT_TRUE(absolute) << error;
+  EXPECT_EQ(absolute->name(), "bumps");
+  EXPECT_TRUE(library.find("bumps.disp", path, &error));
+  EXPECT_FALSE(library.find("/no/such/stone.disp", path, &error));
+  EXPECT_EQ(error, "shader '/no/such/stone.disp' not found: no file '/no/such/stone.disp'");
 }
 
 TEST(ShaderLibraryTest, ReportsCompileErrorsToTheStream) {

@@ -14,6 +14,7 @@
 #include <gtest/gtest.h>
 
 #include "render_test_util.h"
+#include "renderer/rib_geometry.h"
 #include "renderer/rib_reader.h"
 
 namespace relief {
@@ -1120,6 +1121,43 @@ TEST(RibErrors, TruncatedAndMalformedInputIsLocated) {
   EXPECT_EQ(wrong.error.line, 2);
   EXPECT_FALSE(read(world("Color [1 0]")).scene);
   EXPECT_FALSE(read(world("LightSource \"pointlight\" 1 \"intensity\" [\"bright\"]")).scene);
+
+  // Each case: the text, the line and the message of its error.
+  const std::tuple<std::string, int, std::string> cases[] = {
+      // A typo'd number is not a number followed by a request ('36O' once made a 36-degree wedge).
+      {world("Sphere 1 -1 1 36O"), 2, "malformed number '36O'"},
+      {world("Sphere 1 -1 1 0x168"), 2, "malformed number '0x168'"},
+      {world("Sphere 1 -1 1 360 \"Cs\" [1 0\nNaN]"), 3, "'NaN' is not a number: RIB numbers must be finite"},
+      // An object's blocks balance inside it, instanced or not, and the error names the lines.
+      {world("ObjectBegin \"a\"\nAttributeBegin\nSphere 1 -1 1 360\nObjectEnd"), 5,
+       "'ObjectEnd' leaves 'AttributeBegin' (line 3) open in object 'a'"},
+      {world("ObjectBegin \"a\"\nTransformEnd\nObjectEnd"), 3,
+       "'TransformEnd' without 'TransformBegin' in object 'a' (ObjectBegin at line 2)"},
+      {"PixelFilter \"box\"\n" + world(""), 1, "'PixelFilter' expects a filter name and 2 widths, got 0 widths"},
+      {world("PatchMesh \"bilinear\" 99999999 \"nonperiodic\" 2 \"nonperiodic\" \"P\" [0 0 0]"), 2,
+       "'PatchMesh': nu and nv must be at most 1000000 (got 99999999 x 2)"},
+  };
+  for (const auto& [text, line, message] : cases) {
+    ReadResult r = read(text);
+    ASSERT_FALSE(r.scene) << text;
+    EXPECT_EQ(r.error.line, line) << text;
+    EXPECT_EQ(r.error.message, message) << text;
+  }
+  ReadResult reversed = read(world("ReverseOrientation 1\n" + std::string(kTriangle)));
+  ASSERT_TRUE(reversed.scene) << reversed.error.format();
+  EXPECT_NE(reversed.warnings.find("'ReverseOrientation' takes no arguments"), std::string::npos)
+      << reversed.warnings;
+  // A concave polygon past the ear-clipping limit is fanned, and says so.
+  std::string star;
+  for (size_t i = 0; i <= kMaxEarClippingPoints; ++i) {
+    const double a = 2 * M_PI * double(i) / double(kMaxEarClippingPoints + 1);
+    const double radius = i % 2 ? 0.5 : 1.0;
+    star += std::to_string(radius * std::cos(a)) + " " + std::to_string(radius * std::sin(a)) + " 0 ";
+  }
+  ReadResult fanned = read(world("Polygon \"P\" [" + star + "]"));
+  ASSERT_TRUE(fanned.scene) << fanned.error.format();
+  EXPECT_NE(fanned.warnings.find("is fanned from its first corner, its holes ignored"), std::string::npos)
+      << fanned.warnings;
 }
 
 }  // namespace
