@@ -115,6 +115,8 @@ CompileResult makeResult(const CompileOptions& options, const CompileFlags& flag
   dopts.noWarnings = options.noWarnings;
   dopts.errorLimit = flags.errorLimit;
   dopts.disabledWarnings = flags.disabledWarnings;
+  dopts.errorWarnings = flags.errorWarnings;
+  dopts.notErrorWarnings = flags.notErrorWarnings;
   r.diagnostics = std::make_unique<DiagnosticsEngine>(dopts);
   return r;
 }

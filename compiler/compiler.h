@@ -26,6 +26,8 @@ struct CompileFlags {
   // the pruning changes no result.
   bool everyDerivativeLane = false;
   std::vector<std::string> disabledWarnings;  // -Wno-<name>, without the "-Wno-"
+  std::vector<std::string> errorWarnings;     // -Werror=<name>, without the "-Werror="
+  std::vector<std::string> notErrorWarnings;  // -Wno-error=<name>: stays a warning under -Werror
   // Called with the type-checked AST before codegen (tools that inspect it, tests).
   std::function<void(const TranslationUnit&)> onChecked;
 };

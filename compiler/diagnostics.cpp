@@ -2,6 +2,7 @@
 #include "compiler/diagnostics.h"
 
 #include <algorithm>
+#include <cstdio>
 
 namespace relief::compiler {
 
@@ -89,11 +90,16 @@ DiagnosticsEngine::Builder::~Builder() {
 
 void DiagnosticsEngine::record(Diagnostic d) {
   if (limitReached_) return;
+  bool promoted = false;
   if (d.severity == Severity::Warning) {
     if (options_.noWarnings) return;
     for (const std::string& off : options_.disabledWarnings)
       if (off == d.flag) return;
-    if (options_.warningsAsErrors) d.severity = Severity::Error;
+    auto listed = [&](const std::vector<std::string>& names) {
+      return std::find(names.begin(), names.end(), d.flag) != names.end();
+    };
+    promoted = (options_.warningsAsErrors && !listed(options_.notErrorWarnings)) || listed(options_.errorWarnings);
+    if (promoted) d.severity = Severity::Error;
   }
   if (d.severity >= Severity::Error) {
     if (options_.errorLimit && numErrors_ >= options_.errorLimit) {
@@ -107,6 +113,7 @@ void DiagnosticsEngine::record(Diagnostic d) {
       return;
     }
     ++numErrors_;
+    numPromoted_ += promoted;
   } else if (d.severity == Severity::Warning) {
     ++numWarnings_;
   }
@@ -219,25 +226,7 @@ void renderOne(std::ostream& out, const SourceManager& sm, const Diagnostic& d,
   out << '\n';
 }
 
-void jsonString(std::ostream& out, std::string_view s) {
-  out << '"';
-  for (char c : s) {
-    switch (c) {
-      case '"': out << "\\\""; break;
-      case '\\': out << "\\\\"; break;
-      case '\n': out << "\\n"; break;
-      case '\t': out << "\\t"; break;
-      default:
-        if (static_cast<unsigned char>(c) < 0x20) {
-          static const char* hex = "0123456789abcdef";
-          out << "\\u00" << hex[(c >> 4) & 15] << hex[c & 15];
-        } else {
-          out << c;
-        }
-    }
-  }
-  out << '"';
-}
+void jsonString(std::ostream& out, std::string_view s) { out << jsonQuoted(s); }
 
 void jsonBody(std::ostream& out, const SourceManager& sm, const Diagnostic& d) {
   const PresumedLoc p = sm.presumed(d.loc);
@@ -303,6 +292,52 @@ std::string summaryLine(unsigned numWarnings, unsigned numErrors) {
   if (numWarnings) return plural(numWarnings, "warning") + " generated.";
   if (numErrors) return plural(numErrors, "error") + " generated.";
   return {};
+}
+
+// Valid UTF-8 passes through; each byte of an invalid sequence (a Latin-1 file name, a stray
+// byte in a source line) becomes U+FFFD, so that every line stays valid JSON.
+std::string jsonQuoted(std::string_view s) {
+  std::string out = "\"";
+  for (size_t i = 0; i < s.size();) {
+    const auto c = static_cast<unsigned char>(s[i]);
+    if (c < 0x80) {
+      switch (c) {
+        case '"': out += "\\\""; break;
+        case '\\': out += "\\\\"; break;
+        case '\n': out += "\\n"; break;
+        case '\t': out += "\\t"; break;
+        default:
+          if (c < 0x20 || c == 0x7f) {
+            char escaped[8];
+            std::snprintf(escaped, sizeof escaped, "\\u%04x", c);
+            out += escaped;
+          } else {
+            out += char(c);
+          }
+      }
+      ++i;
+      continue;
+    }
+    // Lead byte: sequence length and the smallest code point it may encode (no overlong forms).
+    const size_t length = c >= 0xc2 && c <= 0xdf ? 2 : c >= 0xe0 && c <= 0xef ? 3 : c >= 0xf0 && c <= 0xf4 ? 4 : 0;
+    bool valid = length > 0 && i + length <= s.size();
+    uint32_t code = length == 2 ? c & 0x1f : length == 3 ? c & 0x0f : c & 0x07;
+    for (size_t k = 1; valid && k < length; ++k) {
+      const auto next = static_cast<unsigned char>(s[i + k]);
+      valid = (next & 0xc0) == 0x80;
+      code = code << 6 | (next & 0x3f);
+    }
+    valid = valid && !(length == 3 && (code < 0x800 || (code >= 0xd800 && code <= 0xdfff))) &&
+            !(length == 4 && (code < 0x10000 || code > 0x10ffff));
+    if (valid) {
+      out.append(s.substr(i, length));
+      i += length;
+    } else {
+      out += "\\ufffd";
+      ++i;
+    }
+  }
+  return out + "\"";
 }
 
 void renderJson(std::ostream& out, const SourceManager& sm, const Diagnostic& d) {

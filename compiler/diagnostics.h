@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <ostream>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "compiler/source_manager.h"
@@ -35,7 +36,12 @@ struct DiagnosticOptions {
   bool noWarnings = false;
   unsigned errorLimit = 20;  // 0: unlimited
   std::vector<std::string> disabledWarnings;  // -Wno-<name>
+  std::vector<std::string> errorWarnings;     // -Werror=<name>: this warning is an error
+  std::vector<std::string> notErrorWarnings;  // -Wno-error=<name>: a warning even under -Werror
 };
+
+// `text` as a JSON string literal (quotes included); invalid UTF-8 bytes become U+FFFD.
+std::string jsonQuoted(std::string_view text);
 
 // The -W names of all warnings, for validating command-line flags.
 std::vector<std::string> warningFlags();
@@ -84,6 +90,10 @@ class DiagnosticsEngine {
   Builder report(DiagId id, SourceLoc loc) { return Builder(this, id, loc); }
 
   bool hasErrors() const { return numErrors_ > 0 || limitReached_; }
+  // Errors other than warnings promoted by -Werror: the code may be incomplete or mistyped, so
+  // analyses that need a whole, well-typed program (unused, uninitialized) stand down. Promoted
+  // warnings leave the program whole, and the user should see every warning at once.
+  bool hasHardErrors() const { return numErrors_ > numPromoted_ || limitReached_; }
   unsigned numErrors() const { return numErrors_; }
   unsigned numWarnings() const { return numWarnings_; }
   // Diagnostics sorted by location (then emission order); with a SourceManager, an included
@@ -102,6 +112,7 @@ class DiagnosticsEngine {
   DiagnosticOptions options_;
   std::vector<Diagnostic> diags_;
   unsigned numErrors_ = 0;
+  unsigned numPromoted_ = 0;  // of numErrors_: warnings made errors by -Werror
   unsigned numWarnings_ = 0;
   bool limitReached_ = false;
 };

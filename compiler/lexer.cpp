@@ -210,7 +210,9 @@ Token Lexer::lexString(const char* start) {
   }
   if (cur_ >= end_ || *cur_ != '"') {
     sink().report(DiagId::ErrUnterminatedString, locOf(start));
-    return make(Tok::StringLiteral, start);
+    Token t = make(Tok::StringLiteral, start);
+    t.malformed = true;
+    return t;
   }
   ++cur_;
   return make(Tok::StringLiteral, start);

@@ -85,7 +85,7 @@ bool Parser::accept(Tok k) {
 
 bool Parser::expectAfterPrev(Tok k, const char* context) {
   if (accept(k)) return true;
-  if (tok().is(Tok::Unknown) || stopped_) return false;  // already reported
+  if (tok().is(Tok::Unknown) || stopped_ || (pos_ && prev().malformed)) return false;  // already reported
   const SourceLoc at = pos_ ? prev().end() : tok().loc;
   if (context)
     diags_.report(DiagId::ErrExpectedAfter, at).arg(tokDescription(k)).arg(context);
@@ -206,6 +206,33 @@ TypeKind Parser::typeOf(Tok k) const {
     case Tok::KwVoid: return TypeKind::Void;
     default: return TypeKind::Error;
   }
+}
+
+// The type keyword a misspelt word most likely meant (at most two edits, and fewer than the word
+// has letters to spare), or "".
+std::string Parser::closestTypeName(std::string_view word) {
+  static constexpr std::string_view kTypes[] = {"float", "int", "point", "vector", "normal",
+                                                "color", "string", "matrix", "void"};
+  auto distance = [](std::string_view a, std::string_view b) {
+    // Optimal string alignment: insertions, deletions, substitutions and adjacent swaps.
+    std::vector<std::vector<size_t>> d(a.size() + 1, std::vector<size_t>(b.size() + 1));
+    for (size_t i = 0; i <= a.size(); ++i) d[i][0] = i;
+    for (size_t j = 0; j <= b.size(); ++j) d[0][j] = j;
+    for (size_t i = 1; i <= a.size(); ++i)
+      for (size_t j = 1; j <= b.size(); ++j) {
+        d[i][j] = std::min({d[i - 1][j] + 1, d[i][j - 1] + 1, d[i - 1][j - 1] + (a[i - 1] != b[j - 1])});
+        if (i > 1 && j > 1 && a[i - 1] == b[j - 2] && a[i - 2] == b[j - 1])
+          d[i][j] = std::min(d[i][j], d[i - 2][j - 2] + 1);
+      }
+    return d[a.size()][b.size()];
+  };
+  std::string best;
+  size_t bestDistance = 3;
+  for (std::string_view type : kTypes) {
+    const size_t dist = distance(word, type);
+    if (dist < bestDistance && dist < type.size() - 1) best = std::string(type), bestDistance = dist;
+  }
+  return best;
 }
 
 bool Parser::startsDeclaration() const {
@@ -416,7 +443,7 @@ bool Parser::parseDeclarators(std::vector<std::unique_ptr<VarDecl>>& out, Type t
         int64_t n = 0;
         if (!foldIntConstant(*length, &n) || n <= 0) {
           diags_.report(DiagId::ErrArrayLength, length->range.begin).range(length->range);
-          return false;
+          n = 0;
         }
         // Arrays are kept element by element in the generated code, so their length bounds the
         // compile's time and memory (65536 elements: about a second and 180 MB).
@@ -425,9 +452,14 @@ bool Parser::parseDeclarators(std::vector<std::unique_ptr<VarDecl>>& out, Type t
               .arg(std::to_string(n))
               .arg(std::to_string(kMaxArrayLength))
               .range(length->range);
-          n = kMaxArrayLength;  // still declared, so that its uses raise no further errors
+          n = 0;
         }
-        decl->type.arrayLength = int(n);
+        // A bad length still declares the variable, with the error type, so that its uses raise
+        // no further errors.
+        if (n > 0)
+          decl->type.arrayLength = int(n);
+        else
+          decl->type = Type(TypeKind::Error);
       }
     }
     if (accept(Tok::Assign)) {
@@ -534,6 +566,23 @@ StmtPtr Parser::parseStatement() {
     diags_.report(DiagId::ErrVoidVariable, t.loc).arg(std::string(peek().text)).range(t.range());
     recovering_ = true;
     return nullptr;
+  }
+  // `flaot h = 1;`: an unknown word where a type belongs. The variable is still declared, with the
+  // error type, so that its uses say nothing more (one error, not three).
+  if (t.is(Tok::Identifier) && peek().is(Tok::Identifier) &&
+      (peek(2).is(Tok::Assign) || peek(2).is(Tok::Semi) || peek(2).is(Tok::Comma) ||
+       peek(2).is(Tok::LBracket))) {
+    const std::string suggestion = closestTypeName(t.text);
+    diags_.report(DiagId::ErrUnknownTypeName, t.loc)
+        .arg(std::string(t.text))
+        .arg(suggestion.empty() ? std::string() : "; did you mean '" + suggestion + "'?")
+        .range(t.range());
+    const Token typeWord = consume();
+    auto s = std::make_unique<Stmt>(StmtKind::Decl, typeWord.range());
+    if (!parseDeclarators(s->decls, Type(TypeKind::Error), false, false, Storage::Local)) return nullptr;
+    if (!expectAfterPrev(Tok::Semi, "declaration") && !missingSemiAtLineEnd()) recovering_ = true;
+    s->range.end = prev().end();
+    return s;
   }
   if (startsDeclaration()) {
     auto s = parseDeclaration();

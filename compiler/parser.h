@@ -4,6 +4,7 @@
 
 #include <memory>
 #include <string>
+#include <string_view>
 #include <unordered_map>
 #include <vector>
 
@@ -45,6 +46,7 @@ class Parser {
   void syncTopLevel();
   bool isTypeKeyword(Tok k) const;
   bool startsDeclaration() const;
+  static std::string closestTypeName(std::string_view word);
   TypeKind typeOf(Tok k) const;
 
   void parseShader();

@@ -56,6 +56,9 @@ struct Token {
   int32_t intValue = 0;
   float floatValue = 0;
   bool atLineStart = false;
+  // Already reported by the lexer (an unterminated string swallowed the rest of its line): what
+  // the parser expected after it is not reported again.
+  bool malformed = false;
 
   bool is(Tok k) const { return kind == k; }
   SourceRange range() const { return {loc, loc.advanced(length)}; }

@@ -173,7 +173,7 @@ class Checker {
 
   void run() {
     // After syntax errors, parts of bodies are missing: "unused" would be a guess, not a finding.
-    skipUnusedWarnings_ = diags_.hasErrors();
+    skipUnusedWarnings_ = diags_.hasHardErrors();
     makeGlobals();
     functionScopes_.clear();
     functionScopes_.emplace_back();
@@ -312,7 +312,7 @@ class Checker {
     loopDepth_ = 0;
     if (shader.body) {
       checkBlockContents(*shader.body);
-      if (!diags_.hasErrors()) UninitializedAnalysis(*this).stmt(*shader.body);
+      if (!diags_.hasHardErrors()) UninitializedAnalysis(*this).stmt(*shader.body);
     }
     popScope();
     shader_ = nullptr;
@@ -399,7 +399,11 @@ class Checker {
     if (d.init->kind == ExprKind::InitList) {
       Expr& list = *d.init;
       if (!d.type.isArray()) {
-        report(DiagId::ErrInitListNotArray, list.range.begin).range(list.range);
+        // A variable whose type is already in error (a bad array length, an unknown type name)
+        // says nothing more about its list, only about the elements' own mistakes.
+        if (!d.type.isError()) report(DiagId::ErrInitListNotArray, list.range.begin).range(list.range);
+        else
+          for (const ExprPtr& x : list.operands) checkExpr(*x, kError);
         list.type = kError;
         return;
       }
@@ -1028,7 +1032,7 @@ class Checker {
     }
     if (f.body) {
       checkBlockContents(*f.body);
-      if (!diags_.hasErrors()) UninitializedAnalysis(*this).stmt(*f.body);
+      if (!diags_.hasHardErrors()) UninitializedAnalysis(*this).stmt(*f.body);
       if (f.returnType.kind != TypeKind::Void && !f.bodyHadErrors && canFallThrough(*f.body))
         report(DiagId::ErrMissingReturn, SourceLoc{f.body->range.end.offset - 1}).arg(f.name);
     }
@@ -1053,6 +1057,13 @@ class Checker {
     return base->kind == ExprKind::Identifier && base->decl;
   }
 
+  // An output argument is the parameter's own type, or any array of its element type for an
+  // unsized `T a[]` parameter (§2.1).
+  static bool outputArgumentFits(Type argument, Type parameter) {
+    if (parameter.arrayLength == -1) return argument.isArray() && argument.kind == parameter.kind;
+    return argument == parameter;
+  }
+
   // Overload resolution (§6): exact match, then int→float-only conversions, then the unique
   // candidate with the fewest conversions.
   // Library candidates are reported like built-ins: at the callee, without notes into stdlib/.
@@ -1072,7 +1083,7 @@ class Checker {
         const VarDecl& p = *f->params[i];
         const Expr& a = *args[i];
         if (p.isOutput) {
-          ok = isLvalue(a) && a.type == p.type;
+          ok = isLvalue(a) && outputArgumentFits(a.type, p.type);
           continue;
         }
         switch (conversion(a.type, p.type)) {
@@ -1097,7 +1108,7 @@ class Checker {
         for (size_t i = 0; i < args.size(); ++i) {
           const VarDecl& p = *f.params[i];
           const Expr& a = *args[i];
-          if (p.isOutput && !(isLvalue(a) && a.type == p.type)) {
+          if (p.isOutput && !(isLvalue(a) && outputArgumentFits(a.type, p.type))) {
             report(DiagId::ErrOutputArgument, a.range.begin).arg(p.name).arg(typeName(p.type)).range(a.range);
             break;
           }
@@ -1121,12 +1132,17 @@ class Checker {
         }
       return n;
     };
+    // §6: an exact match; else, among the candidates needing only int->float conversions (or,
+    // if there are none, among all), the one with the fewest conversions.
     int n = pick([](const Viable& v) { return v.conversions == 0; });
-    if (n == 0) n = pick([](const Viable& v) { return v.intToFloatOnly; });
     if (n == 0) {
+      const bool intToFloatTier =
+          std::any_of(viable.begin(), viable.end(), [](const Viable& v) { return v.intToFloatOnly; });
+      auto inTier = [&](const Viable& v) { return !intToFloatTier || v.intToFloatOnly; };
       int fewest = INT32_MAX;
-      for (const Viable& v : viable) fewest = std::min(fewest, v.conversions);
-      n = pick([&](const Viable& v) { return v.conversions == fewest; });
+      for (const Viable& v : viable)
+        if (inTier(v)) fewest = std::min(fewest, v.conversions);
+      n = pick([&](const Viable& v) { return inTier(v) && v.conversions == fewest; });
     }
     if (n != 1) {
       auto builder = report(DiagId::ErrAmbiguousCall, e.range.begin);

@@ -22,6 +22,7 @@
 #include <utility>
 #include <vector>
 
+#include "compiler/diagnostics.h"
 #include "compiler/shader_library.h"
 #include "renderer/accel.h"
 #include "renderer/embree_accelerator.h"
@@ -502,22 +503,7 @@ void reportThinBudget(const std::string& scene, const relief::AccelStats& a, std
       << " first fills: raise --cache-triangles, or --grid-resolution for smaller voxels\n";
 }
 
-std::string jsonString(const std::string& text) {
-  std::string out = "\"";
-  for (char c : text) {
-    if (c == '"' || c == '\\') {
-      out += '\\';
-      out += c;
-    } else if (static_cast<unsigned char>(c) < 0x20) {
-      char escaped[8];
-      std::snprintf(escaped, sizeof escaped, "\\u%04x", c);
-      out += escaped;
-    } else {
-      out += c;
-    }
-  }
-  return out + "\"";
-}
+std::string jsonString(const std::string& text) { return relief::compiler::jsonQuoted(text); }
 
 // A flat JSON object whose keys are the dotted names (docs/statistics.md).
 bool writeStatsJson(const std::string& path, const StatList& stats) {

@@ -30,6 +30,7 @@ constexpr const char* kUsage =
     "  -D name[=value]            define a macro\n"
     "  -O0 -O1 -O2 -O3            optimization level (default -O2)\n"
     "  -Werror                    treat warnings as errors\n"
+    "  -Werror=<name>             treat one warning as an error (-Wno-error=<name>: never)\n"
     "  -w                         suppress warnings\n"
     "  -W<name>, -Wno-<name>      enable or disable one warning (e.g. -Wno-unused-parameter)\n"
     "  -ferror-limit=N            stop after N errors (default 20, 0: no limit)\n"
@@ -57,6 +58,7 @@ struct Args {
   std::string at;
   unsigned errorLimit = 20;
   std::vector<std::string> disabledWarnings;
+  std::vector<std::string> errorWarnings, notErrorWarnings;  // -Werror=<name>, -Wno-error=<name>
 };
 
 // A count given to an option: digits only, at most 2^31 - 1 (strtoul alone would take "-3" as a
@@ -228,6 +230,7 @@ int evaluate(const Args& args, const CompileResult& result) {
 int main(int argc, char** argv) {
   relief::runtime::setTextureMessageProgram("reliefc");
   Args args;
+  std::vector<std::string> optionWarnings;  // reported once the output format is known
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto value = [&](const std::string& flag, std::string* out) {
@@ -260,12 +263,18 @@ int main(int argc, char** argv) {
     } else if (a == "-w") {
       args.options.noWarnings = true;
     } else if (a.rfind("-W", 0) == 0 && a.size() > 2) {
-      // -W<name> enables (every warning is on by default), -Wno-<name> disables.
-      const bool off = a.rfind("-Wno-", 0) == 0;
-      const std::string name = a.substr(off ? 5 : 2);
+      // -W<name> enables (every warning is on by default), -Wno-<name> disables, -Werror=<name>
+      // makes one warning an error, -Wno-error=<name> keeps it a warning under -Werror.
+      const bool error = a.rfind("-Werror=", 0) == 0, noError = a.rfind("-Wno-error=", 0) == 0;
+      const bool off = !noError && a.rfind("-Wno-", 0) == 0;
+      const std::string name = a.substr(error ? 8 : noError ? 11 : off ? 5 : 2);
       const auto known = relief::compiler::warningFlags();
       if (std::find(known.begin(), known.end(), name) == known.end())
-        std::cerr << "reliefc: warning: unknown warning option '" << a << "'\n";
+        optionWarnings.push_back("unknown warning option '" + a + "'");
+      else if (error)
+        args.errorWarnings.push_back(name);
+      else if (noError)
+        args.notErrorWarnings.push_back(name);
       else if (off)
         args.disabledWarnings.push_back(name);
     } else if (a.rfind("-floop-limit=", 0) == 0) {
@@ -312,6 +321,13 @@ int main(int argc, char** argv) {
   if (args.files.empty()) return usageError("no input files");
   if (args.eval && args.files.size() != 1) return usageError("--eval takes exactly one file");
 
+  // Problems with the options themselves, in the format asked for (JSON Lines stay valid).
+  for (const std::string& message : optionWarnings) {
+    if (args.json)
+      std::cerr << "{\"severity\":\"warning\",\"message\":" << relief::compiler::jsonQuoted(message) << "}\n";
+    else
+      std::cerr << "reliefc: warning: " << message << "\n";
+  }
   const bool color = args.color == "always" || (args.color == "auto" && isatty(STDERR_FILENO));
   unsigned warnings = 0, errors = 0;
   int exitCode = 0;
@@ -322,6 +338,8 @@ int main(int argc, char** argv) {
     flags.jit = args.eval;
     flags.errorLimit = args.errorLimit;
     flags.disabledWarnings = args.disabledWarnings;
+    flags.errorWarnings = args.errorWarnings;
+    flags.notErrorWarnings = args.notErrorWarnings;
     CompileResult result = relief::compiler::compileFile(file, args.options, flags);
     const auto& diags = *result.diagnostics;
     if (args.json) {

@@ -15,6 +15,8 @@
 #include <string>
 #include <vector>
 
+#include "compiler/diagnostics.h"
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -93,6 +95,28 @@ TEST(CliTest, WerrorTurnsWarningsIntoExitCodeOne) {
   const CliRun quiet = reliefc("--color=never -Wno-unused-variable unused_variable.disp", dir);
   EXPECT_EQ(quiet.exitCode, 0);
   EXPECT_EQ(quiet.err.find("unused variable"), std::string::npos) << quiet.err;
+
+  // A warning made an error leaves the program whole: every other warning is still reported, in
+  // the same run. -Werror=<name> promotes one; -Wno-error=<name> exempts one from -Werror.
+  const fs::path three = writeTemp("relief_three_warnings.disp",
+                                   "displacement d(float Km = 1)\n{\n    float h;\n    int i = 2.5;\n"
+                                   "    float unused = 1;\n    if (u > 0.5) h = 1;\n    P += N * Km * h * i;\n}\n");
+  auto count = [](const std::string& text, const std::string& what) {
+    size_t n = 0;
+    for (size_t at = text.find(what); at != std::string::npos; at = text.find(what, at + 1)) ++n;
+    return n;
+  };
+  const CliRun all = reliefc("--color=never -Werror " + quote(three.string()));
+  EXPECT_EQ(all.exitCode, 1);
+  EXPECT_EQ(count(all.err, ": error: "), 3u) << all.err;
+  const CliRun one = reliefc("--color=never -Werror=narrowing " + quote(three.string()));
+  EXPECT_EQ(one.exitCode, 1);
+  EXPECT_EQ(count(one.err, ": error: "), 1u) << one.err;
+  EXPECT_EQ(count(one.err, ": warning: "), 2u) << one.err;
+  const CliRun exempt = reliefc("--color=never -Werror -Wno-error=narrowing -Wno-error=unused-variable -Wno-error=uninitialized " +
+                                quote(three.string()));
+  EXPECT_EQ(exempt.exitCode, 0) << exempt.err;
+  EXPECT_EQ(count(exempt.err, ": warning: "), 3u) << exempt.err;
 }
 
 TEST(CliTest, JsonDiagnosticsAreOneObjectPerLine) {
@@ -110,6 +134,11 @@ TEST(CliTest, JsonDiagnosticsAreOneObjectPerLine) {
   EXPECT_EQ(warn.exitCode, 0);
   EXPECT_NE(warn.err.find("\"flag\":\"-Wmacro-redefined\""), std::string::npos) << warn.err;
   EXPECT_NE(warn.err.find("\"notes\":[{\"severity\":\"note\""), std::string::npos) << warn.err;
+  // A bad option is a JSON line too, and a file name that is not UTF-8 stays valid JSON.
+  const CliRun option = reliefc("--diagnostics-format=json -Wbogus macro_redefined.disp", dir);
+  EXPECT_EQ(option.err.rfind("{\"severity\":\"warning\",\"message\":\"unknown warning option '-Wbogus'\"}\n", 0), 0u)
+      << option.err;
+  EXPECT_EQ(relief::compiler::jsonQuoted("a\xe9" "b\"\n\xc3\xa9"), "\"a\\ufffd" "b\\\"\\n\xc3\xa9\"");
 }
 
 TEST(CliTest, UsageAndInputErrorsExitWithTwo) {

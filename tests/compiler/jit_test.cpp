@@ -596,6 +596,35 @@ displacement f(float Km = 0.5)
   EXPECT_FLOAT_EQ(b.Nout[1][0], 0.5f);        // derivatives flow through inlined calls
 }
 
+// §2.1: an array of any length may be passed to an unsized `T a[]` parameter, `output` ones
+// included. §6: among candidates needing only int->float conversions, the fewest wins.
+TEST(JitTest, UnsizedOutputArraysAndFewestIntToFloatConversions) {
+  auto shader = compileOne(R"(
+void fill(output float a[]; float last) { a[0] = 1; a[arraylength(a) - 1] = last; }
+float pick(float a, float b) { return 10 + 0 * (a + b); }
+float pick(int a, float b) { return 20 + 0 * (a + b); }
+float pick3(float a, float b, float c) { return 100 + 0 * (a + b + c); }
+float pick3(int a, int b, float c) { return 200 + 0 * (a + b + c); }
+displacement d()
+{
+    float c[3], e[5];
+    c[1] = 5;
+    fill(c, 7);
+    fill(e, 9);
+    P = point(c[0] + c[1] + c[2] + e[4], pick(1, 2) + pick3(1, 2, 3), pick(1.0, 2));
+})");
+  ASSERT_TRUE(shader);
+  runtime::ShaderInstance instance(shader);
+  TestBatch b(1);
+  fillSphere(b, 0, 0.25, 0.0);
+  RlfStatus status{};
+  RlfShadingBatch view = b.all();
+  instance.evaluate(view, status);
+  EXPECT_FLOAT_EQ(b.Pout[0][0], 1 + 5 + 7 + 9);
+  EXPECT_FLOAT_EQ(b.Pout[1][0], 20 + 200);
+  EXPECT_FLOAT_EQ(b.Pout[2][0], 10);  // pick(1.0, 2): float->int is no candidate's
+}
+
 TEST(JitTest, FunctionWritingPTriggersTheHostContract) {
   auto shader = compileOne(R"(
 void push(float h) { P += h * N; }
