@@ -640,6 +640,7 @@ class ShaderCodegen {
     if (!zeroCell_)
       zeroCell_ = new llvm::GlobalVariable(module_, f32_, true, llvm::GlobalValue::PrivateLinkage, llvm::ConstantFP::get(f32_, 0.0), "rlf.zero");
     nonFinite_ = entryAlloca(i32_, "nonfinite");
+    badNormals_ = entryAlloca(i32_, "badnormals");
     loopLimitHits_ = entryAlloca(i32_, "looplimit");
     loopCounter_ = entryAlloca(i32_, "iterations");
     textureErrors_ = entryAlloca(i32_, "textureerrors");
@@ -652,6 +653,7 @@ class ShaderCodegen {
     splineBasisProblems_ = entryAlloca(i32_, "splinebasis");
     b_.CreateStore(ci(0), splineBasisProblems_);
     b_.CreateStore(ci(0), nonFinite_);
+    b_.CreateStore(ci(0), badNormals_);
     b_.CreateStore(ci(0), loopLimitHits_);
     b_.CreateStore(ci(0), textureErrors_);
     llvm::AllocaInst* index = entryAlloca(i64_, "i");
@@ -748,6 +750,9 @@ class ShaderCodegen {
       store(slotFor(global(GlobalId::PI)), makeFloat(dconst(3.14159265358979f)));
       // Orientation of calculatenormal: the undisplaced dPdu ^ dPdv must face like Ng.
       Val geo = cross3(dpdu, dpdv);
+      // Where the surface's own parameterization degenerates (a sphere's pole), calculatenormal
+      // is zero through no fault of the shader: such points are not counted as bad normals.
+      regularFrame_ = b_.CreateFCmpONE(dot3(geo, geo).v, cf(0));
       Value* facing = dot3(geo, ng).v;
       orientation_ = b_.CreateSelect(b_.CreateFCmpOLT(facing, cf(0)), cf(-1), cf(1));
     }
@@ -813,16 +818,23 @@ class ShaderCodegen {
       }
       return ok;
     };
-    // Non-finite P: the undisplaced point and input normal; non-finite N: the input normal (§7).
+    // Non-finite P: the undisplaced point and input normal; non-finite or zero N: the input normal,
+    // which hosts replace by the displaced surface's own (§7). Counted apart: only the first
+    // leaves the point undisplaced.
     Value* pOk = finite3(pOut);
-    Value* nOk = finite3(nOut);
+    Value* nFinite = finite3(nOut);
+    Value* nNonZero = b_.CreateFCmpONE(dot3(nOut, nOut).v, cf(0));
+    Value* nOk = b_.CreateAnd(nFinite, nNonZero);
     Value* allOk = b_.CreateAnd(pOk, nOk);
+    Value* nBad = b_.CreateAnd(pOk, b_.CreateNot(b_.CreateAnd(nFinite, b_.CreateOr(nNonZero, b_.CreateNot(regularFrame_)))));
     for (int k = 0; k < 3; ++k) {
       b_.CreateStore(b_.CreateSelect(pOk, pOut.c[k].v, pIn[k]), at(Pout[k]));
       b_.CreateStore(b_.CreateSelect(allOk, nOut.c[k].v, nIn[k]), at(Nout[k]));
     }
     Value* nf = b_.CreateLoad(i32_, nonFinite_);
-    b_.CreateStore(b_.CreateAdd(nf, b_.CreateZExt(b_.CreateNot(allOk), i32_)), nonFinite_);
+    b_.CreateStore(b_.CreateAdd(nf, b_.CreateZExt(b_.CreateNot(pOk), i32_)), nonFinite_);
+    Value* bn = b_.CreateLoad(i32_, badNormals_);
+    b_.CreateStore(b_.CreateAdd(bn, b_.CreateZExt(nBad, i32_)), badNormals_);
     b_.CreateBr(latch);
 
     // Loop limit exceeded: outputs revert to the inputs (§7).
@@ -844,6 +856,7 @@ class ShaderCodegen {
       b_.CreateStore(b_.CreateAdd(b_.CreateLoad(i32_, p), b_.CreateLoad(i32_, local)), p);
     };
     bump(offsetof(RlfStatus, nonFinite), nonFinite_);
+    bump(offsetof(RlfStatus, badNormal), badNormals_);
     bump(offsetof(RlfStatus, loopLimit), loopLimitHits_);
     bump(offsetof(RlfStatus, textureErrors), textureErrors_);
     bump(offsetof(RlfStatus, indexClamped), indexClamped_);
@@ -2383,6 +2396,8 @@ class ShaderCodegen {
   llvm::BasicBlock* abortBlock_ = nullptr;
   llvm::GlobalVariable* zeroCell_ = nullptr;
   llvm::AllocaInst* nonFinite_ = nullptr;
+  llvm::AllocaInst* badNormals_ = nullptr;
+  Value* regularFrame_ = nullptr;  // per point: the undisplaced dPdu ^ dPdv is not zero
   llvm::AllocaInst* loopLimitHits_ = nullptr;
   llvm::AllocaInst* loopCounter_ = nullptr;
   llvm::AllocaInst* gradient_ = nullptr;

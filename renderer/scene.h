@@ -79,7 +79,7 @@ struct Material {
 // evaluates it (cache fills, the Embree baseline) so the renderer can warn naming the shader and
 // the RIB line that bound it. Shared by copies of the Displacement.
 struct ShaderProblemCounts {
-  std::atomic<uint64_t> nonFinite{0}, loopLimit{0}, indexClamped{0}, unknownSpace{0},
+  std::atomic<uint64_t> nonFinite{0}, badNormal{0}, loopLimit{0}, indexClamped{0}, unknownSpace{0},
       textureErrors{0}, splineBasis{0};
   // language.md §7: points moved farther than the declared displacement bound are not clamped
   // (rays may miss them); the host warns with the largest excess. Counted and kept as float bits,

@@ -323,6 +323,7 @@ void displace(const Displacement& disp, const TriangleFrame& frame, Vertices& vs
       if (n) to.fetch_add(n, std::memory_order_relaxed);
     };
     add(pc->nonFinite, std::max(status.nonFinite, replaced));
+    add(pc->badNormal, status.badNormal);
     add(pc->loopLimit, status.loopLimit), add(pc->indexClamped, status.indexClamped);
     add(pc->unknownSpace, status.unknownSpace), add(pc->textureErrors, status.textureErrors);
     add(pc->splineBasis, status.splineBasis);

@@ -69,14 +69,16 @@ typedef struct RlfShadingBatch {
 // Runtime problems of one evaluate call, counted rather than thrown (nothing unwinds through JIT
 // frames). The host reports each kind once per shader instance.
 typedef struct RlfStatus {
-  uint32_t nonFinite;     // points whose final P or N was NaN/Inf (replaced by the host)
+  uint32_t nonFinite;     // points whose final P was NaN/Inf (left undisplaced)
   uint32_t loopLimit;     // invocations aborted by the loop-iteration guard
   uint32_t indexClamped;  // run-time array/component indices clamped into range
   uint32_t unknownSpace;  // non-literal coordinate-space names that resolved to identity
   uint32_t textureErrors; // texture lookups that failed (missing file, ...)
   uint32_t splineBasis;   // run-time spline basis names unknown or unfit for the knot count
                           // (the call used "catmull-rom")
-  uint32_t reserved[2];
+  uint32_t badNormal;     // points with a finite P whose final N was NaN/Inf or zero (the input N
+                          // is returned; hosts use the displaced surface's own normal)
+  uint32_t reserved[1];
 } RlfStatus;
 
 // Callbacks the generated code may make into the host. All are noexcept and report failure by

@@ -309,6 +309,7 @@ double secondsSince(std::chrono::steady_clock::time_point start) {
 using StatList = std::vector<std::pair<std::string, std::string>>;
 
 std::string jsonString(const std::string& text);
+float maxExcess(const relief::ShaderProblemCounts& p);
 
 // Process start, for time.total_s.
 const auto gProcessStart = std::chrono::steady_clock::now();
@@ -330,6 +331,22 @@ StatList collectStats(const CommandLine& cl, const relief::Scene& scene,
     return std::string(text);
   };
   auto ratio = [&](double num, double den) { return den > 0 ? f(num / den) : std::string("null"); };
+  // Shader problems over every Displacement (copies share their counts): the numbers behind the
+  // warnings, for scripts that run with --quiet.
+  uint64_t nonFinite = 0, badNormal = 0, loopLimit = 0, indexClamped = 0, unknownSpace = 0, textureErrors = 0,
+           splineBasis = 0, outOfBound = 0;
+  double maxBoundExcess = 0.0;
+  std::vector<const relief::ShaderProblemCounts*> counted;
+  for (const relief::Displacement& d : scene.displacements) {
+    const relief::ShaderProblemCounts* p = d.problems.get();
+    if (!p || std::find(counted.begin(), counted.end(), p) != counted.end()) continue;
+    counted.push_back(p);
+    nonFinite += p->nonFinite.load(), badNormal += p->badNormal.load(), loopLimit += p->loopLimit.load();
+    indexClamped += p->indexClamped.load(), unknownSpace += p->unknownSpace.load();
+    textureErrors += p->textureErrors.load(), splineBasis += p->splineBasis.load();
+    outOfBound += p->outOfBound.load();
+    if (p->outOfBound.load()) maxBoundExcess = std::max(maxBoundExcess, double(maxExcess(*p)));
+  }
   const uint64_t misses = a.compulsoryMisses + a.capacityMisses;
   // Fill and ray times are summed over threads; dividing by the thread count makes the four
   // parts add up to the render's wall time, with shading (the integrator) the remainder.
@@ -395,6 +412,15 @@ StatList collectStats(const CommandLine& cl, const relief::Scene& scene,
       {"cache.proxy_skips", u(a.proxySkips)},
       {"cache.memo_bytes", u(a.memoBytes)},
       {"cache.budget_violations", u(a.budgetViolations)},
+      {"shader.nonfinite_points", u(nonFinite)},
+      {"shader.bad_normals", u(badNormal)},
+      {"shader.loop_limit_hits", u(loopLimit)},
+      {"shader.clamped_indices", u(indexClamped)},
+      {"shader.unknown_spaces", u(unknownSpace)},
+      {"shader.texture_errors", u(textureErrors)},
+      {"shader.spline_basis_errors", u(splineBasis)},
+      {"shader.out_of_bound_points", u(outOfBound)},
+      {"shader.max_bound_excess", f(maxBoundExcess)},
       {"time.load_s", f(loadSeconds)},
       {"time.build_s", f(buildSeconds)},
       {"time.render_s", f(r.seconds)},
@@ -443,7 +469,8 @@ void reportShaderProblems(const relief::Scene& scene, std::ostream& out) {
     auto report = [&](const std::atomic<uint64_t>& count, const char* what) {
       if (const uint64_t n = count.load()) warn() << ": " << n << " " << what << "\n";
     };
-    report(p->nonFinite, "points produced NaN or infinity (left undisplaced)");
+    report(p->nonFinite, "points produced a NaN or infinite P (left undisplaced)");
+    report(p->badNormal, "points produced a NaN, infinite or zero N (the displaced surface's own normal is used)");
     report(p->loopLimit, "invocations hit the loop-iteration limit");
     report(p->indexClamped, "array or component indices were clamped into range");
     report(p->unknownSpace, "unknown coordinate space names were treated as 'current'");

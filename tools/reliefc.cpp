@@ -209,7 +209,11 @@ int evaluate(const Args& args, const CompileResult& result) {
   std::fflush(stdout);
   if (status.nonFinite)
     std::cerr << "reliefc: warning: shader '" << shader->name()
-              << "' produced a non-finite P or N; the undisplaced point was used\n";
+              << "' produced a non-finite P; the undisplaced point and input N were used\n";
+  if (status.badNormal)
+    std::cerr << "reliefc: warning: shader '" << shader->name()
+              << "' produced a non-finite or zero N; the input N was returned (a renderer uses the "
+                 "displaced surface's own normal)\n";
   if (status.loopLimit)
     std::cerr << "reliefc: error: shader '" << shader->name()
               << "' exceeded the loop iteration limit; outputs reverted to the inputs\n";

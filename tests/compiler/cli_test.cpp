@@ -246,7 +246,14 @@ TEST(CliTest, EvalWarnsAboutNonFiniteResultsNamingTheShader) {
   EXPECT_EQ(r.exitCode, 0) << r.err;
   // The undisplaced point and its normal are kept.
   EXPECT_EQ(r.out, "P = (0, 0, 1)\nN = (0, 0, 1)\n");
-  EXPECT_NE(r.err.find("shader 'blowup' produced a non-finite P or N"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("shader 'blowup' produced a non-finite P; the undisplaced point"), std::string::npos) << r.err;
+  // A non-finite or zero N leaves P displaced; it is its own warning (§7).
+  const fs::path zero = writeTemp("relief_zero_n.disp", "displacement flat() { P += 0.1 * N; N = normal(0); }\n");
+  const CliRun z = reliefc("--eval " + quote(zero.string()) + " --at \"P=(0,0,1) N=(0,0,1) dPdu=(1,0,0) dPdv=(0,1,0)\"");
+  EXPECT_EQ(z.exitCode, 0) << z.err;
+  EXPECT_EQ(z.out, "P = (0, 0, 1.10000002)\nN = (0, 0, 1)\n");
+  EXPECT_NE(z.err.find("shader 'flat' produced a non-finite or zero N"), std::string::npos) << z.err;
+  EXPECT_EQ(z.err.find("non-finite P"), std::string::npos) << z.err;
 }
 
 // §6.3 and §2.3: a clamped run-time index and an unknown run-time space name warn once, in

@@ -457,9 +457,30 @@ TEST(Relief, NanFromAShaderIsAWarningNamingIt) {
   const std::string expected = scene.string() + ":8: warning: displacement shader 'broken': ";
   const size_t at = onlyWarning(r.err, expected);
   ASSERT_NE(at, std::string::npos) << r.err;
-  EXPECT_NE(r.err.find("NaN or infinity (left undisplaced)", at), std::string::npos) << r.err;
-  r = run(kRelief + " " + scene.string() + " --quiet -o " + (dir / "nan2.png").string());
+  EXPECT_NE(r.err.find("points produced a NaN or infinite P (left undisplaced)", at), std::string::npos) << r.err;
+  // --quiet says nothing, but the statistics still count them.
+  r = run(kRelief + " " + scene.string() + " --quiet -o " + (dir / "nan2.png").string() + " --stats-json " +
+          (dir / "nan.json").string());
   EXPECT_EQ(r.err, "");
+  std::ifstream json(dir / "nan.json");
+  const std::string stats((std::istreambuf_iterator<char>(json)), std::istreambuf_iterator<char>());
+  EXPECT_EQ(stats.find("\"shader.nonfinite_points\": 0,"), std::string::npos) << stats;
+  EXPECT_NE(stats.find("\"shader.nonfinite_points\": "), std::string::npos) << stats;
+
+  // A NaN normal with a finite P: displaced, and a warning of its own.
+  writeFile(dir / "badn.disp",
+            "displacement badn(float Km = 0.05) {\n"
+            "  P += Km * normalize(N);\n"
+            "  float big = 1e30 * (1 + u);\n"
+            "  N = normal(big * big - big * big);\n"
+            "}\n");
+  const fs::path badn = displacedScene(dir, "0.1", "Displacement \"badn\"");
+  r = run(kRelief + " " + badn.string() + " -o " + (dir / "badn.png").string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_NE(r.err.find("points produced a NaN, infinite or zero N (the displaced surface's own normal is used)"),
+            std::string::npos)
+      << r.err;
+  EXPECT_EQ(r.err.find("left undisplaced"), std::string::npos) << r.err;
 }
 
 // subdivide.h, work guard: a scene whose undisplaced surface alone asks for more micro-triangles
