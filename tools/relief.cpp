@@ -1,6 +1,7 @@
 // relief: renders a RIB scene with displacement shaders compiled on the fly. The only place where
 // the compiler (ShaderLibrary, the ShaderProvider) meets the renderer (reader, accelerator, render
 // loop, film). Exit codes: 0 images written, 1 scene/shader/render error, 2 usage error.
+#include <fcntl.h>
 #include <sys/resource.h>
 #include <unistd.h>
 
@@ -182,7 +183,7 @@ int parseCommandLine(int argc, char** argv, CommandLine* cl) {
     } else if (a.size() > 2 && a.rfind("-I", 0) == 0) {
       cl->shaderDirs.push_back(a.substr(2));
     } else if (a == "-o") {
-      if (!value(&v)) return usageError("'-o' needs a file name");
+      if (!value(&v) || v.empty()) return usageError("'-o' needs a file name");
       cl->output = v;
     } else if (a == "--frame") {
       int frame = 0;
@@ -255,7 +256,7 @@ int parseCommandLine(int argc, char** argv, CommandLine* cl) {
         return usageError("'--accel' needs grid, embree or embree-compact");
       cl->accel = v;
     } else if (a == "--stats-json") {
-      if (!value(&v)) return usageError("'--stats-json' needs a file name");
+      if (!value(&v) || v.empty()) return usageError("'--stats-json' needs a file name");
       cl->statsJson = v;
     } else if (a == "--stats") {
       cl->stats = true;
@@ -533,7 +534,41 @@ void reportThinBudget(const std::string& scene, const relief::AccelStats& a, std
 std::string jsonString(const std::string& text) { return relief::compiler::jsonQuoted(text); }
 
 // A flat JSON object whose keys are the dotted names (docs/statistics.md).
+// Whether a file can be made at `path`: its directory is created if missing (as -o promises),
+// and a probe file is created in it and removed. Only trying tells: permissions, read-only or
+// pseudo file systems, a regular file where a directory should be.
+bool canCreateFile(const std::string& path, std::string* error) {
+  const std::filesystem::path file(path);
+  std::error_code ec;
+  if (std::filesystem::is_directory(file, ec)) {
+    *error = "cannot write '" + path + "': it is a directory";
+    return false;
+  }
+  const std::filesystem::path parent = file.parent_path().empty() ? std::filesystem::path(".") : file.parent_path();
+  std::filesystem::create_directories(parent, ec);
+  const std::error_code created = ec;
+  if (!std::filesystem::is_directory(parent, ec)) {
+    *error = "cannot write '" + path + "': " +
+             (std::filesystem::exists(parent, ec) ? "'" + parent.string() + "' is not a directory"
+                                                  : "cannot create directory '" + parent.string() + "'" +
+                                                        (created ? " (" + created.message() + ")" : std::string()));
+    return false;
+  }
+  const std::string probe = (parent / (".relief-probe-" + std::to_string(::getpid()))).string();
+  const int fd = ::open(probe.c_str(), O_WRONLY | O_CREAT | O_EXCL, 0600);
+  if (fd < 0) {
+    *error = "cannot write '" + path + "': " + std::strerror(errno);
+    return false;
+  }
+  ::close(fd);
+  ::unlink(probe.c_str());
+  return true;
+}
+
 bool writeStatsJson(const std::string& path, const StatList& stats) {
+  const std::filesystem::path parent = std::filesystem::path(path).parent_path();
+  std::error_code ignored;
+  if (!parent.empty()) std::filesystem::create_directories(parent, ignored);  // as -o does
   std::ofstream out(path);
   if (!out) return false;
   out << "{\n";
@@ -790,11 +825,20 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
     }
   }
   written->paths.insert(outputKeys.begin(), outputKeys.end());
-  // A format nothing can write fails now, not after the render.
+  // A format nothing can write, or a place nothing can be written to, fails now, not after the
+  // render.
   for (size_t i = 0; i < outputs.size(); ++i) {
     std::string error;
-    if (!relief::canWriteFormat(outputs[i], modes[i] == "rgba", &error)) {
+    if (!relief::canWriteFormat(outputs[i], modes[i] == "rgba", &error) ||
+        !canCreateFile(outputs[i], &error)) {
       std::cerr << "relief: error: " << error << "\n";
+      return 1;
+    }
+  }
+  if (!cl.statsJson.empty()) {
+    std::string error;
+    if (!canCreateFile(perFrame(cl.statsJson), &error)) {
+      std::cerr << "relief: error: cannot write statistics: " << error << "\n";
       return 1;
     }
   }

@@ -603,6 +603,28 @@ TEST(Relief, AnUnwritableFormatFailsBeforeTheRender) {
   EXPECT_EQ(r.exitCode, 1);
   EXPECT_NE(r.err.find("PNM has no alpha channel"), std::string::npos) << r.err;
   EXPECT_EQ(r.err.find("rendering"), std::string::npos) << r.err;
+  // So is a place nothing can be written to, image or statistics; a missing directory is made
+  // for either, and an empty name is a usage error.
+  writeFile(dir / "plainfile", "x");
+  r = run(kRelief + " " + scene.string() + " -o " + (dir / "plainfile" / "a.png").string());
+  EXPECT_EQ(r.exitCode, 1);
+  EXPECT_NE(r.err.find("relief: error: cannot write '" + (dir / "plainfile" / "a.png").string() + "': '" +
+                       (dir / "plainfile").string() + "' is not a directory"),
+            std::string::npos)
+      << r.err;
+  EXPECT_EQ(r.err.find("rendering"), std::string::npos) << r.err;
+  r = run(kRelief + " " + scene.string() + " -o " + (dir / "ok.png").string() + " --stats-json " +
+          (dir / "plainfile" / "s.json").string());
+  EXPECT_EQ(r.exitCode, 1);
+  EXPECT_NE(r.err.find("relief: error: cannot write statistics: "), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("rendering"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir / "ok.png"));
+  r = run(kRelief + " " + scene.string() + " --quiet -o " + (dir / "ok.png").string() + " --stats-json " +
+          (dir / "new" / "dir" / "s.json").string());
+  EXPECT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_TRUE(fs::exists(dir / "new" / "dir" / "s.json"));
+  EXPECT_EQ(run(kRelief + " " + scene.string() + " -o ''").exitCode, 2);
+  EXPECT_EQ(run(kRelief + " " + scene.string() + " --stats-json ''").exitCode, 2);
 }
 
 // Displays are all-or-nothing: when a later one cannot be written, the earlier ones (complete by
