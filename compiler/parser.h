@@ -17,8 +17,11 @@ namespace relief::compiler {
 
 // Bounds that keep the recursive passes (parser, type checker, codegen) within the stack on
 // hostile input: nested parentheses/blocks, and the height of expression trees built by loops.
+// Long operator chains (`a + b + ... + z`, generated code) parse iteratively but make tall trees,
+// so their bound is higher; compiles run on a 256 MiB stack (compiler.cpp), where a level costs
+// a few KiB even in a sanitizer build.
 inline constexpr int kMaxNesting = 256;
-inline constexpr uint32_t kMaxExpressionDepth = 1024;
+inline constexpr uint32_t kMaxExpressionDepth = 16384;
 
 class Parser {
  public:

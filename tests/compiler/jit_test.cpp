@@ -596,6 +596,31 @@ displacement f(float Km = 0.5)
   EXPECT_FLOAT_EQ(b.Nout[1][0], 0.5f);        // derivatives flow through inlined calls
 }
 
+// Long arrays are zeroed, copied and loaded from the parameter block by loops, not element by
+// element (a 16384-element copy once took minutes to optimise); the values are the same.
+TEST(JitTest, LongArraysCopyAndLoadTheirParameters) {
+  auto shader = compileOne(R"(
+float at(float x[]; float i) { return x[int(i)]; }
+displacement big(float k[20000] = {3, 4}; point corners[40] = {point(1, 2, 3)})
+{
+    float a[20000], b[20000];
+    string names[30];
+    a[int(u * 10)] = u;
+    b = a;
+    a = k;
+    P += N * (b[3] + a[1] + a[19999] + at(b, 3) + arraylength(b) + ycomp(corners[0]) + ycomp(corners[39]));
+    if (names[29] != "") P = 0;
+})");
+  ASSERT_TRUE(shader);
+  runtime::ShaderInstance instance(shader);
+  TestBatch b(1);
+  fillSphere(b, 0, 0.35, 0.0);  // u = 0.35: a[3] = u
+  RlfStatus status{};
+  RlfShadingBatch view = b.all();
+  instance.evaluate(view, status);
+  EXPECT_NEAR(b.Pout[2][0], 1 + 0.35 + 4 + 0 + 0.35 + 20000 + 2 + 0, 1e-2);
+}
+
 // §2.1: an array of any length may be passed to an unsized `T a[]` parameter, `output` ones
 // included. §6: among candidates needing only int->float conversions, the fewest wins.
 TEST(JitTest, UnsizedOutputArraysAndFewestIntToFloatConversions) {
