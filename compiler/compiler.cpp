@@ -180,6 +180,7 @@ static void compileGuarded(CompileResult& result, SourceManager::FileId file, co
 CompileResult compileSource(std::string name, std::string text, const CompileOptions& options,
                             const CompileFlags& flags) {
   CompileResult r = makeResult(options, flags);
+  r.diagnostics->setFileName(name);
   const auto file = r.sources->addBuffer(std::move(name), std::move(text));
   compileGuarded(r, file, options, flags);
   return r;
@@ -187,6 +188,7 @@ CompileResult compileSource(std::string name, std::string text, const CompileOpt
 
 CompileResult compileFile(const std::string& path, const CompileOptions& options, const CompileFlags& flags) {
   CompileResult r = makeResult(options, flags);
+  r.diagnostics->setFileName(path);
   SourceManager::FileId file = 0;
   std::string error;
   if (!r.sources->addFile(path, &file, &error)) {
@@ -203,7 +205,7 @@ std::string renderDiagnostics(const CompileResult& result, bool color) {
   TextDiagnosticOptions opts;
   opts.color = color;
   renderAllText(out, *result.sources, *result.diagnostics, opts);
-  const std::string summary = summaryLine(result.diagnostics->numWarnings(), result.diagnostics->numErrors());
+  const std::string summary = summaryLine(result.diagnostics->numWarnings(), result.diagnostics->numShownErrors());
   if (!summary.empty()) out << summary << '\n';
   return out.str();
 }

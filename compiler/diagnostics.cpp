@@ -89,7 +89,6 @@ DiagnosticsEngine::Builder::~Builder() {
 }
 
 void DiagnosticsEngine::record(Diagnostic d) {
-  if (limitReached_) return;
   bool promoted = false;
   if (d.severity == Severity::Warning) {
     if (options_.noWarnings) return;
@@ -102,23 +101,35 @@ void DiagnosticsEngine::record(Diagnostic d) {
     if (promoted) d.severity = Severity::Error;
   }
   if (d.severity >= Severity::Error) {
-    if (options_.errorLimit && numErrors_ >= options_.errorLimit) {
-      limitReached_ = true;
-      Diagnostic fatal;
-      fatal.id = DiagId::FatalTooManyErrors;
-      fatal.severity = Severity::Fatal;
-      fatal.message = format(fatal.id, {});
-      fatal.order = uint32_t(diags_.size());
-      diags_.push_back(std::move(fatal));
-      return;
-    }
     ++numErrors_;
     numPromoted_ += promoted;
+    // The limit applies to the errors shown, taken in source order (sorted()): parse errors are
+    // found before type errors earlier in the file, which must not be the ones dropped.
+    if (options_.errorLimit && numErrors_ > options_.errorLimit) limitReached_ = true;
   } else if (d.severity == Severity::Warning) {
     ++numWarnings_;
   }
+  if (diags_.size() >= kMaxKept) return;  // hostile input: what is kept is plenty to sort from
   d.order = uint32_t(diags_.size());
   diags_.push_back(std::move(d));
+}
+
+std::vector<Diagnostic> DiagnosticsEngine::limited(std::vector<Diagnostic> in) const {
+  if (!limitReached_) return in;
+  std::vector<Diagnostic> out;
+  unsigned errors = 0;
+  for (Diagnostic& d : in) {
+    if (d.severity >= Severity::Error && ++errors > options_.errorLimit) break;
+    out.push_back(std::move(d));
+  }
+  Diagnostic fatal;
+  fatal.id = DiagId::FatalTooManyErrors;
+  fatal.severity = Severity::Fatal;
+  fatal.message = format(fatal.id, {});
+  fatal.file = fileName_;
+  fatal.order = uint32_t(diags_.size());
+  out.push_back(std::move(fatal));
+  return out;
 }
 
 std::vector<Diagnostic> DiagnosticsEngine::sorted() const {
@@ -130,7 +141,7 @@ std::vector<Diagnostic> DiagnosticsEngine::sorted() const {
   std::stable_sort(out.begin(), out.end(), [&](const Diagnostic& a, const Diagnostic& b) {
     return key(a) < key(b);
   });
-  return out;
+  return limited(std::move(out));
 }
 
 std::vector<Diagnostic> DiagnosticsEngine::sorted(const SourceManager& sm) const {
@@ -140,7 +151,7 @@ std::vector<Diagnostic> DiagnosticsEngine::sorted(const SourceManager& sm) const
   std::stable_sort(keyed.begin(), keyed.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
   std::vector<Diagnostic> out;
   for (const auto& k : keyed) out.push_back(*k.second);
-  return out;
+  return limited(std::move(out));
 }
 
 namespace {

@@ -2,6 +2,7 @@
 // (text, JSON) render them sorted by location. Shared by every compiler stage; no LLVM here.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <ostream>
 #include <string>
@@ -95,6 +96,12 @@ class DiagnosticsEngine {
   // warnings leave the program whole, and the user should see every warning at once.
   bool hasHardErrors() const { return numErrors_ > numPromoted_ || limitReached_; }
   unsigned numErrors() const { return numErrors_; }
+  // The errors sorted() shows: at most the error limit.
+  unsigned numShownErrors() const {
+    return limitReached_ ? std::min(numErrors_, options_.errorLimit) : numErrors_;
+  }
+  // The file a diagnostic without a position (the error-limit notice) names.
+  void setFileName(std::string name) { fileName_ = std::move(name); }
   unsigned numWarnings() const { return numWarnings_; }
   // Diagnostics sorted by location (then emission order); with a SourceManager, an included
   // file's diagnostics sort at its #include.
@@ -111,6 +118,10 @@ class DiagnosticsEngine {
 
   DiagnosticOptions options_;
   std::vector<Diagnostic> diags_;
+  static constexpr size_t kMaxKept = 100000;
+  // sorted()'s tail: the first errorLimit errors in source order, then the limit's notice.
+  std::vector<Diagnostic> limited(std::vector<Diagnostic> in) const;
+  std::string fileName_;
   unsigned numErrors_ = 0;
   unsigned numPromoted_ = 0;  // of numErrors_: warnings made errors by -Werror
   unsigned numWarnings_ = 0;

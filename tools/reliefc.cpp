@@ -354,7 +354,7 @@ int main(int argc, char** argv) {
       relief::compiler::renderAllText(std::cerr, *result.sources, diags, topts);
     }
     warnings += diags.numWarnings();
-    errors += diags.numErrors();
+    errors += diags.numShownErrors();
     if (result.ioError) {
       exitCode = std::max(exitCode, 2);
       continue;

@@ -66,12 +66,18 @@ TEST(DiagnosticsTest, ErrorLimitStopsWithFatalError) {
   DiagnosticOptions options;
   options.errorLimit = 3;
   DiagnosticsEngine diags(options);
-  for (int i = 0; i < 6; ++i) diags.report(DiagId::ErrUndeclared, sm.startOf(id).advanced(uint32_t(i))).arg("x");
+  diags.setFileName("c.disp");
+  // Reported out of source order (as parse errors come before earlier type errors): the limit
+  // keeps the first three by location, and the notice names the file.
+  for (int i : {5, 4, 3, 2, 1, 0}) diags.report(DiagId::ErrUndeclared, sm.startOf(id).advanced(uint32_t(i))).arg("x");
   const auto sorted = diags.sorted();
   ASSERT_EQ(sorted.size(), 4u);
+  for (uint32_t i = 0; i < 3; ++i) EXPECT_EQ(sorted[i].loc.offset, sm.startOf(id).advanced(i).offset);
   EXPECT_EQ(sorted.back().severity, Severity::Fatal);
   EXPECT_EQ(sorted.back().message, "too many errors emitted, stopping now [-ferror-limit=]");
-  EXPECT_EQ(diags.numErrors(), 3u);
+  EXPECT_EQ(sorted.back().file, "c.disp");
+  EXPECT_EQ(diags.numShownErrors(), 3u);
+  EXPECT_EQ(diags.numErrors(), 6u);
   EXPECT_TRUE(diags.hasErrors());
 }
 
