@@ -3,6 +3,7 @@
 
 #include <cctype>
 #include <cerrno>
+#include <cmath>
 #include <cstdlib>
 #include <cstring>
 #include <unordered_map>
@@ -172,7 +173,16 @@ Token Lexer::lexNumber(const char* start) {
   Token t = make(isFloat ? Tok::FloatLiteral : Tok::IntLiteral, start);
   const std::string text(t.text);
   if (isFloat) {
+    errno = 0;
     t.floatValue = std::strtof(text.c_str(), nullptr);
+    // Out of float's range the literal silently becomes infinity or zero: say so, as clang does
+    // (a denormal result is representable and passes).
+    if (errno == ERANGE) {
+      if (std::isinf(t.floatValue))
+        sink().report(DiagId::WarnLiteralTooLarge, t.loc).range(t.range());
+      else if (t.floatValue == 0.0f)
+        sink().report(DiagId::WarnLiteralTooSmall, t.loc).range(t.range());
+    }
   } else {
     errno = 0;
     const unsigned long long v = std::strtoull(text.c_str(), nullptr, 10);
