@@ -607,6 +607,13 @@ class RibParser {
                        nameArg.strings[0] + "'; parameter ignored");
         continue;
       }
+      // A name given twice is most likely a copy-and-paste slip: the later value wins, as the
+      // later of two settings does everywhere else, and the user hears about it.
+      const auto earlier = std::find_if(params->begin(), params->end(), [&](const Param& q) { return q.name == p.name; });
+      if (earlier != params->end()) {
+        warn(nameArg.line, "'" + call.name + "': parameter '" + p.name + "' is given twice; the later value is used");
+        params->erase(earlier);
+      }
       params->push_back(std::move(p));
     }
     return true;

@@ -271,6 +271,15 @@ int parseCommandLine(int argc, char** argv, CommandLine* cl) {
     }
   }
   if (cl->scene.empty()) return usageError("no scene file given");
+  // Options that cannot take effect are said to, not silently dropped.
+  if (!cl->quiet && cl->accel != "grid" && cl->cacheTrianglesSet)
+    std::cerr << "relief: warning: --cache-triangles has no effect with --accel " << cl->accel
+              << " (the baseline holds all of its geometry)\n";
+  for (const std::string& dir : cl->shaderDirs) {
+    std::error_code ec;
+    if (!cl->quiet && !std::filesystem::is_directory(dir, ec))
+      std::cerr << "relief: warning: shader directory '" << dir << "' does not exist\n";
+  }
   return -1;
 }
 

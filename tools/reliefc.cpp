@@ -226,7 +226,8 @@ int evaluate(const Args& args, const CompileResult& result) {
       {status.unknownSpace, "unknown coordinate space names were treated as 'current'"}};
   for (const auto& [count, what] : warnings)
     if (count) std::cerr << "reliefc: warning: shader '" << shader->name() << "': " << what << "\n";
-  return 0;
+  // The loop limit is a run-time error (§7): the printed point is the undisplaced input.
+  return status.loopLimit ? 1 : 0;
 }
 
 }  // namespace
@@ -259,6 +260,11 @@ int main(int argc, char** argv) {
     } else if (a.rfind("-D", 0) == 0) {
       if (!value("-D", &v) || v.empty()) return usageError("missing macro name after '-D'");
       const size_t eq = v.find('=');
+      const std::string macro = v.substr(0, eq);
+      if (macro.empty() || !(std::isalpha(static_cast<unsigned char>(macro[0])) || macro[0] == '_') ||
+          !std::all_of(macro.begin(), macro.end(),
+                       [](char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_'; }))
+        return usageError("macro name '" + macro + "' after '-D' is not an identifier");
       args.options.defines.emplace_back(v.substr(0, eq), eq == std::string::npos ? "1" : v.substr(eq + 1));
     } else if (a == "-O0" || a == "-O1" || a == "-O2" || a == "-O3") {
       args.options.optLevel = a[2] - '0';

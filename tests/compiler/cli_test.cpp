@@ -145,6 +145,8 @@ TEST(CliTest, UsageAndInputErrorsExitWithTwo) {
   EXPECT_EQ(reliefc("").exitCode, 2);
   EXPECT_EQ(reliefc("--no-such-option x.disp").exitCode, 2);
   EXPECT_EQ(reliefc("--diagnostics-format=xml x.disp").exitCode, 2);
+  EXPECT_EQ(reliefc("-D= x.disp").exitCode, 2);
+  EXPECT_EQ(reliefc("-D1X=2 x.disp").exitCode, 2);
   const CliRun missing = reliefc(quote(::testing::TempDir() + "/relief_no_such_shader.disp"));
   EXPECT_EQ(missing.exitCode, 2);
   // Clang-style, with the file as the location (§8: "No position: <file>: error: …").
@@ -237,6 +239,14 @@ TEST(CliTest, EvalPrintsTheDisplacedPointAndNormal) {
 
   // Bad parameter bindings are usage errors.
   EXPECT_EQ(reliefc("--eval " + quote(lift.string()) + " -p nosuch=1").exitCode, 2);
+}
+
+// §7: the loop limit is a run-time error: said as one, with exit code 1.
+TEST(CliTest, EvalLoopLimitIsAnErrorExitCode) {
+  const fs::path loop = writeTemp("relief_loop.disp", "displacement spin() { float x = 0; while (x >= 0) x += 1; P += x * N; }\n");
+  const CliRun r = reliefc("--eval -floop-limit=1000 " + quote(loop.string()));
+  EXPECT_EQ(r.exitCode, 1) << r.err;
+  EXPECT_NE(r.err.find("reliefc: error: shader 'spin' exceeded the loop iteration limit"), std::string::npos) << r.err;
 }
 
 TEST(CliTest, EvalWarnsAboutNonFiniteResultsNamingTheShader) {

@@ -240,6 +240,16 @@ TEST(Relief, BadFlagValuesAreUsageErrors) {
     EXPECT_EQ(r.exitCode, 2) << flags;
     EXPECT_NE(r.err.find("relief: error:"), std::string::npos) << flags << ": " << r.err;
   }
+  // Options that cannot take effect warn, and --quiet silences that like any warning.
+  const fs::path dir = scratchDir();
+  const std::string base = kRelief + " " + kSphereScene + " --resolution 8x6 -o " + (dir / "w.png").string();
+  RunResult r = run(base + " -I " + (dir / "nowhere").string());
+  EXPECT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_NE(r.err.find("relief: warning: shader directory '" + (dir / "nowhere").string() + "' does not exist"),
+            std::string::npos)
+      << r.err;
+  r = run(base + " -q -I " + (dir / "nowhere").string());
+  EXPECT_EQ(r.err, "");
 }
 
 // A tiny scene with one distant light and a plane; `extra` goes inside the world.

@@ -1147,6 +1147,13 @@ TEST(RibErrors, TruncatedAndMalformedInputIsLocated) {
   ASSERT_TRUE(reversed.scene) << reversed.error.format();
   EXPECT_NE(reversed.warnings.find("'ReverseOrientation' takes no arguments"), std::string::npos)
       << reversed.warnings;
+  // A parameter given twice: the later value, and a warning.
+  ReadResult twice = read(world("Color 1 1 1\nLightSource \"pointlight\" 1 \"intensity\" [2] \"intensity\" [5]"));
+  ASSERT_TRUE(twice.scene) << twice.error.format();
+  EXPECT_NE(twice.warnings.find("parameter 'intensity' is given twice; the later value is used"), std::string::npos)
+      << twice.warnings;
+  ASSERT_EQ(twice.scene->lights.size(), 1u);
+  EXPECT_FLOAT_EQ(twice.scene->lights[0].color.r, 5.0f);
   // A concave polygon past the ear-clipping limit is fanned, and says so.
   std::string star;
   for (size_t i = 0; i <= kMaxEarClippingPoints; ++i) {
