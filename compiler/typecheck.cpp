@@ -841,8 +841,13 @@ class Checker {
     Expr& target = *e.operands[0];
     Expr& value = *e.operands[1];
     const Type tt = checkExpr(target, kError);
-    // A plain assignment does not read its target.
-    if (e.op == Tok::Assign && target.kind == ExprKind::Identifier && target.decl) --target.decl->reads;
+    // A plain assignment does not read its target, nor the variable whose element or component
+    // it sets (`a[0] = 1`, `v[1] = 2`); its index expressions still count as reads.
+    if (e.op == Tok::Assign) {
+      const Expr* base = &target;
+      while (base->kind == ExprKind::Index) base = base->operands[0].get();
+      if (base->kind == ExprKind::Identifier && base->decl) --base->decl->reads;
+    }
     const Tok base = compoundBase(e.op);
     const Type tv = checkExpr(value, base == Tok::Eof ? tt : contextHint(base, tt, tt));
     e.isVarying = value.isVarying;
