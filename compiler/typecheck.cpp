@@ -557,6 +557,12 @@ class Checker {
                 .arg(typeName(d->type))
                 .arg(typeName(target->type))
                 .range(d->nameRange);
+            // Declared here in error, so its uses raise nothing more; the outer variable was meant
+            // to be used, so it is not reported as unused either.
+            d->invalid = true;
+            d->type = kError;
+            ++target->reads;
+            scopes_.back()[d->name] = d.get();
             continue;
           }
           d->externTarget = target;
