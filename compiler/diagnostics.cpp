@@ -230,6 +230,18 @@ void renderOne(std::ostream& out, const SourceManager& sm, const Diagnostic& d,
   caret[p.column - 1] = '^';
   for (size_t i = 0; i < line.size() && i < caret.size(); ++i)
     if (line[i] == '\t' && caret[i] == ' ') caret[i] = '\t';
+  // One caret column per character, not per byte: a UTF-8 continuation byte adds no column (what
+  // it carries moves onto its character's lead byte), so the caret stays under its token after a
+  // 'ü' in a comment or string.
+  std::string columns;
+  for (size_t i = 0; i < caret.size(); ++i) {
+    if (i < line.size() && (static_cast<unsigned char>(line[i]) & 0xc0) == 0x80 && !columns.empty()) {
+      if (caret[i] != ' ' && columns.back() == ' ') columns.back() = caret[i];
+      continue;
+    }
+    columns.push_back(caret[i]);
+  }
+  caret = std::move(columns);
   while (!caret.empty() && (caret.back() == ' ' || caret.back() == '\t')) caret.pop_back();
   if (opt.color) out << kGreen;
   out << caret;
