@@ -144,7 +144,8 @@ class UninitializedAnalysis {
 
  private:
   struct State {
-    std::set<const VarDecl*> assigned;
+    std::set<const VarDecl*> assigned;  // on every path here
+    std::set<const VarDecl*> maybe;     // on some path here (for the wording of the warning)
     bool dead = false;  // the path ended: it constrains nothing at a join
   };
   static State join(const State& a, const State& b) {
@@ -153,6 +154,8 @@ class UninitializedAnalysis {
     State r;
     for (const VarDecl* d : a.assigned)
       if (b.assigned.count(d)) r.assigned.insert(d);
+    r.maybe = a.maybe;
+    r.maybe.insert(b.maybe.begin(), b.maybe.end());
     return r;
   }
   void expr(const Expr& e);
@@ -1735,7 +1738,10 @@ void UninitializedAnalysis::readIndices(const Expr& target) {
 void UninitializedAnalysis::assignTarget(const Expr& target) {
   const Expr* base = &target;
   while (base->kind == ExprKind::Index) base = base->operands[0].get();
-  if (base->kind == ExprKind::Identifier && base->decl) state_.assigned.insert(base->decl);
+  if (base->kind == ExprKind::Identifier && base->decl) {
+    state_.assigned.insert(base->decl);
+    state_.maybe.insert(base->decl);
+  }
 }
 
 void UninitializedAnalysis::expr(const Expr& e) {
@@ -1743,7 +1749,10 @@ void UninitializedAnalysis::expr(const Expr& e) {
     case ExprKind::Identifier:
       if (e.decl && tracked_.count(e.decl) && !state_.assigned.count(e.decl) && !state_.dead &&
           warned_.insert(e.decl).second)
-        checker_.report(DiagId::WarnUninitialized, e.range.begin).arg(e.decl->name).range(e.opRange);
+        checker_.report(state_.maybe.count(e.decl) ? DiagId::WarnMaybeUninitialized : DiagId::WarnUninitialized,
+                        e.range.begin)
+            .arg(e.decl->name)
+            .range(e.opRange);
       return;
     case ExprKind::Assign: {
       const Expr& target = *e.operands[0];
@@ -1807,9 +1816,11 @@ void UninitializedAnalysis::stmt(const Stmt& s) {
         if (d->init) {
           expr(*d->init);
           state_.assigned.insert(d.get());
+          state_.maybe.insert(d.get());
         } else if (!d->type.isArray()) {
           tracked_.insert(d.get());
           state_.assigned.erase(d.get());
+          state_.maybe.erase(d.get());
         }
       }
       return;
