@@ -1839,9 +1839,10 @@ void UninitializedAnalysis::stmt(const Stmt& s) {
     case StmtKind::For: {
       if (s.init) stmt(*s.init);
       if (s.cond) expr(*s.cond);
-      const State saved = state_;
+      State saved = state_;
       stmt(*s.body);
       if (s.step) expr(*s.step);
+      saved.maybe.insert(state_.maybe.begin(), state_.maybe.end());  // ...or may
       state_ = saved;  // the body may not run
       return;
     }
@@ -1851,7 +1852,11 @@ void UninitializedAnalysis::stmt(const Stmt& s) {
       const bool dead = state_.dead;
       expr(*s.cond);
       // ...unless it left early through break/continue: stay conservative then.
-      if (dead) state_ = saved;
+      if (dead) {
+        std::set<const VarDecl*> maybe = std::move(state_.maybe);
+        state_ = saved;
+        state_.maybe.insert(maybe.begin(), maybe.end());
+      }
       return;
     }
     case StmtKind::Return:
