@@ -4,6 +4,7 @@
 #include <cctype>
 #include <cerrno>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <unordered_map>
@@ -309,7 +310,14 @@ Token Lexer::next() {
       // sequence (one error, its code point named), else a single byte that is not UTF-8.
       uint32_t cp = 0;
       if (static_cast<unsigned char>(c) < 0x80) {
-        sink().report(DiagId::ErrBadCharacter, locOf(start)).arg(std::string_view(start, 1));
+        // A control character (NUL, ESC, ...) is named, not echoed: it would garble the terminal.
+        const auto byte = static_cast<unsigned char>(c);
+        char shown[8];
+        if (byte < 0x20 || byte == 0x7f)
+          std::snprintf(shown, sizeof shown, "\\x%02x", byte);
+        else
+          shown[0] = char(byte), shown[1] = 0;
+        sink().report(DiagId::ErrBadCharacter, locOf(start)).arg(std::string_view(shown));
       } else if (const int n = utf8Sequence(start, end_, &cp)) {
         sink().report(DiagId::ErrBadCodePoint, locOf(start))
             .arg(std::string_view(start, size_t(n)))

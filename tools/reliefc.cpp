@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <iostream>
+#include <iterator>
 #include <map>
 #include <sstream>
 #include <string>
@@ -25,7 +26,7 @@ using relief::compiler::CompileOptions;
 using relief::compiler::CompileResult;
 
 constexpr const char* kUsage =
-    "usage: reliefc [options] file.disp...\n"
+    "usage: reliefc [options] file.disp...   ('-' reads standard input; '--' ends the options)\n"
     "  -I dir                     add an include directory\n"
     "  -D name[=value]            define a macro\n"
     "  -O0 -O1 -O2 -O3            optimization level (default -O2)\n"
@@ -322,10 +323,13 @@ int main(int argc, char** argv) {
     } else if (a == "--at") {
       if (i + 1 >= argc) return usageError("missing point after '--at'");
       args.at = argv[++i];
+    } else if (a == "--") {
+      // Everything after is a file, even a name starting with '-'.
+      for (++i; i < argc; ++i) args.files.push_back(argv[i]);
     } else if (a.size() > 1 && a[0] == '-') {
       return usageError("unknown option '" + a + "'");
     } else {
-      args.files.push_back(a);
+      args.files.push_back(a);  // "-" is standard input
     }
   }
   if (args.files.empty()) return usageError("no input files");
@@ -350,7 +354,14 @@ int main(int argc, char** argv) {
     flags.disabledWarnings = args.disabledWarnings;
     flags.errorWarnings = args.errorWarnings;
     flags.notErrorWarnings = args.notErrorWarnings;
-    CompileResult result = relief::compiler::compileFile(file, args.options, flags);
+    CompileResult result;
+    if (file == "-") {
+      // Standard input, named "<stdin>" in diagnostics (as clang does).
+      std::string text((std::istreambuf_iterator<char>(std::cin)), std::istreambuf_iterator<char>());
+      result = relief::compiler::compileSource("<stdin>", std::move(text), args.options, flags);
+    } else {
+      result = relief::compiler::compileFile(file, args.options, flags);
+    }
     const auto& diags = *result.diagnostics;
     if (args.json) {
       for (const auto& d : diags.sorted(*result.sources)) relief::compiler::renderJson(std::cerr, *result.sources, d);

@@ -241,6 +241,20 @@ TEST(CliTest, EvalPrintsTheDisplacedPointAndNormal) {
   EXPECT_EQ(reliefc("--eval " + quote(lift.string()) + " -p nosuch=1").exitCode, 2);
 }
 
+// '-' compiles standard input (named <stdin> in diagnostics); '--' ends the options, so a file
+// whose name starts with '-' can be named.
+TEST(CliTest, StandardInputAndTheEndOfOptions) {
+  const fs::path broken = writeTemp("relief_stdin.disp", "displacement d() { P += N * Kn; }\n");
+  const CliRun in = reliefc("- < " + quote(broken.string()));
+  EXPECT_EQ(in.exitCode, 1);
+  EXPECT_EQ(in.err.rfind("<stdin>:1:29: error: use of undeclared identifier 'Kn'", 0), 0u) << in.err;
+  const fs::path dir = fs::path(::testing::TempDir()) / ("reliefc_dash_" + std::to_string(getpid()));
+  fs::create_directories(dir);
+  std::ofstream(dir / "-odd.disp") << "displacement d() { P += N * u; }\n";
+  EXPECT_EQ(reliefc("-- -odd.disp", dir).exitCode, 0);
+  EXPECT_EQ(reliefc("-odd.disp", dir).exitCode, 2);  // taken for an option
+}
+
 // §7: the loop limit is a run-time error: said as one, with exit code 1.
 TEST(CliTest, EvalLoopLimitIsAnErrorExitCode) {
   const fs::path loop = writeTemp("relief_loop.disp", "displacement spin() { float x = 0; while (x >= 0) x += 1; P += x * N; }\n");
