@@ -233,9 +233,23 @@ void renderOne(std::ostream& out, const SourceManager& sm, const Diagnostic& d,
   // One caret column per character, not per byte: a UTF-8 continuation byte adds no column (what
   // it carries moves onto its character's lead byte), so the caret stays under its token after a
   // 'ü' in a comment or string.
+  // Only the continuation bytes of valid sequences: a stray byte (Latin-1 text) shows as one cell.
+  std::vector<bool> continuation(line.size(), false);
+  for (size_t i = 0; i < line.size();) {
+    const auto c = static_cast<unsigned char>(line[i]);
+    const size_t length = c >= 0xc2 && c <= 0xdf ? 2 : c >= 0xe0 && c <= 0xef ? 3 : c >= 0xf0 && c <= 0xf4 ? 4 : 1;
+    bool valid = length > 1 && i + length <= line.size();
+    for (size_t k = 1; valid && k < length; ++k) valid = (static_cast<unsigned char>(line[i + k]) & 0xc0) == 0x80;
+    if (!valid) {
+      ++i;
+      continue;
+    }
+    for (size_t k = 1; k < length; ++k) continuation[i + k] = true;
+    i += length;
+  }
   std::string columns;
   for (size_t i = 0; i < caret.size(); ++i) {
-    if (i < line.size() && (static_cast<unsigned char>(line[i]) & 0xc0) == 0x80 && !columns.empty()) {
+    if (i < line.size() && continuation[i] && !columns.empty()) {
       if (caret[i] != ' ' && columns.back() == ' ') columns.back() = caret[i];
       continue;
     }

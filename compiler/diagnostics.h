@@ -96,6 +96,7 @@ class DiagnosticsEngine {
   // warnings leave the program whole, and the user should see every warning at once.
   bool hasHardErrors() const { return numErrors_ > numPromoted_ || limitReached_; }
   unsigned numErrors() const { return numErrors_; }
+  unsigned numHardErrors() const { return numErrors_ - numPromoted_; }
   // The errors sorted() shows: at most the error limit.
   unsigned numShownErrors() const {
     return limitReached_ ? std::min(numErrors_, options_.errorLimit) : numErrors_;

@@ -166,6 +166,7 @@ class UninitializedAnalysis {
   State state_;
   std::set<const VarDecl*> tracked_;  // locals declared without initializer
   std::set<const VarDecl*> warned_;
+  bool silent_ = false;  // a pass that only learns which variables a loop body sets
 };
 
 class Checker {
@@ -300,7 +301,7 @@ class Checker {
       } else if (!p->init) {
         report(DiagId::ErrMissingDefault, p->nameRange.begin).arg(p->name).range(p->nameRange);
       } else {
-        const unsigned errorsBefore = diags_.numErrors();
+        const unsigned errorsBefore = diags_.numHardErrors();
         checkInit(*p);
         if (!p->init->type.isError()) {
           bool atShadingTime = false;
@@ -308,7 +309,7 @@ class Checker {
             report(DiagId::ErrNonConstantDefault, bad->range.begin).range(bad->range);
           p->defaultAtShadingTime = atShadingTime;
         }
-        if (diags_.numErrors() != errorsBefore) p->invalid = true;
+        if (diags_.numHardErrors() != errorsBefore) p->invalid = true;
       }
       declare(*p);
     }
@@ -459,11 +460,13 @@ class Checker {
           if (d->type.arrayLength < 0 && !d->init)
             report(DiagId::ErrUnsizedArray, d->nameRange.begin).range(d->nameRange);
           if (d->init) {
-            const unsigned errorsBefore = diags_.numErrors();
+            // Only real errors make the variable invalid: a warning promoted by -Werror leaves it
+            // a variable like any other (still reported if unused).
+            const unsigned errorsBefore = diags_.numHardErrors();
             checkInit(*d);
             if (d->isUniform && d->init->isVarying && !d->init->type.isError())
               report(DiagId::ErrUniformFromVarying, d->init->range.begin).arg(d->name).range(d->init->range);
-            if (diags_.numErrors() != errorsBefore) d->invalid = true;
+            if (diags_.numHardErrors() != errorsBefore) d->invalid = true;
           }
           declare(*d);
         }
@@ -1747,7 +1750,7 @@ void UninitializedAnalysis::assignTarget(const Expr& target) {
 void UninitializedAnalysis::expr(const Expr& e) {
   switch (e.kind) {
     case ExprKind::Identifier:
-      if (e.decl && tracked_.count(e.decl) && !state_.assigned.count(e.decl) && !state_.dead &&
+      if (e.decl && tracked_.count(e.decl) && !state_.assigned.count(e.decl) && !state_.dead && !silent_ &&
           warned_.insert(e.decl).second)
         checker_.report(state_.maybe.count(e.decl) ? DiagId::WarnMaybeUninitialized : DiagId::WarnUninitialized,
                         e.range.begin)
@@ -1768,8 +1771,9 @@ void UninitializedAnalysis::expr(const Expr& e) {
     case ExprKind::Binary:
       if (e.op == Tok::AmpAmp || e.op == Tok::PipePipe) {
         expr(*e.operands[0]);
-        const State saved = state_;
+        State saved = state_;
         expr(*e.operands[1]);
+        saved.maybe.insert(state_.maybe.begin(), state_.maybe.end());  // ...or may
         state_ = saved;  // the right operand may not run
         return;
       }
@@ -1838,6 +1842,20 @@ void UninitializedAnalysis::stmt(const Stmt& s) {
     case StmtKind::While:
     case StmtKind::For: {
       if (s.init) stmt(*s.init);
+      // A variable the body sets may hold a value from the previous iteration wherever the body
+      // reads it: "may be", not "is", uninitialized there.
+      // A silent first pass finds them (loops inside it skip their own, so nesting costs a
+      // pass per level, not a power of two).
+      if (!silent_) {
+        const State before = state_;
+        silent_ = true;
+        stmt(*s.body);
+        if (s.step) expr(*s.step);
+        silent_ = false;
+        std::set<const VarDecl*> setByBody = std::move(state_.maybe);
+        state_ = before;
+        state_.maybe.insert(setByBody.begin(), setByBody.end());
+      }
       if (s.cond) expr(*s.cond);
       State saved = state_;
       stmt(*s.body);

@@ -859,6 +859,14 @@ class RibParser {
   bool buildPatchMesh(const Call& call, bool bicubic, int nu, bool uPeriodic, int nv,
                       bool vPeriodic, size_t first);
   bool doGeometry(const Call& call);
+  // A mirroring transform flips the current coordinate system and, with it, the current
+  // orientation (RI spec, "Orientation"), so a primitive keeps its side: the winding its world
+  // points have after the mirror is reversed back (spheres do this as they are tessellated). The
+  // winding is what one-sided culling and the displacement shaders' Ng follow.
+  void keepSideUnderMirror(Mesh& mesh) const {
+    if (glm::determinant(glm::mat3(attr_.ctm)) < 0.0f)
+      for (size_t k = 0; k + 2 < mesh.indices.size(); k += 3) std::swap(mesh.indices[k + 1], mesh.indices[k + 2]);
+  }
   bool addMesh(Mesh mesh, int line);
 
   uint32_t materialIndex() {
@@ -1280,10 +1288,9 @@ bool RibParser::executeCamera(const Call& call, bool* handled) {
       l.radius *= maxScale(w);
     }
     lightsBeforeWorld_.clear();
-    for (const std::string& name : spacesBeforeWorld_) {
-      glm::mat4& space = coordinateSystems_[name];
-      space = w * space;
-    }
+    for (const std::string& name : spacesBeforeWorld_)
+      if (const auto space = coordinateSystems_.find(name); space != coordinateSystems_.end())
+        space->second = w * space->second;
     spacesBeforeWorld_.clear();
     // FrameAspectRatio shapes the default frame unless ScreenWindow says; without either, the
     // camera derives it from the rendered resolution and Format's pixel aspect ratio (which a
@@ -1382,10 +1389,18 @@ bool RibParser::executeTransform(const Call& call, bool* handled) {
     else
       attr_.ctm = stack_.back().state.ctm;
     for (auto restore = stack_.back().scopedSpaces.rbegin(); restore != stack_.back().scopedSpaces.rend(); ++restore) {
-      if (restore->second)
+      // An attribute block lies wholly before or inside the world block, so the value restored
+      // is relative to the same space as the block's own.
+      if (restore->second) {
         coordinateSystems_[restore->first] = *restore->second;
-      else
+        if (inWorld_)
+          spacesBeforeWorld_.erase(restore->first);
+        else
+          spacesBeforeWorld_.insert(restore->first);
+      } else {
         coordinateSystems_.erase(restore->first);
+        spacesBeforeWorld_.erase(restore->first);
+      }
     }
     stack_.pop_back();
   } else {
@@ -2115,6 +2130,7 @@ bool RibParser::doQuadric(const Call& call) {
       mesh.indices.insert(mesh.indices.end(), {a, b, d, a, d, c});
     }
   applyQuadricPrimvars(vars, &mesh);
+  keepSideUnderMirror(mesh);
   return addMesh(std::move(mesh), call.line);
 }
 
@@ -2318,8 +2334,7 @@ bool RibParser::buildPolygonMesh(const Call& call, const std::vector<int>& nloop
   // A mirroring transform flips the current coordinate system and, with it, the current
   // orientation (RI spec, "Orientation"), so the polygon keeps its side: the winding the world
   // points have after the mirror is reversed back, as the quadrics do (tessellate.cpp).
-  if (glm::determinant(glm::mat3(m)) < 0.0f)
-    for (size_t k = 0; k + 2 < mesh.indices.size(); k += 3) std::swap(mesh.indices[k + 1], mesh.indices[k + 2]);
+  keepSideUnderMirror(mesh);
   return addMesh(std::move(mesh), call.line);
 }
 
@@ -2584,6 +2599,7 @@ bool RibParser::buildPatchMesh(const Call& call, bool bicubic, int nu, bool uPer
       }
   }
   if (!normalsOk) mesh.N.clear();
+  keepSideUnderMirror(mesh);
   return addMesh(std::move(mesh), call.line);
 }
 
@@ -2620,6 +2636,7 @@ bool RibParser::doGeometry(const Call& call) {
   for (const glm::vec3& p : object.P) object.uv.emplace_back(p.x, p.y);
   for (glm::vec3& p : object.P) p = glm::vec3(m * glm::vec4(p, 1.0f));
   for (glm::vec3& n : object.N) n = glm::normalize(normalFromObject * n);
+  keepSideUnderMirror(object);
   return addMesh(std::move(object), call.line);
 }
 

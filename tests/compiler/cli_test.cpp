@@ -109,6 +109,11 @@ TEST(CliTest, WerrorTurnsWarningsIntoExitCodeOne) {
   const CliRun all = reliefc("--color=never -Werror " + quote(three.string()));
   EXPECT_EQ(all.exitCode, 1);
   EXPECT_EQ(count(all.err, ": error: "), 3u) << all.err;
+  // A variable whose initializer had a promoted warning is still a variable: unused is reported.
+  const fs::path narrowUnused = writeTemp("relief_narrow_unused.disp", "displacement t() { int i = 1.5; }\n");
+  const CliRun both = reliefc("--color=never -Werror " + quote(narrowUnused.string()));
+  EXPECT_NE(both.err.find("unused variable 'i'"), std::string::npos) << both.err;
+  EXPECT_NE(both.err.find("truncates"), std::string::npos) << both.err;
   const CliRun one = reliefc("--color=never -Werror=narrowing " + quote(three.string()));
   EXPECT_EQ(one.exitCode, 1);
   EXPECT_EQ(count(one.err, ": error: "), 1u) << one.err;

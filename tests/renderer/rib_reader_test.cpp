@@ -673,6 +673,40 @@ TEST(RibReader, NamedCoordinateSystems) {
   r = read(world("AttributeBegin\nScopedCoordinateSystem \"b\"\nAttributeEnd\nCoordSysTransform \"b\""));
   ASSERT_FALSE(r.scene);
   EXPECT_EQ(r.error.message, "unknown coordinate system 'b'");
+  // The same before WorldBegin: the scope ends there too, and the name is not left behind.
+  r = read("AttributeBegin\nScopedCoordinateSystem \"b\"\nAttributeEnd\n" + world("CoordSysTransform \"b\""));
+  ASSERT_FALSE(r.scene);
+  EXPECT_EQ(r.error.message, "unknown coordinate system 'b'");
+}
+
+// A mirroring transform flips the orientation with the coordinate system (RI spec), so every kind
+// of primitive keeps its side: its winding's normal agrees with its (outward) normals either way.
+// One-sided culling and displacement shaders' Ng follow the winding.
+TEST(RibReader, EveryPrimitiveKeepsItsSideUnderAMirror) {
+  for (const char* primitive :
+       {"Sphere 1 -1 1 360", "Cylinder 1 -1 1 360", "Cone 1 1 360", "Disk 0 1 360", "Torus 1 0.3 0 360 360",
+        "Paraboloid 1 0 1 360", "Hyperboloid 1 0 0 0 1 1 360", "Polygon \"P\" [0 0 0  1 0 0  1 1 0  0 1 0]",
+        "Patch \"bilinear\" \"P\" [0 0 0  1 0 0  0 1 0  1 1 1]"}) {
+    for (const char* mirror : {"", "Scale -1 1 1\n", "Scale 1 -2 1\n"}) {
+      SCOPED_TRACE(std::string(primitive) + " / " + mirror);
+      ReadResult r = read(world(std::string(mirror) + primitive));
+      ASSERT_TRUE(r.scene) << r.error.format();
+      const Mesh& m = r.scene->meshes.at(0);
+      int agree = 0, disagree = 0;
+      for (uint32_t t = 0; t < m.numTriangles(); ++t) {
+        const uint32_t* i = &m.indices[3 * size_t(t)];
+        const glm::vec3 n = glm::cross(m.P[i[1]] - m.P[i[0]], m.P[i[2]] - m.P[i[0]]);
+        if (glm::length(n) < 1e-9f) continue;
+        glm::vec3 shading = m.N.empty() ? glm::vec3(0, 0, 1) : m.N[i[0]] + m.N[i[1]] + m.N[i[2]];
+        if (m.N.empty()) continue;
+        (glm::dot(n, shading) > 0 ? agree : disagree)++;
+      }
+      if (!m.N.empty()) {
+        EXPECT_GT(agree, 0);
+        EXPECT_EQ(disagree, 0);
+      }
+    }
+  }
 }
 
 TEST(RibReader, ReadArchiveIncludesFilesRelativeToTheReader) {
