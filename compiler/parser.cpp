@@ -96,7 +96,7 @@ bool Parser::expectAfterPrev(Tok k, const char* context) {
 
 bool Parser::expectClosing(Tok k, const Token& opener) {
   if (accept(k)) return true;
-  if (tok().is(Tok::Unknown) || stopped_) return false;
+  if (tok().is(Tok::Unknown) || stopped_ || (pos_ && prev().malformed)) return false;  // already reported
   const SourceLoc at = pos_ ? prev().end() : tok().loc;
   diags_.report(DiagId::ErrExpected, at)
       .arg(tokDescription(k))

@@ -1023,9 +1023,13 @@ bool RibParser::execute(const Call& call) {
       recordingBlocks_.emplace_back(name, call.line);
     } else if (name == "AttributeEnd" || name == "TransformEnd" || name == "MotionEnd") {
       const std::string opener = name.substr(0, name.size() - 3) + "Begin";
-      if (recordingBlocks_.empty() || recordingBlocks_.back().first != opener)
+      if (recordingBlocks_.empty())
         return fail(call.line, "'" + name + "' without '" + opener + "' in object '" + recordingName_ +
                                    "' (ObjectBegin at line " + std::to_string(recordingLine_) + ")");
+      if (recordingBlocks_.back().first != opener)
+        return fail(call.line, "'" + name + "' closes '" + recordingBlocks_.back().first + "' (line " +
+                                   std::to_string(recordingBlocks_.back().second) + ") in object '" +
+                                   recordingName_ + "'");
       recordingBlocks_.pop_back();
     }
     if (name == "ObjectBegin" || name == "WorldBegin" || name == "WorldEnd" ||

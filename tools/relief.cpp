@@ -563,8 +563,9 @@ bool canCreateFile(const std::string& path, std::string* error) {
                                                         (created ? " (" + created.message() + ")" : std::string()));
     return false;
   }
-  const std::string probe = (parent / (".relief-probe-" + std::to_string(::getpid()))).string();
-  const int fd = ::open(probe.c_str(), O_WRONLY | O_CREAT | O_EXCL, 0600);
+  // A fresh name each time (mkstemp), so a probe left behind by a crash cannot get in the way.
+  std::string probe = (parent / ".relief-probe-XXXXXX").string();
+  const int fd = ::mkstemp(probe.data());
   if (fd < 0) {
     *error = "cannot write '" + path + "': " + std::strerror(errno);
     return false;
