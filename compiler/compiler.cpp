@@ -205,7 +205,7 @@ std::string renderDiagnostics(const CompileResult& result, bool color) {
   TextDiagnosticOptions opts;
   opts.color = color;
   renderAllText(out, *result.sources, *result.diagnostics, opts);
-  const std::string summary = summaryLine(result.diagnostics->numWarnings(), result.diagnostics->numShownErrors());
+  const std::string summary = summaryLine(result.diagnostics->numShownWarnings(*result.sources), result.diagnostics->numShownErrors());
   if (!summary.empty()) out << summary << '\n';
   return out.str();
 }

@@ -114,6 +114,13 @@ void DiagnosticsEngine::record(Diagnostic d) {
   diags_.push_back(std::move(d));
 }
 
+unsigned DiagnosticsEngine::numShownWarnings(const SourceManager& sm) const {
+  if (!limitReached_) return numWarnings_;
+  unsigned n = 0;
+  for (const Diagnostic& d : sorted(sm)) n += d.severity == Severity::Warning;
+  return n;
+}
+
 std::vector<Diagnostic> DiagnosticsEngine::limited(std::vector<Diagnostic> in) const {
   if (!limitReached_) return in;
   std::vector<Diagnostic> out;

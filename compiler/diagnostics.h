@@ -104,6 +104,8 @@ class DiagnosticsEngine {
   // The file a diagnostic without a position (the error-limit notice) names.
   void setFileName(std::string name) { fileName_ = std::move(name); }
   unsigned numWarnings() const { return numWarnings_; }
+  // The warnings sorted(sm) shows: past the error limit, only those before the cut.
+  unsigned numShownWarnings(const SourceManager& sm) const;
   // Diagnostics sorted by location (then emission order); with a SourceManager, an included
   // file's diagnostics sort at its #include.
   std::vector<Diagnostic> sorted() const;

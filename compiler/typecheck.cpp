@@ -855,16 +855,20 @@ class Checker {
     const Type tt = checkExpr(target, kError);
     // A plain assignment does not read its target, nor the variable whose element or component
     // it sets (`a[0] = 1`, `v[1] = 2`); its index expressions still count as reads.
+    VarDecl* written = nullptr;
     if (e.op == Tok::Assign) {
       const Expr* base = &target;
       while (base->kind == ExprKind::Index) base = base->operands[0].get();
-      if (base->kind == ExprKind::Identifier && base->decl) --base->decl->reads;
+      if (base->kind == ExprKind::Identifier && base->decl) --(written = base->decl)->reads;
     }
     const Tok base = compoundBase(e.op);
     const Type tv = checkExpr(value, base == Tok::Eof ? tt : contextHint(base, tt, tt));
     e.isVarying = value.isVarying;
     if (tt.isError()) return set(e, kError);
-    if (!checkAssignable(target, e.opLoc, e.opRange)) return set(e, kError);
+    if (!checkAssignable(target, e.opLoc, e.opRange)) {
+      if (written) ++written->reads;  // already an error: no "unused" on top of it
+      return set(e, kError);
+    }
     if (!requireValue(value, tv)) return set(e, kError);
     Type result = tv;
     if (base != Tok::Eof) {

@@ -87,7 +87,7 @@ bool parseNumbers(std::string text, std::vector<float>* out) {
   while (in >> word) {
     char* end = nullptr;
     const float f = std::strtof(word.c_str(), &end);
-    if (!end || *end) return false;
+    if (!end || *end || !std::isfinite(f)) return false;  // 1e39, inf and nan are not float values
     out->push_back(f);
   }
   return !out->empty();
@@ -271,6 +271,8 @@ int main(int argc, char** argv) {
       args.options.optLevel = a[2] - '0';
     } else if (a == "-Werror") {
       args.options.warningsAsErrors = true;
+    } else if (a == "-Wno-error") {
+      args.options.warningsAsErrors = false;  // as in clang: cancels an earlier -Werror
     } else if (a == "-w") {
       args.options.noWarnings = true;
     } else if (a.rfind("-W", 0) == 0 && a.size() > 2) {
@@ -370,7 +372,7 @@ int main(int argc, char** argv) {
       topts.color = color;
       relief::compiler::renderAllText(std::cerr, *result.sources, diags, topts);
     }
-    warnings += diags.numWarnings();
+    warnings += diags.numShownWarnings(*result.sources);
     errors += diags.numShownErrors();
     if (result.ioError) {
       exitCode = std::max(exitCode, 2);

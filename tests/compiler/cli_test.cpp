@@ -114,6 +114,14 @@ TEST(CliTest, WerrorTurnsWarningsIntoExitCodeOne) {
   const CliRun both = reliefc("--color=never -Werror " + quote(narrowUnused.string()));
   EXPECT_NE(both.err.find("unused variable 'i'"), std::string::npos) << both.err;
   EXPECT_NE(both.err.find("truncates"), std::string::npos) << both.err;
+  // -Wno-error cancels an earlier -Werror, as in clang.
+  EXPECT_EQ(reliefc("--color=never -Werror -Wno-error " + quote(three.string())).exitCode, 0);
+  // Past the error limit the summary counts what was shown: the warnings after the cut are not.
+  const fs::path cut = writeTemp("relief_cut.disp",
+                                 "displacement d()\n{\n    P += Kn;\n    P += Km;\n    float w1 = 1, w2 = 2;\n}\n");
+  const CliRun limited = reliefc("--color=never -ferror-limit=1 " + quote(cut.string()));
+  EXPECT_EQ(count(limited.err, ": warning: "), 0u) << limited.err;
+  EXPECT_NE(limited.err.find("\n1 error generated.\n"), std::string::npos) << limited.err;
   const CliRun one = reliefc("--color=never -Werror=narrowing " + quote(three.string()));
   EXPECT_EQ(one.exitCode, 1);
   EXPECT_EQ(count(one.err, ": error: "), 1u) << one.err;
@@ -151,6 +159,8 @@ TEST(CliTest, UsageAndInputErrorsExitWithTwo) {
   EXPECT_EQ(reliefc("--no-such-option x.disp").exitCode, 2);
   EXPECT_EQ(reliefc("--diagnostics-format=xml x.disp").exitCode, 2);
   EXPECT_EQ(reliefc("-D= x.disp").exitCode, 2);
+  // A parameter value out of float's range is no value (it would be infinity).
+  EXPECT_EQ(reliefc("--eval -p Km=1e39 " + quote(RELIEF_SOURCE_DIR "/examples/shaders/bumps.disp")).exitCode, 2);
   EXPECT_EQ(reliefc("-D1X=2 x.disp").exitCode, 2);
   const CliRun missing = reliefc(quote(::testing::TempDir() + "/relief_no_such_shader.disp"));
   EXPECT_EQ(missing.exitCode, 2);
