@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cstdio>
 
+#include "compiler/utf8.h"
+
 namespace relief::compiler {
 
 namespace {
@@ -243,16 +245,10 @@ void renderOne(std::ostream& out, const SourceManager& sm, const Diagnostic& d,
   // Only the continuation bytes of valid sequences: a stray byte (Latin-1 text) shows as one cell.
   std::vector<bool> continuation(line.size(), false);
   for (size_t i = 0; i < line.size();) {
-    const auto c = static_cast<unsigned char>(line[i]);
-    const size_t length = c >= 0xc2 && c <= 0xdf ? 2 : c >= 0xe0 && c <= 0xef ? 3 : c >= 0xf0 && c <= 0xf4 ? 4 : 1;
-    bool valid = length > 1 && i + length <= line.size();
-    for (size_t k = 1; valid && k < length; ++k) valid = (static_cast<unsigned char>(line[i + k]) & 0xc0) == 0x80;
-    if (!valid) {
-      ++i;
-      continue;
-    }
-    for (size_t k = 1; k < length; ++k) continuation[i + k] = true;
-    i += length;
+    uint32_t code = 0;
+    const int length = utf8Sequence(line.data() + i, line.data() + line.size(), &code);
+    for (int k = 1; k < length; ++k) continuation[i + size_t(k)] = true;
+    i += size_t(std::max(length, 1));
   }
   std::string columns;
   for (size_t i = 0; i < caret.size(); ++i) {
@@ -362,20 +358,10 @@ std::string jsonQuoted(std::string_view s) {
       ++i;
       continue;
     }
-    // Lead byte: sequence length and the smallest code point it may encode (no overlong forms).
-    const size_t length = c >= 0xc2 && c <= 0xdf ? 2 : c >= 0xe0 && c <= 0xef ? 3 : c >= 0xf0 && c <= 0xf4 ? 4 : 0;
-    bool valid = length > 0 && i + length <= s.size();
-    uint32_t code = length == 2 ? c & 0x1f : length == 3 ? c & 0x0f : c & 0x07;
-    for (size_t k = 1; valid && k < length; ++k) {
-      const auto next = static_cast<unsigned char>(s[i + k]);
-      valid = (next & 0xc0) == 0x80;
-      code = code << 6 | (next & 0x3f);
-    }
-    valid = valid && !(length == 3 && (code < 0x800 || (code >= 0xd800 && code <= 0xdfff))) &&
-            !(length == 4 && (code < 0x10000 || code > 0x10ffff));
-    if (valid) {
-      out.append(s.substr(i, length));
-      i += length;
+    uint32_t code = 0;
+    if (const int length = utf8Sequence(s.data() + i, s.data() + s.size(), &code)) {
+      out.append(s.substr(i, size_t(length)));
+      i += size_t(length);
     } else {
       out += "\\ufffd";
       ++i;
