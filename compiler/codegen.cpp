@@ -548,6 +548,8 @@ class ShaderCodegen {
       storeLane(s.dv[k], nullptr, a.c[k].dv);
     }
   }
+  // The global PI, as both the defaults function and the entry bind it.
+  Val piValue() { return makeFloat(dconst(3.14159265358979f)); }
   Val zeroOf(Type t) {
     if (t.kind == TypeKind::Int) return makeInt(ci(0));
     if (t.kind == TypeKind::String) {
@@ -642,7 +644,7 @@ class ShaderCodegen {
     // reports, since defaults that read them are evaluated again per point (emitEntry).
     for (size_t g = 0; g < size_t(GlobalId::Count); ++g)
       if (const VarDecl* d = globals_[g])
-        store(slotFor(d), GlobalId(g) == GlobalId::PI ? makeFloat(dconst(3.14159265358979f)) : zeroOf(d->type));
+        store(slotFor(d), GlobalId(g) == GlobalId::PI ? piValue() : zeroOf(d->type));
     // Defaults may call library functions with loops (fBm): they count like the entry's, and
     // past the limit the remaining defaults stay zero.
     loopCounter_ = entryAlloca(i32_, "iterations");
@@ -793,7 +795,7 @@ class ShaderCodegen {
                        loadOpt(dtdvPtr, b_.CreateIsNotNull(dtdvPtr))}));
       store(slotFor(global(GlobalId::du)), makeFloat({loadAt(duPtr), nullptr, nullptr}));
       store(slotFor(global(GlobalId::dv)), makeFloat({loadAt(dvPtr), nullptr, nullptr}));
-      store(slotFor(global(GlobalId::PI)), makeFloat(dconst(3.14159265358979f)));
+      store(slotFor(global(GlobalId::PI)), piValue());
       // Orientation of calculatenormal: the undisplaced dPdu ^ dPdv must face like Ng.
       Val geo = cross3(dpdu, dpdv);
       // Where the surface's own parameterization degenerates (a sphere's pole), calculatenormal

@@ -132,6 +132,14 @@ bool isKnownSpace(const std::string& s) {
 
 class Checker;
 
+// The expression an Index chain (`a[i]`, `v[1]`, `m[i][j]`) starts from: the variable an lvalue
+// writes when it is an Identifier with a declaration.
+const Expr& indexRoot(const Expr& e) {
+  const Expr* base = &e;
+  while (base->kind == ExprKind::Index) base = base->operands[0].get();
+  return *base;
+}
+
 // -Wuninitialized (§8): a local without initializer read on some path before any assignment.
 // Definite-assignment analysis over the checked AST; loop bodies may not run, `return`/`break`/
 // `continue` end a path, and an `output` argument (of a user function or a setter such as
@@ -856,11 +864,8 @@ class Checker {
     // A plain assignment does not read its target, nor the variable whose element or component
     // it sets (`a[0] = 1`, `v[1] = 2`); its index expressions still count as reads.
     VarDecl* written = nullptr;
-    if (e.op == Tok::Assign) {
-      const Expr* base = &target;
-      while (base->kind == ExprKind::Index) base = base->operands[0].get();
-      if (base->kind == ExprKind::Identifier && base->decl) --(written = base->decl)->reads;
-    }
+    if (const Expr& root = indexRoot(target); e.op == Tok::Assign && root.kind == ExprKind::Identifier && root.decl)
+      --(written = root.decl)->reads;
     const Tok base = compoundBase(e.op);
     const Type tv = checkExpr(value, base == Tok::Eof ? tt : contextHint(base, tt, tt));
     e.isVarying = value.isVarying;
@@ -899,8 +904,7 @@ class Checker {
   // varying value, by assignment or as an `output`/setcomp argument.
   void checkUniformTarget(const Expr& target, const Expr& value) { checkUniformTarget(target, value.isVarying, value.range); }
   void checkUniformTarget(const Expr& target, bool varying, SourceRange at) {
-    const Expr* base = &target;
-    while (base->kind == ExprKind::Index) base = base->operands[0].get();
+    const Expr* base = &indexRoot(target);
     if (varying && base->kind == ExprKind::Identifier && base->decl && base->decl->isUniform)
       report(DiagId::ErrUniformFromVarying, at.begin).arg(base->decl->name).range(at);
   }
@@ -1073,9 +1077,8 @@ class Checker {
   // Lvalues (§4.1): a variable, an array element, a triple's `v[i]` or a matrix's `m[i][j]`, so
   // an Index chain down to a variable (whether that is writable is checkAssignable's business).
   static bool isLvalue(const Expr& e) {
-    const Expr* base = &e;
-    while (base->kind == ExprKind::Index) base = base->operands[0].get();
-    return base->kind == ExprKind::Identifier && base->decl;
+    const Expr& base = indexRoot(e);
+    return base.kind == ExprKind::Identifier && base.decl;
   }
 
   // An output argument is the parameter's own type, or any array of its element type for an
@@ -1743,8 +1746,7 @@ void UninitializedAnalysis::readIndices(const Expr& target) {
 }
 
 void UninitializedAnalysis::assignTarget(const Expr& target) {
-  const Expr* base = &target;
-  while (base->kind == ExprKind::Index) base = base->operands[0].get();
+  const Expr* base = &indexRoot(target);
   if (base->kind == ExprKind::Identifier && base->decl) {
     state_.assigned.insert(base->decl);
     state_.maybe.insert(base->decl);
