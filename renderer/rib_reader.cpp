@@ -859,15 +859,9 @@ class RibParser {
   bool buildPatchMesh(const Call& call, bool bicubic, int nu, bool uPeriodic, int nv,
                       bool vPeriodic, size_t first);
   bool doGeometry(const Call& call);
-  // A mirroring transform flips the current coordinate system and, with it, the current
-  // orientation (RI spec, "Orientation"), so a primitive keeps its side: the winding its world
-  // points have after the mirror is reversed back (spheres do this as they are tessellated). The
-  // winding is what one-sided culling and the displacement shaders' Ng follow.
-  void keepSideUnderMirror(Mesh& mesh) const {
-    if (glm::determinant(glm::mat3(attr_.ctm)) < 0.0f)
-      for (size_t k = 0; k + 2 < mesh.indices.size(); k += 3) std::swap(mesh.indices[k + 1], mesh.indices[k + 2]);
-  }
-  bool addMesh(Mesh mesh, int line);
+  // Adds a primitive's world-space mesh with the current attributes. `wound`: its winding already
+  // accounts for a mirroring current transform (tessellateSphere does that itself).
+  bool addMesh(Mesh mesh, int line, bool wound = false);
 
   uint32_t materialIndex() {
     Material m = attr_.material;
@@ -2009,7 +2003,7 @@ bool RibParser::doSphere(const Call& call) {
       std::clamp(int(std::ceil(arcV / target)), std::max(2, int(float(minV) * vFraction)), 512);
   Mesh mesh = tessellateSphere(radius, zmin, zmax, thetamax, nu, nv, attr_.ctm);
   applyQuadricPrimvars(vars, &mesh);
-  return addMesh(std::move(mesh), call.line);
+  return addMesh(std::move(mesh), call.line, /*wound=*/true);
 }
 
 // Cylinder, Cone, Disk and Torus by their RI-spec parametric definitions: a grid in (u, v) with
@@ -2134,7 +2128,6 @@ bool RibParser::doQuadric(const Call& call) {
       mesh.indices.insert(mesh.indices.end(), {a, b, d, a, d, c});
     }
   applyQuadricPrimvars(vars, &mesh);
-  keepSideUnderMirror(mesh);
   return addMesh(std::move(mesh), call.line);
 }
 
@@ -2338,7 +2331,6 @@ bool RibParser::buildPolygonMesh(const Call& call, const std::vector<int>& nloop
   // A mirroring transform flips the current coordinate system and, with it, the current
   // orientation (RI spec, "Orientation"), so the polygon keeps its side: the winding the world
   // points have after the mirror is reversed back, as the quadrics do (tessellate.cpp).
-  keepSideUnderMirror(mesh);
   return addMesh(std::move(mesh), call.line);
 }
 
@@ -2603,7 +2595,6 @@ bool RibParser::buildPatchMesh(const Call& call, bool bicubic, int nu, bool uPer
       }
   }
   if (!normalsOk) mesh.N.clear();
-  keepSideUnderMirror(mesh);
   return addMesh(std::move(mesh), call.line);
 }
 
@@ -2640,7 +2631,6 @@ bool RibParser::doGeometry(const Call& call) {
   for (const glm::vec3& p : object.P) object.uv.emplace_back(p.x, p.y);
   for (glm::vec3& p : object.P) p = glm::vec3(m * glm::vec4(p, 1.0f));
   for (glm::vec3& n : object.N) n = glm::normalize(normalFromObject * n);
-  keepSideUnderMirror(object);
   return addMesh(std::move(object), call.line);
 }
 
@@ -2764,8 +2754,14 @@ bool RibParser::readArchive(const Call& call, const std::string& name) {
   return ok;
 }
 
-bool RibParser::addMesh(Mesh mesh, int line) {
+bool RibParser::addMesh(Mesh mesh, int line, bool wound) {
   if (mesh.indices.empty()) return true;
+  // A mirroring transform flips the current coordinate system and, with it, the current
+  // orientation (RI spec, "Orientation"), so a primitive keeps its side: the winding its world
+  // points have after the mirror is reversed back. The winding is what one-sided culling and the
+  // displacement shaders' Ng follow.
+  if (!wound && glm::determinant(glm::mat3(attr_.ctm)) < 0.0f)
+    for (size_t k = 0; k + 2 < mesh.indices.size(); k += 3) std::swap(mesh.indices[k + 1], mesh.indices[k + 2]);
   inputTriangles_ += mesh.numTriangles();
   if (inputTriangles_ > kMaxInputTriangles)
     return fail(line, "the scene has more than " + std::to_string(kMaxInputTriangles) +
