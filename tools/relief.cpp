@@ -318,8 +318,19 @@ double secondsSince(std::chrono::steady_clock::time_point start) {
 // feeds both --stats and --stats-json so they cannot drift apart.
 using StatList = std::vector<std::pair<std::string, std::string>>;
 
-std::string jsonString(const std::string& text);
 float maxExcess(const relief::ShaderProblemCounts& p);
+
+// The Displacements with a shader whose problem counts no earlier one shares (copies of a
+// Displacement share theirs): what the warnings and the statistics count, each once.
+std::vector<const relief::Displacement*> distinctShaderProblems(const relief::Scene& scene) {
+  std::vector<const relief::Displacement*> out;
+  for (const relief::Displacement& d : scene.displacements) {
+    const relief::ShaderProblemCounts* p = d.problems.get();
+    if (p && d.shader && std::none_of(out.begin(), out.end(), [&](const auto* e) { return e->problems.get() == p; }))
+      out.push_back(&d);
+  }
+  return out;
+}
 
 // Process start, for time.total_s.
 const auto gProcessStart = std::chrono::steady_clock::now();
@@ -346,11 +357,8 @@ StatList collectStats(const CommandLine& cl, const relief::Scene& scene,
   uint64_t nonFinite = 0, badNormal = 0, loopLimit = 0, indexClamped = 0, unknownSpace = 0, textureErrors = 0,
            splineBasis = 0, outOfBound = 0;
   double maxBoundExcess = 0.0;
-  std::vector<const relief::ShaderProblemCounts*> counted;
-  for (const relief::Displacement& d : scene.displacements) {
-    const relief::ShaderProblemCounts* p = d.problems.get();
-    if (!p || std::find(counted.begin(), counted.end(), p) != counted.end()) continue;
-    counted.push_back(p);
+  for (const relief::Displacement* d : distinctShaderProblems(scene)) {
+    const relief::ShaderProblemCounts* p = d->problems.get();
     nonFinite += p->nonFinite.load(), badNormal += p->badNormal.load(), loopLimit += p->loopLimit.load();
     indexClamped += p->indexClamped.load(), unknownSpace += p->unknownSpace.load();
     textureErrors += p->textureErrors.load(), splineBasis += p->splineBasis.load();
@@ -369,7 +377,7 @@ StatList collectStats(const CommandLine& cl, const relief::Scene& scene,
           ? 1.0 - double(a.trianglesAfterSimplification) / double(a.trianglesBeforeSimplification)
           : 0.0;
   StatList s = {
-      {"scene.file", jsonString(cl.scene)},
+      {"scene.file", relief::compiler::jsonQuoted(cl.scene)},
       {"scene.frame", scene.frameNumbers.empty()
                           ? std::string("null")
                           : std::to_string(scene.frameNumbers[size_t(scene.frameIndex)])},
@@ -378,7 +386,7 @@ StatList collectStats(const CommandLine& cl, const relief::Scene& scene,
       {"image.height", u(uint64_t(scene.height))},
       {"render.samples_per_pixel", u(uint64_t(r.samplesPerPixel))},
       {"render.threads", u(uint64_t(r.threads))},
-      {"render.order", jsonString(std::string(relief::pixelOrderName(cl.order)))},
+      {"render.order", relief::compiler::jsonQuoted(relief::pixelOrderName(cl.order))},
       {"render.displacement", cl.displace ? "true" : "false"},
       {"rays.camera", u(r.cameraRays)},
       {"rays.camera_hits", u(r.cameraHits)},
@@ -467,11 +475,9 @@ const char* edgeLengthSetting(bool fromCommandLine) {
 // Runtime problems inside displacement shaders are counted, not thrown (abi.h); say so once per
 // Displacement call, naming the shader and where the scene bound it.
 void reportShaderProblems(const relief::Scene& scene, std::ostream& out) {
-  std::vector<const relief::ShaderProblemCounts*> seen;
-  for (const relief::Displacement& d : scene.displacements) {
+  for (const relief::Displacement* shader : distinctShaderProblems(scene)) {
+    const relief::Displacement& d = *shader;
     const relief::ShaderProblemCounts* p = d.problems.get();
-    if (!p || !d.shader || std::find(seen.begin(), seen.end(), p) != seen.end()) continue;
-    seen.push_back(p);
     auto warn = [&]() -> std::ostream& {
       return out << d.sourceFile << ":" << d.sourceLine << ": warning: displacement shader '"
                  << d.shader->name() << "'";
@@ -540,9 +546,6 @@ void reportThinBudget(const std::string& scene, const relief::AccelStats& a, std
       << " first fills: raise --cache-triangles, or --grid-resolution for smaller voxels\n";
 }
 
-std::string jsonString(const std::string& text) { return relief::compiler::jsonQuoted(text); }
-
-// A flat JSON object whose keys are the dotted names (docs/statistics.md).
 // Whether a file can be made at `path`: its directory is created if missing (as -o promises),
 // and a probe file is created in it and removed. Only trying tells: permissions, read-only or
 // pseudo file systems, a regular file where a directory should be.
@@ -575,15 +578,14 @@ bool canCreateFile(const std::string& path, std::string* error) {
   return true;
 }
 
+// A flat JSON object whose keys are the dotted names (docs/statistics.md). Its directory exists:
+// canCreateFile made it before the render.
 bool writeStatsJson(const std::string& path, const StatList& stats) {
-  const std::filesystem::path parent = std::filesystem::path(path).parent_path();
-  std::error_code ignored;
-  if (!parent.empty()) std::filesystem::create_directories(parent, ignored);  // as -o does
   std::ofstream out(path);
   if (!out) return false;
   out << "{\n";
   for (size_t i = 0; i < stats.size(); ++i)
-    out << "  " << jsonString(stats[i].first) << ": " << stats[i].second
+    out << "  " << relief::compiler::jsonQuoted(stats[i].first) << ": " << stats[i].second
         << (i + 1 < stats.size() ? ",\n" : "\n");
   out << "}\n";
   return bool(out);
@@ -971,12 +973,7 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
     for (size_t i = from; i < staged.size(); ++i) std::filesystem::remove(staged[i], ignored);
   };
   for (size_t i = 0; i < outputs.size(); ++i) {
-    const std::string& path = outputs[i];
-    // `-o out/image.png` into a fresh checkout should just work; a failure surfaces in
-    // writeStaged().
-    const std::filesystem::path parent = std::filesystem::path(path).parent_path();
-    std::error_code ignored;
-    if (!parent.empty()) std::filesystem::create_directories(parent, ignored);
+    const std::string& path = outputs[i];  // its directory exists: canCreateFile made it
     const bool floats = relief::isFloatFormat(path);
     relief::ImageWriteOptions writeOptions;
     writeOptions.metadata = metadata;
