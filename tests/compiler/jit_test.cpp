@@ -59,6 +59,15 @@ void fillSphere(TestBatch& b, size_t i, double u, double v) {
   b.du[i] = b.dv[i] = 0.01f;
 }
 
+// Evaluates `instance` at one point of the unit sphere, (u, v), into b's first slot.
+RlfStatus evaluateAtSpherePoint(const runtime::ShaderInstance& instance, TestBatch& b, double u, double v) {
+  fillSphere(b, 0, u, v);
+  RlfStatus status{};
+  RlfShadingBatch view = b.all();
+  instance.evaluate(view, status);
+  return status;
+}
+
 // Runs `shader` on n points of the sphere at (u, v) = (0.3, 0.4), with u and v themselves
 // replaced by uv(i): for tests of derivatives with respect to the parameters.
 template <typename UV>
@@ -545,10 +554,7 @@ displacement pi(float h = 2 * PI; float g = degrees(PI); point q = point(PI, 0, 
   EXPECT_NEAR(params[3].defaultNumbers.at(0), kPi, 1e-6);
   runtime::ShaderInstance instance(shader);
   TestBatch b(1);
-  fillSphere(b, 0, 0.0, 0.0);
-  RlfStatus status{};
-  RlfShadingBatch view = b.all();
-  instance.evaluate(view, status);
+  evaluateAtSpherePoint(instance, b, 0.0, 0.0);
   EXPECT_NEAR(b.Pout[2][0], 1 + 4 * kPi + 180.0, 1e-3);
 }
 
@@ -614,10 +620,7 @@ displacement big(float k[20000] = {3, 4}; point corners[40] = {point(1, 2, 3)})
   ASSERT_TRUE(shader);
   runtime::ShaderInstance instance(shader);
   TestBatch b(1);
-  fillSphere(b, 0, 0.35, 0.0);  // u = 0.35: a[3] = u
-  RlfStatus status{};
-  RlfShadingBatch view = b.all();
-  instance.evaluate(view, status);
+  evaluateAtSpherePoint(instance, b, 0.35, 0.0);  // u = 0.35: a[3] = u
   EXPECT_NEAR(b.Pout[2][0], 1 + 0.35 + 4 + 0 + 0.35 + 20000 + 2 + 0, 1e-2);
 }
 
@@ -641,10 +644,7 @@ displacement d()
   ASSERT_TRUE(shader);
   runtime::ShaderInstance instance(shader);
   TestBatch b(1);
-  fillSphere(b, 0, 0.25, 0.0);
-  RlfStatus status{};
-  RlfShadingBatch view = b.all();
-  instance.evaluate(view, status);
+  evaluateAtSpherePoint(instance, b, 0.25, 0.0);
   EXPECT_FLOAT_EQ(b.Pout[0][0], 1 + 5 + 7 + 9);
   EXPECT_FLOAT_EQ(b.Pout[1][0], 20 + 200);
   EXPECT_FLOAT_EQ(b.Pout[2][0], 10);  // pick(1.0, 2): float->int is no candidate's
