@@ -110,7 +110,23 @@ class Accelerator {
   // Any hit with t in (ray.tMin, ray.tMax).
   virtual bool occluded(const Ray& ray) = 0;
   virtual AccelStats stats() const = 0;
+  // Whether `voxel` is being filled by some thread right now (see VoxelBusy).
+  virtual bool filling(uint32_t /*voxel*/) const { return false; }
 };
+
+// Thrown out of intersect() and occluded() instead of waiting, on a thread that has set
+// threadDefersBusyVoxels(), when the ray needs a voxel another thread is filling. Nothing is
+// pinned when it is thrown, and a trace is a pure function of the scene, so the render loop can
+// drop the pixel's partial work and trace it again once filling(voxel) turns false, with the same
+// result. It lets threads that share one walk over the pixels do other pixels while a neighbour
+// fills the voxel they need.
+struct VoxelBusy {
+  uint32_t voxel;
+};
+inline bool& threadDefersBusyVoxels() {
+  thread_local bool defers = false;
+  return defers;
+}
 
 // Geometry-cache misses (voxel fills) caused by the calling thread so far. Accelerators increment
 // it on every miss; the integrator reads it around a pixel for the "cachemiss" AOV. Per thread, so

@@ -7,6 +7,8 @@
 #include <cstring>
 #include <functional>
 
+#include "renderer/accel.h"
+
 namespace relief {
 
 int cacheThreadShard() {
@@ -147,6 +149,7 @@ const VoxelGeometry* GeometryCache::tryPin(uint32_t voxel, bool& mustFill) {
         return nullptr;
       }
     } else {
+      if (threadDefersBusyVoxels()) throw VoxelBusy{voxel};
       slot.word.wait(word, std::memory_order_acquire);
     }
   }

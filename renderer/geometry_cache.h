@@ -216,6 +216,11 @@ class GeometryCache {
   const VoxelGeometry* acquire(uint32_t voxel, uint64_t stamp, Build&& build);
   void release(uint32_t voxel);
 
+  // Whether another thread is filling the voxel now (a hint: it may finish at any moment).
+  bool filling(uint32_t voxel) const {
+    return slots_[voxel].word.load(std::memory_order_relaxed) >> kStateShift == kFilling;
+  }
+
   CacheStats stats() const;
   uint64_t budget() const { return budget_; }
   // Debug mode: after every fill, check that the resident set without the voxel just filled is

@@ -33,6 +33,7 @@ class GridAccelerator final : public Accelerator {
   std::optional<Hit> intersect(const Ray& ray) override;
   bool occluded(const Ray& ray) override;
   AccelStats stats() const override;
+  bool filling(uint32_t voxel) const override { return cache_->filling(voxel); }
 
   const ContributorGrid& grid() const { return grid_; }
   // Never null: undisplaced input triangles are cached whole (statistics leave them out).

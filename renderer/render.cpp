@@ -129,20 +129,30 @@ RenderStats render(const Scene& scene, Accelerator& accel, const RenderOptions& 
   };
   std::vector<Sample> samples(order.size() * size_t(spp));
 
-  // Each thread owns one contiguous stretch of the order and walks it from the front, so threads
-  // work in different parts of the image and rarely wait on each other's voxel fills (interleaved
-  // chunks had both threads fill the same voxels at once: 1.26x on 2 threads). A thread that
-  // finishes its stretch steals chunks from the back of the stretch with most work left, far from
-  // where its owner is. A stretch is one 64-bit word, front in the high half and back in the low,
-  // so a claim from either end is one compare-and-swap.
+  // How threads share the pixel order. With one stretch per thread, each thread owns a contiguous
+  // part of the order and walks it from the front, so threads work in different parts of the image
+  // and rarely wait on each other's voxel fills (interleaved chunks that wait had both threads
+  // fill the same voxels at once: 1.26x on 2 threads). Under a cache budget, though, each thread
+  // then keeps its own working set (docs/performance.md: about twice one thread's capacity misses).
+  // There the threads share one walk instead, and a thread that needs a voxel its neighbour is
+  // filling does not wait for it: the pixel is put aside (VoxelBusy) and traced again once the
+  // fill is done, while the thread goes on with the next pixels.
+  // A thread that finishes its stretch steals chunks from the back of the stretch with most work
+  // left, far from where its owner is. A stretch is one 64-bit word, front in the high half and
+  // back in the low, so a claim from either end is one compare-and-swap.
+  const bool sharedWalk = numThreads > 1 && options.sharedWalk;
+  const int numStretches = sharedWalk ? 1 : numThreads;
   constexpr uint64_t kChunk = 64;
+  // Pixels a thread may put aside before it waits for a fill like a thread that does not defer:
+  // running far ahead of the fill would push the put-aside pixels' other voxels out of the budget.
+  constexpr size_t kMaxDeferred = 4096;
   struct alignas(64) Stretch {
     std::atomic<uint64_t> range{0};
   };
-  std::vector<Stretch> stretches(static_cast<size_t>(numThreads));
-  for (int t = 0; t < numThreads; ++t) {
-    const uint64_t front = order.size() * uint64_t(t) / uint64_t(numThreads);
-    const uint64_t back = order.size() * uint64_t(t + 1) / uint64_t(numThreads);
+  std::vector<Stretch> stretches(static_cast<size_t>(numStretches));
+  for (int t = 0; t < numStretches; ++t) {
+    const uint64_t front = order.size() * uint64_t(t) / uint64_t(numStretches);
+    const uint64_t back = order.size() * uint64_t(t + 1) / uint64_t(numStretches);
     stretches[size_t(t)].range.store(front << 32 | back, std::memory_order_relaxed);
   }
   // Claims up to kChunk pixels of stretch `s`, from its front or its back; false once it is empty.
@@ -161,7 +171,7 @@ RenderStats render(const Scene& scene, Accelerator& accel, const RenderOptions& 
     }
   };
   auto claimAny = [&](int id, size_t& begin, size_t& end) {
-    if (claim(size_t(id), true, begin, end)) return true;
+    if (claim(size_t(id % numStretches), true, begin, end)) return true;
     while (true) {
       size_t victim = stretches.size();
       uint64_t most = 0;
@@ -177,17 +187,36 @@ RenderStats render(const Scene& scene, Accelerator& accel, const RenderOptions& 
   std::atomic<size_t> donePixels{0};
   std::mutex progressMutex;
   int lastPercent = -1;  // guarded by progressMutex
+  auto reportDone = [&](size_t count) {
+    if (!options.progress || count == 0) return;
+    const size_t done = donePixels.fetch_add(count) + count;
+    const int percent = int(done * 100 / order.size());
+    std::lock_guard<std::mutex> lock(progressMutex);
+    if (percent > lastPercent) {
+      lastPercent = percent;
+      options.progress(percent);
+    }
+  };
   std::vector<RenderStats> perThread(static_cast<size_t>(numThreads));
   auto tracer = [&](int id) {
     RenderStats stats;  // local: neighbouring entries of perThread would share cache lines
-    size_t begin = 0, end = 0;
-    while (!subdivisionRanAway(scene) && claimAny(id, begin, end)) {
-      for (size_t i = begin; i < end; ++i) {
-        const uint32_t pixel = order[i];
-        const int x = int(pixel % uint32_t(width)), y = int(pixel / uint32_t(width));
-        const uint64_t missesBefore = threadCacheMisses();
-        float nearest = 0.0f;
-        glm::vec3 normal(0.0f);
+    struct Deferred {
+      size_t index;     // in `order`
+      uint32_t voxel;   // the voxel being filled when the pixel was put aside
+      uint64_t misses;  // the pixel's cache misses so far, for the "cachemiss" AOV
+    };
+    std::vector<Deferred> deferred;  // in order of deferral
+    size_t deferredFront = 0;
+    // Traces pixel order[i]; false if it met a voxel being filled (only while deferring), in which
+    // case its partial work is dropped, counters included, and `*busy` names the voxel.
+    auto tracePixel = [&](size_t i, uint64_t missesSoFar, uint32_t* busy, uint64_t* misses) {
+      const uint32_t pixel = order[i];
+      const int x = int(pixel % uint32_t(width)), y = int(pixel / uint32_t(width));
+      const uint64_t missesBefore = threadCacheMisses();
+      const RenderStats statsBefore = stats;
+      float nearest = 0.0f;
+      glm::vec3 normal(0.0f);
+      try {
         for (int s = 0; s < spp; ++s) {
           const glm::vec2 offset = pixelSampleOffset(pixel, s, spp);
           const Ray ray = camera.generate(float(x) + offset.x, float(y) + offset.y);
@@ -200,21 +229,67 @@ RenderStats render(const Scene& scene, Accelerator& accel, const RenderOptions& 
             normal = r.normal;
           }
         }
-        if (aovs.depth) aovs.depth->setPixel(x, y, glm::vec3(nearest), nearest > 0.0f ? 1.0f : 0.0f);
-        if (aovs.normal) aovs.normal->setPixel(x, y, normal, nearest > 0.0f ? 1.0f : 0.0f);
-        if (aovs.cacheMiss)
-          aovs.cacheMiss->setPixel(x, y, glm::vec3(float(threadCacheMisses() - missesBefore)));
+      } catch (const VoxelBusy& b) {
+        stats = statsBefore;
+        *busy = b.voxel;
+        *misses = missesSoFar + (threadCacheMisses() - missesBefore);
+        return false;
       }
-      if (options.progress) {
-        const size_t done = donePixels.fetch_add(end - begin) + (end - begin);
-        const int percent = int(done * 100 / order.size());
-        std::lock_guard<std::mutex> lock(progressMutex);
-        if (percent > lastPercent) {
-          lastPercent = percent;
-          options.progress(percent);
+      if (aovs.depth) aovs.depth->setPixel(x, y, glm::vec3(nearest), nearest > 0.0f ? 1.0f : 0.0f);
+      if (aovs.normal) aovs.normal->setPixel(x, y, normal, nearest > 0.0f ? 1.0f : 0.0f);
+      if (aovs.cacheMiss)
+        aovs.cacheMiss->setPixel(x, y, glm::vec3(float(missesSoFar + threadCacheMisses() - missesBefore)));
+      return true;
+    };
+    // Traces put-aside pixels whose fill is done, oldest first; with `all`, every one, waiting
+    // for the fills. Returns the number traced.
+    auto retryDeferred = [&](bool all) {
+      size_t traced = 0;
+      while (deferredFront < deferred.size()) {
+        Deferred& d = deferred[deferredFront];
+        if (!all && accel.filling(d.voxel)) break;
+        uint32_t busy = 0;
+        uint64_t misses = 0;
+        if (tracePixel(d.index, d.misses, &busy, &misses)) {
+          ++deferredFront, ++traced;
+        } else {
+          // Another fill in its way: back of the queue.
+          deferred.push_back({d.index, busy, misses});
+          ++stats.deferredPixels;
+          ++deferredFront;
         }
       }
+      if (deferredFront == deferred.size()) deferred.clear(), deferredFront = 0;
+      return traced;
+    };
+    threadDefersBusyVoxels() = sharedWalk;
+    size_t begin = 0, end = 0;
+    while (!subdivisionRanAway(scene) && claimAny(id, begin, end)) {
+      size_t traced = 0;
+      for (size_t i = begin; i < end; ++i) {
+        uint32_t busy = 0;
+        uint64_t misses = 0;
+        if (tracePixel(i, 0, &busy, &misses)) {
+          ++traced;
+        } else {
+          // The rest of the chunk lies next to this pixel and most likely needs the same voxel:
+          // put it aside untried (retrying costs a partial trace and an exception each time).
+          deferred.push_back({i, busy, misses});
+          for (size_t j = i + 1; j < end; ++j) deferred.push_back({j, busy, 0});
+          stats.deferredPixels += end - i;
+          break;
+        }
+        if (deferredFront < deferred.size()) traced += retryDeferred(false);
+      }
+      if (deferred.size() - deferredFront > kMaxDeferred) {
+        threadDefersBusyVoxels() = false;
+        traced += retryDeferred(true);
+        threadDefersBusyVoxels() = sharedWalk;
+      }
+      reportDone(traced);
     }
+    threadDefersBusyVoxels() = false;
+    if (!subdivisionRanAway(scene)) reportDone(retryDeferred(true));
     perThread[size_t(id)] = stats;
   };
 
@@ -277,9 +352,11 @@ RenderStats render(const Scene& scene, Accelerator& accel, const RenderOptions& 
     total.cameraHits += s.cameraHits;
     total.reflectionRays += s.reflectionRays;
     total.refractionRays += s.refractionRays;
+    total.deferredPixels += s.deferredPixels;
   }
   total.stopped = subdivisionRanAway(scene);
   total.threads = numThreads;
+  total.sharedWalk = sharedWalk;
   total.samplesPerPixel = spp;
   total.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return total;

@@ -39,6 +39,10 @@ struct RenderOptions {
   int maxDepth = -1;        // reflection/refraction depth; -1: the scene's, else kDefaultMaxDepth
   FilterType filter = FilterType::Gaussian;
   bool displaced = true;    // false: the accelerator renders undisplaced surfaces (see shading.h)
+  // Threads share one walk over the pixel order, putting aside pixels that need a voxel another
+  // thread is filling, instead of each walking its own stretch (render.cpp). No influence on
+  // the image.
+  bool sharedWalk = false;
   // Called with the percentage of pixels done whenever it grows; serialized by the render loop,
   // so it may print. Has no influence on the image.
   std::function<void(int percent)> progress;

@@ -23,6 +23,10 @@ struct RenderStats {
   int samplesPerPixel = 0;
   uint64_t cameraRays = 0, shadowRays = 0, cameraHits = 0;
   uint64_t reflectionRays = 0, refractionRays = 0;
+  // Pixels put aside because they needed a voxel another thread was filling, counted each time
+  // (RenderOptions::sharedWalk); their rays are counted once, when traced to the end.
+  uint64_t deferredPixels = 0;
+  bool sharedWalk = false;  // the threads shared one walk over the pixels (RenderOptions)
   // The render stopped before every pixel was traced: a subdivision ran away (subdivide.h,
   // setSubdivisionLimits). The film is then incomplete and must not be written.
   bool stopped = false;

@@ -388,6 +388,8 @@ StatList collectStats(const CommandLine& cl, const relief::Scene& scene,
       {"render.threads", u(uint64_t(r.threads))},
       {"render.order", relief::compiler::jsonQuoted(relief::pixelOrderName(cl.order))},
       {"render.displacement", cl.displace ? "true" : "false"},
+      {"render.walk", r.sharedWalk ? "\"shared\"" : "\"stretches\""},
+      {"render.deferred_pixels", u(r.deferredPixels)},
       {"rays.camera", u(r.cameraRays)},
       {"rays.camera_hits", u(r.cameraHits)},
       {"rays.shadow", u(r.shadowRays)},
@@ -920,6 +922,9 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
   if (!cl.filterSet && !scene.pixelFilter.empty())
     relief::parseFilter(scene.pixelFilter, &renderOptions.filter);
   renderOptions.displaced = cl.displace;
+  // Under a budget a shared walk keeps one working set for all threads (render.h).
+  renderOptions.sharedWalk = cl.accel == "grid" && accelOptions.cacheBudgetTriangles != UINT64_MAX;
+  if (const char* env = std::getenv("RELIEF_WALK")) renderOptions.sharedWalk = std::string_view(env) == "shared";
   Progress progress(*accel, ::isatty(STDERR_FILENO) != 0);
   if (!cl.quiet) renderOptions.progress = [&progress](int percent) { progress.update(percent); };
 

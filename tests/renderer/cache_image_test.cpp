@@ -1,6 +1,7 @@
 // Determinism of whole images through the geometry cache: bit-identical films at cache budgets of
-// 5%, 20% and unlimited, for every pixel order and for one and two threads, with the budget check
-// mode on (no fill may leave more than the budget resident, apart from pinned voxels).
+// 5%, 20% and unlimited, for every pixel order and for one and two threads (each walk of render.h),
+// with the budget check mode on (no fill may leave more than the budget resident, apart from pinned
+// voxels).
 #include <memory>
 #include <string>
 
@@ -41,9 +42,11 @@ Scene bumpyScene() {
 struct Result {
   Film film{1, 1};
   AccelStats stats;
+  RenderStats render;
 };
 
-Result renderWith(const Scene& scene, PixelOrder order, int threads, uint64_t budget, bool refine) {
+Result renderWith(const Scene& scene, PixelOrder order, int threads, uint64_t budget, bool refine,
+                  bool sharedWalk = false) {
   AccelOptions accelOptions;
   accelOptions.cacheBudgetTriangles = budget;
   accelOptions.gridResolution = 12;
@@ -55,7 +58,8 @@ Result renderWith(const Scene& scene, PixelOrder order, int threads, uint64_t bu
   RenderOptions renderOptions;
   renderOptions.order = order;
   renderOptions.threads = threads;
-  render(scene, accel, renderOptions, &r.film);
+  renderOptions.sharedWalk = sharedWalk;
+  r.render = render(scene, accel, renderOptions, &r.film);
   r.stats = accel.stats();
   return r;
 }
@@ -69,10 +73,12 @@ TEST(CacheImage, BitIdenticalAcrossBudgetsOrdersAndThreads) {
   EXPECT_GT(reference.film.pixel(20, 15).r, 0.05f);  // the sphere is there and lit
   for (uint64_t budget : {UINT64_MAX, unique / 5, unique / 20}) {
     for (PixelOrder order : {PixelOrder::Scanline, PixelOrder::Bucket, PixelOrder::Hilbert}) {
-      for (int threads : {1, 2}) {
+      for (auto [threads, shared] : {std::pair{1, false}, std::pair{2, false}, std::pair{2, true}}) {
         SCOPED_TRACE(std::string(pixelOrderName(order)) + ", " + std::to_string(threads) +
-                     " threads, budget " + std::to_string(budget));
-        const Result r = renderWith(scene, order, threads, budget, true);
+                     " threads, budget " + std::to_string(budget) + (shared ? ", shared walk" : ""));
+        const Result r = renderWith(scene, order, threads, budget, true, shared);
+        EXPECT_EQ(r.render.cameraRays, reference.render.cameraRays);
+        EXPECT_EQ(r.render.shadowRays, reference.render.shadowRays);
         EXPECT_TRUE(r.film.data() == reference.film.data());
         EXPECT_EQ(r.stats.budgetViolations, 0u);
         EXPECT_EQ(r.stats.uniqueDisplacedTriangles, unique);
@@ -97,12 +103,16 @@ TEST(CacheThreads, TwoThreadsAtASmallBudgetMatchOneThreadUnlimited) {
   const Scene scene = bumpyScene();
   ASSERT_FALSE(scene.meshes.empty());
   const Result reference = renderWith(scene, PixelOrder::Hilbert, 1, UINT64_MAX, false);
-  const Result r = renderWith(scene, PixelOrder::Scanline, 2,
-                              reference.stats.uniqueDisplacedTriangles / 20, true);
-  EXPECT_TRUE(r.film.data() == reference.film.data());
-  EXPECT_GT(r.stats.capacityMisses, 0u);
-  EXPECT_GT(r.stats.droppedContributors, 0u);
-  EXPECT_EQ(r.stats.budgetViolations, 0u);
+  for (bool shared : {false, true}) {
+    SCOPED_TRACE(shared ? "shared walk" : "stretches");
+    const Result r = renderWith(scene, PixelOrder::Scanline, 2,
+                                reference.stats.uniqueDisplacedTriangles / 20, true, shared);
+    EXPECT_TRUE(r.film.data() == reference.film.data());
+    EXPECT_EQ(r.render.shadowRays, reference.render.shadowRays);
+    EXPECT_GT(r.stats.capacityMisses, 0u);
+    EXPECT_GT(r.stats.droppedContributors, 0u);
+    EXPECT_EQ(r.stats.budgetViolations, 0u);
+  }
 }
 
 // The check counts only what eviction could have freed: a pinned voxel may keep the resident set
@@ -147,6 +157,7 @@ TEST(CacheImage, CacheMissAovSumsToTheCacheMisses) {
     aovs.cacheMiss = &misses;
     RenderOptions renderOptions;
     renderOptions.threads = 2;
+    renderOptions.sharedWalk = budget != UINT64_MAX;  // pixels put aside keep their misses
     render(scene, accel, renderOptions, &film, aovs);
     double total = 0;
     for (int y = 0; y < scene.height; ++y)

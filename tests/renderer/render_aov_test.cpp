@@ -1,6 +1,7 @@
 // Tests of the arbitrary output variables (depth, normal, cache misses per pixel) and of the pixel
 // filters: analytic weights, normalisation, and images bit-identical across pixel orders and
 // thread counts for every filter, sample count and light type.
+#include <atomic>
 #include <cmath>
 #include <set>
 
@@ -240,6 +241,95 @@ TEST(RenderFilter, SampleOffsetsAreStratified) {
     }
   }
   EXPECT_EQ(pixelSampleOffset(5, 0, 1), glm::vec2(0.5f));
+}
+
+}  // namespace
+}  // namespace relief
+
+namespace relief {
+namespace {
+
+// Plays a geometry cache whose voxels are often being filled by another thread: while the calling
+// thread defers (threadDefersBusyVoxels), one ray in 97 throws VoxelBusy, and voxels read as
+// filling for three queries in four. The geometry itself is the brute-force reference.
+class BusyAccelerator : public Accelerator {
+ public:
+  explicit BusyAccelerator(const Scene& scene) : inner_(scene) {}
+  std::optional<Hit> intersect(const Ray& ray) override {
+    maybeBusy();
+    return inner_.intersect(ray);
+  }
+  bool occluded(const Ray& ray) override {
+    maybeBusy();
+    return inner_.occluded(ray);
+  }
+  bool filling(uint32_t) const override { return queries_.fetch_add(1) % 4 != 3; }
+  AccelStats stats() const override { return {}; }
+  uint64_t thrown() const { return thrown_.load(); }
+
+ private:
+  void maybeBusy() {
+    if (threadDefersBusyVoxels() && rays_.fetch_add(1) % 97 == 50) {
+      thrown_.fetch_add(1);
+      throw VoxelBusy{uint32_t(thrown_.load() % 7)};
+    }
+  }
+  test::BruteForceAccelerator inner_;
+  std::atomic<uint64_t> rays_{0}, thrown_{0};
+  mutable std::atomic<uint64_t> queries_{0};
+};
+
+// A shared walk puts aside pixels whose rays meet a busy voxel, camera, shadow, reflection and
+// refraction rays alike, and traces them again later: the image, the AOVs and the ray counts must
+// be those of a render that never waited.
+TEST(RenderLoop, PutAsidePixelsAreTracedAgain) {
+  Scene scene = test::orthoScene(64, 2.0f);
+  scene.height = 40;  // 40 chunks of 64 pixels
+  const uint32_t m = test::addMaterial(&scene, test::matte({0.9f, 0.6f, 0.3f}, 0.1f, 1.0f));
+  Material glass;
+  glass.type = SurfaceType::Glass;
+  glass.transmitColor = {0.6f, 0.9f, 1.0f};
+  const uint32_t g = test::addMaterial(&scene, glass);
+  scene.meshes.push_back(quad({-6, -6, 0}, {0, 12, 0}, {12, 0, 0}, m));
+  scene.meshes.push_back(test::box({-0.7f, -0.5f, -1.2f}, {0.4f, 0.6f, -0.6f}, g));
+  scene.lights.push_back(test::pointLight({2, -1, -2}, glm::vec3(2.0f)));
+  RenderOptions options;
+  options.samplesPerPixel = 3;
+  options.threads = 1;
+  test::BruteForceAccelerator plain(scene);
+  Film reference(scene.width, scene.height), referenceDepth(scene.width, scene.height);
+  AovFilms referenceAovs;
+  referenceAovs.depth = &referenceDepth;
+  const RenderStats expected = render(scene, plain, options, &reference, referenceAovs);
+  ASSERT_GT(expected.shadowRays, 0u);
+  ASSERT_GT(expected.refractionRays, 0u);
+  for (int threads : {2, 3}) {
+    SCOPED_TRACE(std::to_string(threads) + " threads");
+    BusyAccelerator busy(scene);
+    Film film(scene.width, scene.height), depth(scene.width, scene.height);
+    AovFilms aovs;
+    aovs.depth = &depth;
+    options.threads = threads;
+    options.sharedWalk = true;
+    const RenderStats got = render(scene, busy, options, &film, aovs);
+    EXPECT_TRUE(got.sharedWalk);
+    EXPECT_GT(busy.thrown(), 20u);
+    EXPECT_GE(got.deferredPixels, busy.thrown());  // a chunk's untried rest is put aside too
+    EXPECT_TRUE(film.data() == reference.data());
+    EXPECT_TRUE(depth.data() == referenceDepth.data());
+    EXPECT_EQ(got.cameraRays, expected.cameraRays);
+    EXPECT_EQ(got.cameraHits, expected.cameraHits);
+    EXPECT_EQ(got.shadowRays, expected.shadowRays);
+    EXPECT_EQ(got.reflectionRays, expected.reflectionRays);
+    EXPECT_EQ(got.refractionRays, expected.refractionRays);
+  }
+  // Without a shared walk no thread defers: nothing is thrown.
+  BusyAccelerator busy(scene);
+  Film film(scene.width, scene.height);
+  options.threads = 2;
+  options.sharedWalk = false;
+  EXPECT_EQ(render(scene, busy, options, &film).deferredPixels, 0u);
+  EXPECT_EQ(busy.thrown(), 0u);
 }
 
 }  // namespace
