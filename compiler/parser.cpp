@@ -226,11 +226,20 @@ std::string Parser::closestTypeName(std::string_view word) {
       }
     return d[a.size()][b.size()];
   };
+  // Ties go to the longer shared prefix: a typo rarely hits the first letters ("pint" is "point"
+  // more likely than "int").
+  auto prefix = [](std::string_view a, std::string_view b) {
+    size_t n = 0;
+    while (n < a.size() && n < b.size() && a[n] == b[n]) ++n;
+    return n;
+  };
   std::string best;
-  size_t bestDistance = 3;
+  size_t bestDistance = 3, bestPrefix = 0;
   for (std::string_view type : kTypes) {
-    const size_t dist = distance(word, type);
-    if (dist < bestDistance && dist < type.size() - 1) best = std::string(type), bestDistance = dist;
+    const size_t dist = distance(word, type), shared = prefix(word, type);
+    if (dist > 2 || dist >= type.size() - 1) continue;
+    if (dist < bestDistance || (dist == bestDistance && shared > bestPrefix))
+      best = std::string(type), bestDistance = dist, bestPrefix = shared;
   }
   return best;
 }

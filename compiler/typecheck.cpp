@@ -310,7 +310,9 @@ class Checker {
         report(DiagId::ErrMissingDefault, p->nameRange.begin).arg(p->name).range(p->nameRange);
       } else {
         const unsigned errorsBefore = diags_.numHardErrors();
+        initializing_ = p.get();
         checkInit(*p);
+        initializing_ = nullptr;
         if (!p->init->type.isError()) {
           bool atShadingTime = false;
           if (const Expr* bad = firstNonConstant(*p->init, atShadingTime))
@@ -471,7 +473,9 @@ class Checker {
             // Only real errors make the variable invalid: a warning promoted by -Werror leaves it
             // a variable like any other (still reported if unused).
             const unsigned errorsBefore = diags_.numHardErrors();
+            initializing_ = d.get();
             checkInit(*d);
+            initializing_ = nullptr;
             if (d->isUniform && d->init->isVarying && !d->init->type.isError())
               report(DiagId::ErrUniformFromVarying, d->init->range.begin).arg(d->name).range(d->init->range);
             if (diags_.numHardErrors() != errorsBefore) d->invalid = true;
@@ -631,7 +635,9 @@ class Checker {
         VarDecl* d = lookup(e.text);
         e.decl = d;
         if (!d) {
-          if (!suppress_ && undeclaredReported_.insert(e.text).second)
+          if (!suppress_ && initializing_ && initializing_->name == e.text)
+            report(DiagId::ErrOwnInitializer, e.range.begin).arg(e.text).range(e.opRange);
+          else if (!suppress_ && undeclaredReported_.insert(e.text).second)
             report(DiagId::ErrUndeclared, e.range.begin).arg(e.text).range(e.opRange);
           return set(e, kError);
         }
@@ -1720,6 +1726,9 @@ class Checker {
   std::vector<std::unordered_map<std::string, VarDecl*>> scopes_;
   std::vector<std::vector<VarDecl*>> scopeDecls_;
   std::set<std::string> undeclaredReported_;
+  // The variable whose initializer is being checked: its name is not in scope yet (C scoping
+  // would make it read itself, uninitialized), so a use of it gets its own message.
+  const VarDecl* initializing_ = nullptr;
   ShaderDecl* shader_ = nullptr;
   FunctionDecl* function_ = nullptr;
   std::vector<FunctionDecl*> functionStack_;

@@ -335,6 +335,8 @@ int main(int argc, char** argv) {
     }
   }
   if (args.files.empty()) return usageError("no input files");
+  if (std::count(args.files.begin(), args.files.end(), "-") > 1)
+    return usageError("standard input ('-') named more than once: it can be read only once");
   if (args.eval && args.files.size() != 1) return usageError("--eval takes exactly one file");
 
   // Problems with the options themselves, in the format asked for (JSON Lines stay valid).

@@ -256,13 +256,17 @@ TEST(CliTest, EvalPrintsTheDisplacedPointAndNormal) {
   EXPECT_EQ(reliefc("--eval " + quote(lift.string()) + " -p nosuch=1").exitCode, 2);
 }
 
-// '-' compiles standard input (named <stdin> in diagnostics); '--' ends the options, so a file
+// '-' compiles standard input (named <stdin> in diagnostics), once; '--' ends the options, so a file
 // whose name starts with '-' can be named.
 TEST(CliTest, StandardInputAndTheEndOfOptions) {
   const fs::path broken = writeTemp("relief_stdin.disp", "displacement d() { P += N * Kn; }\n");
   const CliRun in = reliefc("- < " + quote(broken.string()));
   EXPECT_EQ(in.exitCode, 1);
   EXPECT_EQ(in.err.rfind("<stdin>:1:29: error: use of undeclared identifier 'Kn'", 0), 0u) << in.err;
+  // Standard input can be read once: naming it twice is a usage error, not an empty second file.
+  const CliRun twice = reliefc("- - < " + quote(broken.string()));
+  EXPECT_EQ(twice.exitCode, 2);
+  EXPECT_NE(twice.err.find("standard input ('-') named more than once"), std::string::npos) << twice.err;
   const fs::path dir = fs::path(::testing::TempDir()) / ("reliefc_dash_" + std::to_string(getpid()));
   fs::create_directories(dir);
   std::ofstream(dir / "-odd.disp") << "displacement d() { P += N * u; }\n";
