@@ -133,6 +133,7 @@ struct ShaderDecl {
   SourceRange nameRange;
   std::vector<std::unique_ptr<VarDecl>> params;
   StmtPtr body;
+  bool hadSyntaxErrors = false;  // parts may be missing: no unused/uninitialized warnings for it
 
   // Filled in by the type checker: host contract of §5 (append N = normalize(calculatenormal(P))).
   bool assignsP = false;

@@ -244,6 +244,12 @@ std::string Parser::closestTypeName(std::string_view word) {
   return best;
 }
 
+bool Parser::lexedBadly(size_t from, size_t to) const {
+  for (size_t i = from; i < to && i < toks_.size(); ++i)
+    if (toks_[i].is(Tok::Unknown) || toks_[i].malformed) return true;
+  return false;
+}
+
 bool Parser::startsDeclaration() const {
   if (tok().is(Tok::KwUniform) || tok().is(Tok::KwVarying)) return true;
   return isTypeKeyword(tok().kind) && peek().is(Tok::Identifier);
@@ -298,8 +304,9 @@ std::unique_ptr<FunctionDecl> Parser::parseFunction() {
     return nullptr;
   }
   const unsigned errorsBefore = diags_.numErrors();
+  const size_t firstToken = pos_;
   f->body = parseBlock();
-  f->bodyHadErrors = diags_.numErrors() != errorsBefore;
+  f->bodyHadErrors = diags_.numErrors() != errorsBefore || lexedBadly(firstToken, pos_);
   return f;
 }
 
@@ -333,6 +340,8 @@ StmtPtr Parser::parseExtern() {
 
 // shader := "displacement" IDENT "(" [formals] ")" block
 void Parser::parseShader() {
+  const unsigned errorsBefore = diags_.numErrors();
+  const size_t firstToken = pos_;
   auto shader = std::make_unique<ShaderDecl>();
   shader->keywordLoc = consume().loc;
   if (!tok().is(Tok::Identifier)) {
@@ -371,6 +380,7 @@ void Parser::parseShader() {
     return;
   }
   shader->body = parseBlock();
+  shader->hadSyntaxErrors = diags_.numErrors() != errorsBefore || lexedBadly(firstToken, pos_);
   shader->parseOrder = uint32_t(unit_->shaders.size() + unit_->functions.size());
   unit_->shaders.push_back(std::move(shader));
 }

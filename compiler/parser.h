@@ -50,6 +50,9 @@ class Parser {
   bool isTypeKeyword(Tok k) const;
   bool startsDeclaration() const;
   static std::string closestTypeName(std::string_view word);
+  // Whether tokens [from, to) include text the lexer already rejected (a dropped character, a
+  // string that swallowed the rest of its line): code the parser never saw.
+  bool lexedBadly(size_t from, size_t to) const;
   TypeKind typeOf(Tok k) const;
 
   void parseShader();

@@ -184,8 +184,6 @@ class Checker {
       : unit_(unit), diags_(diags), prelude_(prelude) {}
 
   void run() {
-    // After syntax errors, parts of bodies are missing: "unused" would be a guess, not a finding.
-    skipUnusedWarnings_ = diags_.hasHardErrors();
     makeGlobals();
     functionScopes_.clear();
     functionScopes_.emplace_back();
@@ -297,6 +295,10 @@ class Checker {
   }
 
   void checkShader(ShaderDecl& shader) {
+    // After syntax errors in it, parts of the shader are missing: "unused" or "uninitialized"
+    // would be a guess, not a finding. Other definitions in the file are judged as usual.
+    skipUnusedWarnings_ = shader.hadSyntaxErrors;
+    const unsigned errorsBefore = diags_.numHardErrors();
     shader_ = &shader;
     inlineCost_ = 0;
     inlineReported_ = false;
@@ -326,7 +328,8 @@ class Checker {
     loopDepth_ = 0;
     if (shader.body) {
       checkBlockContents(*shader.body);
-      if (!diags_.hasHardErrors()) UninitializedAnalysis(*this).stmt(*shader.body);
+      if (!shader.hadSyntaxErrors && diags_.numHardErrors() == errorsBefore)
+        UninitializedAnalysis(*this).stmt(*shader.body);
     }
     popScope();
     shader_ = nullptr;
@@ -1017,6 +1020,10 @@ class Checker {
   }
 
   void checkFunction(FunctionDecl& f) {
+    // As in checkShader; a function nested in a shader with syntax errors keeps the shader's flag.
+    const bool savedSkipUnused = skipUnusedWarnings_;
+    skipUnusedWarnings_ = (function_ || shader_ ? savedSkipUnused : false) || f.bodyHadErrors;
+    const unsigned errorsBefore = diags_.numHardErrors();
     // Registered before its body is checked, so a recursive call resolves and is reported.
     const std::vector<FunctionDecl*>* visible = lookupFunctions(f.name);
     auto& overloads = functionScopes_.back()[f.name];
@@ -1063,7 +1070,8 @@ class Checker {
     }
     if (f.body) {
       checkBlockContents(*f.body);
-      if (!diags_.hasHardErrors()) UninitializedAnalysis(*this).stmt(*f.body);
+      if (!skipUnusedWarnings_ && diags_.numHardErrors() == errorsBefore)
+        UninitializedAnalysis(*this).stmt(*f.body);
       if (f.returnType.kind != TypeKind::Void && !f.bodyHadErrors && canFallThrough(*f.body))
         report(DiagId::ErrMissingReturn, SourceLoc{f.body->range.end.offset - 1}).arg(f.name);
     }
@@ -1075,6 +1083,7 @@ class Checker {
     function_ = savedFunction;
     loopDepth_ = savedLoopDepth;
     undeclaredReported_ = std::move(savedUndeclared);
+    skipUnusedWarnings_ = savedSkipUnused;
     outerScopes_.pop_back();
     scopes_ = std::move(savedScopes);
     scopeDecls_ = std::move(savedDecls);
