@@ -170,8 +170,24 @@ class UninitializedAnalysis {
   void readIndices(const Expr& target);
   void assignTarget(const Expr& target);
 
+  // A loop condition that is a nonzero literal (`while (1)`) or absent (`for (;;)`): the loop
+  // is left only through break (or return).
+  static bool alwaysTrue(const Expr* cond) {
+    if (!cond) return true;
+    return (cond->kind == ExprKind::IntLiteral && cond->intValue != 0) ||
+           (cond->kind == ExprKind::FloatLiteral && cond->floatValue != 0.0f);
+  }
+  static State deadState() {
+    State d;
+    d.dead = true;
+    return d;
+  }
+
   Checker& checker_;
   State state_;
+  // Per enclosing loop, innermost last: the states at its `break`s and `continue`s, joined (a dead
+  // state when there are none).
+  std::vector<State> breaks_, continues_;
   std::set<const VarDecl*> tracked_;  // locals declared without initializer
   std::set<const VarDecl*> warned_;
   bool silent_ = false;  // a pass that only learns which variables a loop body sets
@@ -1873,8 +1889,10 @@ void UninitializedAnalysis::stmt(const Stmt& s) {
       if (!silent_) {
         const State before = state_;
         silent_ = true;
+        breaks_.push_back(deadState()), continues_.push_back(deadState());
         stmt(*s.body);
         if (s.step) expr(*s.step);
+        breaks_.pop_back(), continues_.pop_back();
         silent_ = false;
         std::set<const VarDecl*> setByBody = std::move(state_.maybe);
         state_ = before;
@@ -1882,22 +1900,36 @@ void UninitializedAnalysis::stmt(const Stmt& s) {
       }
       if (s.cond) expr(*s.cond);
       State saved = state_;
+      breaks_.push_back(deadState()), continues_.push_back(deadState());
       stmt(*s.body);
+      state_ = join(state_, continues_.back());
       if (s.step) expr(*s.step);
       saved.maybe.insert(state_.maybe.begin(), state_.maybe.end());  // ...or may
-      state_ = saved;  // the body may not run
+      State broken = std::move(breaks_.back());
+      breaks_.pop_back(), continues_.pop_back();
+      if (alwaysTrue(s.cond.get())) {
+        // Left only through a break: what every break had assigned is assigned after the loop.
+        broken.maybe.insert(saved.maybe.begin(), saved.maybe.end());
+        state_ = std::move(broken);
+      } else {
+        state_ = join(saved, broken);  // the body may not run
+      }
       return;
     }
     case StmtKind::DoWhile: {
-      const State saved = state_;
-      stmt(*s.body);  // runs at least once...
-      const bool dead = state_.dead;
-      expr(*s.cond);
-      // ...unless it left early through break/continue: stay conservative then.
-      if (dead) {
-        std::set<const VarDecl*> maybe = std::move(state_.maybe);
-        state_ = saved;
-        state_.maybe.insert(maybe.begin(), maybe.end());
+      // The body runs at least once; the loop is left where the condition is false (reached at
+      // the end of the body or by continue) or by break.
+      breaks_.push_back(deadState()), continues_.push_back(deadState());
+      stmt(*s.body);
+      state_ = join(state_, continues_.back());
+      if (!state_.dead) expr(*s.cond);
+      State broken = std::move(breaks_.back());
+      breaks_.pop_back(), continues_.pop_back();
+      if (alwaysTrue(s.cond.get())) {
+        broken.maybe.insert(state_.maybe.begin(), state_.maybe.end());
+        state_ = std::move(broken);
+      } else {
+        state_ = join(state_, broken);
       }
       return;
     }
@@ -1906,7 +1938,12 @@ void UninitializedAnalysis::stmt(const Stmt& s) {
       state_.dead = true;
       return;
     case StmtKind::Break:
-    case StmtKind::Continue: state_.dead = true; return;
+    case StmtKind::Continue: {
+      std::vector<State>& targets = s.kind == StmtKind::Break ? breaks_ : continues_;
+      if (!targets.empty()) targets.back() = join(targets.back(), state_);
+      state_.dead = true;
+      return;
+    }
     case StmtKind::Empty:
     case StmtKind::FunctionDef:  // analyzed when the function itself is checked
     case StmtKind::Extern: return;
