@@ -130,26 +130,34 @@ Preprocessor::Preprocessor(SourceManager& sm, DiagnosticsEngine& diags, Preproce
 
 Preprocessor::~Preprocessor() = default;
 
-void Preprocessor::definePredefined(const std::string& name, const std::string& value) {
-  const auto id = sm_.addBuffer("<command line>", value);
+void Preprocessor::definePredefined(const std::string& name, const std::string& value, const char* origin) {
+  // Written out as the directive it stands for, in a buffer named like clang's ("<built-in>",
+  // "<command line>"), so a note pointing at the definition has a line to show.
+  const auto id = sm_.addBuffer(origin, "#define " + name + " " + value);
   std::vector<Token> toks = Lexer(sm_, id, diags_).lexAll();
   toks.pop_back();  // Eof
   Macro m;
-  m.body = std::move(toks);
+  if (toks.size() >= 3) {
+    m.loc = toks[2].loc;
+    m.body.assign(toks.begin() + 3, toks.end());
+  }
   macros_[name] = std::move(m);
 }
 
 std::vector<Token> Preprocessor::run(SourceManager::FileId file) {
+  // Spelt as in <math.h> (glibc) where it has them, so a shader that copies those lines (the
+  // RenderMan Companion's do) redefines them identically, without a warning.
   static const std::pair<const char*, const char*> kPredefined[] = {
       {"__DISP__", "1"},
       {"M_PI", "3.14159265358979323846"},
       {"M_PI_2", "1.57079632679489661923"},
       {"M_2PI", "6.28318530717958647692"},
-      {"M_E", "2.71828182845904523536"},
+      {"M_E", "2.7182818284590452354"},
       {"M_SQRT2", "1.41421356237309504880"},
   };
-  for (const auto& [name, value] : kPredefined) definePredefined(name, value);
-  for (const auto& [name, value] : options_.defines) definePredefined(name, value.empty() ? "1" : value);
+  for (const auto& [name, value] : kPredefined) definePredefined(name, value, "<built-in>");
+  for (const auto& [name, value] : options_.defines)
+    definePredefined(name, value.empty() ? "1" : value, "<command line>");
 
   Source main;
   main.lexer = std::make_unique<Lexer>(sm_, file, diags_);

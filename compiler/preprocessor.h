@@ -66,7 +66,7 @@ class Preprocessor {
   void include(const Token& name, const std::vector<Token>& line);
   void defineMacro(const std::vector<Token>& line);
   bool evaluateCondition(const Token& directiveName, const std::vector<Token>& line);
-  void definePredefined(const std::string& name, const std::string& value);
+  void definePredefined(const std::string& name, const std::string& value, const char* origin);
 
   // Expands `input` (rescanning results); `more` may pull further tokens for a function-like
   // macro whose '(' follows in the source.
