@@ -970,7 +970,10 @@ class Checker {
       const bool known = space.kind != ExprKind::StringLiteral ||
                          (target.kind == TypeKind::Color ? space.text == "rgb" : isKnownSpace(space.text));
       if (!known) {
-        report(DiagId::ErrUnknownSpace, space.range.begin).arg(space.text).range(space.range);
+        report(target.kind == TypeKind::Color ? DiagId::ErrUnknownColorSpace : DiagId::ErrUnknownSpace,
+               space.range.begin)
+            .arg(space.text)
+            .range(space.range);
         return set(e, kError);
       }
       e.text = space.text;
