@@ -849,6 +849,15 @@ class Checker {
           .range(l.range)
           .range(r.range);
     }
+    // `1/2` is 0 here as in C, where RSL (whose numbers are all floats) gives 0.5: a shader
+    // brought over from RSL would silently lose the term.
+    if (e.op == Tok::Slash && l.kind == ExprKind::IntLiteral && r.kind == ExprKind::IntLiteral &&
+        r.intValue != 0 && l.intValue % r.intValue != 0)
+      report(DiagId::WarnIntegerDivision, e.opLoc)
+          .arg(std::to_string(l.intValue / r.intValue))
+          .arg(std::to_string(l.intValue) + ".0/" + std::to_string(r.intValue))
+          .range(l.range)
+          .range(r.range);
     return set(e, t);
   }
 
