@@ -106,6 +106,8 @@ struct Displacement {
   float flatness = 0.0f;       // simplification tolerance in world units (0: off)
   int maxDepth = 12;           // subdivision depth guard
   RlfSpaces spaces{};          // object/shader/camera transforms for the shader
+  // What the shader may call back into (its printf output); null: nothing (printf is dropped).
+  const RlfHostServices* services = nullptr;
   std::string sourceFile;      // where the Displacement call was (for warnings)
   int sourceLine = 0;
   std::shared_ptr<ShaderProblemCounts> problems = std::make_shared<ShaderProblemCounts>();

@@ -274,7 +274,7 @@ void displace(const Displacement& disp, const TriangleFrame& frame, Vertices& vs
   b.dtdu = batch.dtdu.data(), b.dtdv = batch.dtdv.data();
   b.dNdu = batch.dNdu.view(), b.dNdv = batch.dNdv.view();
   b.spaces = &disp.spaces;
-  b.services = nullptr;
+  b.services = disp.services;
   b.Pout = batch.Pout.view(), b.Nout = batch.Nout.view();
   RlfStatus status{};
   const uint64_t start = readTicks();

@@ -16,6 +16,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <mutex>
 #include <optional>
 #include <set>
 #include <streambuf>
@@ -73,6 +74,8 @@ constexpr const char* kUsage =
     "  --accel grid|embree|embree-compact\n"
     "                            geometry cache (default), or the baseline: everything displaced\n"
     "                            up front into one Embree BVH (compact: smaller, slower)\n"
+    "  --print-limit N           show at most N printf messages from shaders (default 100;\n"
+    "                            a shader prints at every point it displaces; 0: none)\n"
     "  --stats                   print cache statistics and timings\n"
     "  --stats-json FILE         write the same statistics as JSON (for benchmark scripts)\n"
     "  -q, --quiet               no warnings or progress, only errors and the image path\n"
@@ -133,6 +136,7 @@ struct CommandLine {
   bool stats = false;
   std::string statsJson;
   bool quiet = false;
+  uint64_t printLimit = 100;  // shader printf messages shown
 };
 
 int usageError(const std::string& message) {
@@ -206,6 +210,10 @@ int parseCommandLine(int argc, char** argv, CommandLine* cl) {
       if (!value(&v) || !parsePositive(v, 4096, &n))
         return usageError("'--spp' needs a sample count between 1 and 4096");
       cl->spp = int(n);
+    } else if (a == "--print-limit") {
+      if (!value(&v) || (v != "0" && !parsePositive(v, UINT32_MAX, &n)))
+        return usageError("'--print-limit' needs a message count (0 for none)");
+      cl->printLimit = v == "0" ? 0 : uint64_t(n);
     } else if (a == "--threads") {
       if (!value(&v) || !parsePositive(v, 256, &n))
         return usageError("'--threads' needs a thread count between 1 and 256");
@@ -782,6 +790,39 @@ int run(const CommandLine& cl) {
   }
 }
 
+// Shaders' printf output (language.md 6.8: for debugging): standard output, a message at a time
+// (messages from different threads never mix within one), at most --print-limit messages per run.
+// A shader prints at every point it displaces, so an unlimited stream would bury everything else.
+class ShaderPrinter {
+ public:
+  ShaderPrinter() { services_.context = this, services_.print = &ShaderPrinter::print; }
+  void setLimit(uint64_t limit) { limit_ = limit; }
+  const RlfHostServices* services() const { return &services_; }
+  uint64_t dropped() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return dropped_;
+  }
+
+ private:
+  static void print(void* context, const char* text) {
+    auto* self = static_cast<ShaderPrinter*>(context);
+    std::lock_guard<std::mutex> lock(self->mutex_);
+    if (self->shown_ >= self->limit_) {
+      ++self->dropped_;
+      return;
+    }
+    ++self->shown_;
+    std::fputs(text, stdout);
+  }
+  RlfHostServices services_{};
+  mutable std::mutex mutex_;
+  uint64_t limit_ = 0, shown_ = 0, dropped_ = 0;
+};
+ShaderPrinter& shaderPrinter() {
+  static ShaderPrinter printer;
+  return printer;
+}
+
 // Renders the frame `scene` is and writes its displays, all or none. severalFrames: this run
 // renders more than one, so names from -o, --stats-json and the default get the frame number.
 int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds, bool severalFrames,
@@ -798,6 +839,9 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
   }
   if (cl.edgeLength > 0.0f)
     for (relief::Displacement& d : scene.displacements) d.edgeLength = cl.edgeLength;
+  shaderPrinter().setLimit(cl.printLimit);
+  for (relief::Displacement& d : scene.displacements) d.services = shaderPrinter().services();
+  const uint64_t droppedBefore = shaderPrinter().dropped();
 
   // -o replaces the main display's file; the scene's other displays (AOVs) are still written.
   std::vector<std::string> outputs;
@@ -948,6 +992,10 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
   }
   const relief::RenderStats renderStats = relief::render(scene, *accel, renderOptions, &film, aovs);
   if (!cl.quiet) progress.finish();
+  std::fflush(stdout);  // shader printf output before what follows
+  if (const uint64_t dropped = shaderPrinter().dropped() - droppedBefore; dropped > 0 && warnings)
+    *warnings << "relief: " << dropped << " more printf message" << (dropped == 1 ? "" : "s")
+              << " from shaders not shown (--print-limit " << cl.printLimit << ")\n";
   if (renderStats.stopped) {
     reportRunaway(scene, estimates, cl.edgeLength > 0.0f, std::cerr);
     return 1;

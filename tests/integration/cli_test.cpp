@@ -223,7 +223,7 @@ TEST(Relief, HelpListsEveryOptionAndTheEnvironment) {
        {"-I", "-o ", "--resolution", "--spp", "--threads", "--order", "--max-depth", "--filter",
         "blackman-harris", "--cache-triangles", "--no-displacement", "--stats", "--stats-json",
         "--quiet", "--help", "--version", "RELIEF_SHADER_PATH", "cachemiss", "exit status",
-        "--frame", "out.0001.png"})
+        "--frame", "out.0001.png", "--print-limit"})
     EXPECT_NE(r.out.find(option), std::string::npos) << option;
 }
 
@@ -235,7 +235,7 @@ TEST(Relief, VersionIsPrinted) {
 
 TEST(Relief, BadFlagValuesAreUsageErrors) {
   for (const char* flags : {"--filter mitchell", "--max-depth -1", "--max-depth x", "--order zigzag",
-                            "--spp 0", "--frobnicate"}) {
+                            "--spp 0", "--frobnicate", "--print-limit -1", "--print-limit x"}) {
     RunResult r = run(kRelief + " " + kSphereScene + " " + flags);
     EXPECT_EQ(r.exitCode, 2) << flags;
     EXPECT_NE(r.err.find("relief: error:"), std::string::npos) << flags << ": " << r.err;
@@ -573,6 +573,38 @@ TEST(Relief, UnknownRuntimeSplineBasisIsOneWarningNamingTheShader) {
   const size_t at = onlyWarning(r.err, expected);
   ASSERT_NE(at, std::string::npos) << r.err;
   EXPECT_NE(r.err.find("unknown or unfit basis", at), std::string::npos) << r.err;
+}
+
+// A shader's printf goes to standard output, whole messages, up to --print-limit of them (a shader
+// prints at every point it displaces); how many more there were is said once, unless quiet.
+TEST(Relief, ShaderPrintfReachesStandardOutputUpToTheLimit) {
+  const fs::path dir = scratchDir();
+  writeFile(dir / "talk.disp",
+            "displacement talk(float Km = 0.01) {\n"
+            "  printf(\"point at u=%f\\n\", u);\n"
+            "  P += Km * normalize(N);\n"
+            "}\n");
+  const fs::path scene = displacedScene(dir, "0.02", "Displacement \"talk\"");
+  const std::string base = kRelief + " " + scene.string() + " --threads 2 -I " + dir.string() + " -o " +
+                           (dir / "talk.png").string();
+  auto count = [](const std::string& text, const std::string& what) {
+    size_t n = 0;
+    for (size_t at = text.find(what); at != std::string::npos; at = text.find(what, at + 1)) ++n;
+    return n;
+  };
+  RunResult r = run(base + " --print-limit 7");
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_EQ(count(r.out, "point at u="), 7u) << r.out;
+  EXPECT_EQ(count(r.out, "\n"), 8u) << r.out;  // 7 whole lines, then the image path
+  EXPECT_NE(r.out.find((dir / "talk.png").string() + "\n"), std::string::npos) << r.out;
+  EXPECT_EQ(count(r.err, "more printf messages from shaders not shown (--print-limit 7)"), 1u) << r.err;
+  r = run(base + " --print-limit 0 -q");
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_EQ(r.out, (dir / "talk.png").string() + "\n");
+  EXPECT_EQ(r.err, "");
+  r = run(base);
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_EQ(count(r.out, "point at u="), 100u);  // the default limit
 }
 
 TEST(Relief, FailedOutputLeavesNoImage) {
