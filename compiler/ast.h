@@ -51,6 +51,9 @@ struct Expr {
   std::string text;
   TypeKind constructType = TypeKind::Error;
   bool isCast = false;  // (T) e or prefix T e: numeric conversion
+  // RSL's T "space" (…) or T "space" e, the space written before the operands (for a matrix it
+  // means what the RI spec says: current→space, then the given matrix; see codegen).
+  bool spaceOutside = false;
   uint32_t depth = 1;   // height of this subtree (the parser bounds it; later passes recurse)
   std::vector<ExprPtr> operands;
 

@@ -1587,8 +1587,13 @@ class ShaderCodegen {
       m = makeMatrix();
       for (int k = 0; k < 16; ++k) m.c[k] = {toFloatScalar(gen(*e.operands[first + size_t(k)])).c[0].v, nullptr, nullptr};
     }
-    // Given in a space (as OSL): first m, then space→current.
-    if (first == 1) m = matmul(m, spaceMatrices(*e.operands[0], gen(*e.operands[0]).c[0].v).first);
+    // matrix("space", m) is given in the space, as in OSL: first m, then space→current.
+    // RSL's matrix "space" m is what the RI spec (11.4) says: current→space, then m, so that
+    // matrix "shader" 1 transforms points as transform("shader", p) does.
+    if (first == 1) {
+      const auto [toCurrent, fromCurrent] = spaceMatrices(*e.operands[0], gen(*e.operands[0]).c[0].v);
+      m = e.spaceOutside ? matmul(fromCurrent, m) : matmul(m, toCurrent);
+    }
     return m;
   }
 

@@ -933,18 +933,22 @@ bool Parser::parseArguments(std::vector<ExprPtr>& args, const Token& open) {
   }
 }
 
-// constructor := type ["space-string"] "(" args ")" | type unary   (prefix cast, e.g. float noise(P))
+// constructor := type ["space-string"] "(" args ")" | type ["space-string"] unary
+//                (prefix cast, e.g. float noise(P); RSL's matrix "shader" 1)
 ExprPtr Parser::parseConstructor() {
   const Token type = consume();
   auto e = std::make_unique<Expr>(ExprKind::Construct, type.range());
   e->constructType = typeOf(type.kind);
   e->opLoc = type.loc;
   e->opRange = type.range();
-  if (tok().is(Tok::StringLiteral) && peek().is(Tok::LParen)) {
+  // A string after the type names a space (a string operand of a cast would be an error anyway).
+  if (tok().is(Tok::StringLiteral) && !peek().is(Tok::Semi) && !peek().is(Tok::Comma) &&
+      !peek().is(Tok::RParen)) {
     const Token space = consume();
     auto lit = std::make_unique<Expr>(ExprKind::StringLiteral, space.range());
     lit->text = Lexer::stringValue(space);
     e->operands.push_back(std::move(lit));
+    e->spaceOutside = true;
   }
   if (tok().is(Tok::LParen)) {
     const Token open = consume();
@@ -954,7 +958,7 @@ ExprPtr Parser::parseConstructor() {
   }
   ExprPtr operand = parseUnary();
   if (!operand) return nullptr;
-  e->isCast = true;
+  e->isCast = !e->spaceOutside;  // with a space it is the constructor T("space", operand)
   e->range.end = operand->range.end;
   e->operands.push_back(std::move(operand));
   return bounded(std::move(e));

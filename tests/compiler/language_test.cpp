@@ -153,10 +153,17 @@ displacement m(string obj = "object")
     printf("%g\n", transform(matrix("object", 1), point(1, 1, 1)));
     printf("%g\n", transform(matrix("shader", 1, 0, 0, 0,  0, 1, 0, 0,  0, 0, 1, 0,  1, 1, 1, 1), point(0)));
     printf("%g\n", transform("object", "shader", point(1, 1, 1)));
+    // RSL's space-first form means what the RI spec (11.4) says: current -> space, then the
+    // matrix, so matrix "object" 1 transforms as transform("object", p) does.
+    printf("%g\n", transform(matrix "object" 1, point(12, 2, 2)));
+    printf("%g\n", transform(matrix "shader" (1), point(0)));
+    printf("%g\n", transform(matrix "object" (1, 0, 0, 0,  0, 1, 0, 0,  0, 0, 1, 0,  1, 1, 1, 1), point(10, 0, 0)));
+    printf("%g\n", transform("object", point(12, 2, 2)));
+    printf("%g; %g\n", point "object" (1, 1, 1), point "object" P);
 })",
                                        b);
   // object (1,1,1) -> current (12, 2, 2) -> shader (12, -3, 2).
-  EXPECT_EQ(printed, "12 -3 2\n12 2 2\n12 2 2\n1 6 1\n12 -3 2\n");
+  EXPECT_EQ(printed, "12 -3 2\n12 2 2\n12 2 2\n1 6 1\n12 -3 2\n1 1 1\n0 -5 0\n1 1 1\n1 1 1\n12 2 2; 10.5 1 1.5\n");
 }
 
 TEST(StringTest, FormatAndConcatBuildStrings) {
