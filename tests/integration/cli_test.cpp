@@ -602,7 +602,7 @@ TEST(Relief, ShaderPrintfReachesStandardOutputUpToTheLimit) {
   ASSERT_EQ(r.exitCode, 0) << r.err;
   EXPECT_EQ(r.out, (dir / "talk.png").string() + "\n");
   EXPECT_EQ(r.err, "");
-  r = run(base);
+  r = run(base + " --edge-length 0.05");  // thousands of points
   ASSERT_EQ(r.exitCode, 0) << r.err;
   EXPECT_EQ(count(r.out, "point at u="), 100u);  // the default limit
 }
