@@ -141,6 +141,9 @@ struct ShaderDecl {
   // Filled in by the type checker: host contract of §5 (append N = normalize(calculatenormal(P))).
   bool assignsP = false;
   bool assignsN = false;
+  // Some write of N may leave it other than the displaced surface's own normal (a bump: anything
+  // but `N = calculatenormal(P)` or `N = normalize(calculatenormal(P))`, or displace()).
+  bool ownNormal = false;
 };
 
 // function := (type | "void") IDENT "(" [formals] ")" block
@@ -156,6 +159,7 @@ struct FunctionDecl {
   // Filled in by the type checker: what a call may write (propagates the §5 host contract).
   bool writesP = false;
   bool writesN = false;
+  bool writesOwnN = false;  // as ShaderDecl::ownNormal
   // Its calls are varying whatever the arguments (§2): it reads a global other than PI or an
   // enclosing variable, or uses a varying-only built-in, itself or through its callees.
   bool readsVarying = false;

@@ -98,6 +98,7 @@ class ShaderCodegen {
   ShaderLayout generate() {
     ShaderLayout layout;
     layout.name = shader_.name;
+    layout.ownNormal = shader_.ownNormal;
     layout.entrySymbol = "rlf_shader_" + shader_.name;
     layout.defaultsSymbol = "rlf_defaults_" + shader_.name;
     layoutParams(layout);

@@ -24,6 +24,7 @@ struct ShaderLayout {
   std::string defaultsSymbol;  // void(void* block): writes every parameter's default into a block
   std::vector<runtime::ParamInfo> params;  // defaults filled in after running defaultsSymbol
   uint32_t blockSize = 0;
+  bool ownNormal = false;  // ShaderDecl::ownNormal
 };
 
 // Limits named in language.md §7.

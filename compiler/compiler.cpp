@@ -103,7 +103,7 @@ void compileBuffer(CompileResult& result, SourceManager::FileId file, const Comp
     }
     result.shaders.push_back(std::make_shared<runtime::CompiledShader>(
         layout.name, reinterpret_cast<RlfShaderEntry>(entry), std::move(layout.params), layout.blockSize,
-        keepAlive));
+        keepAlive, layout.ownNormal));
   }
 }
 

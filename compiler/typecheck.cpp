@@ -876,19 +876,35 @@ class Checker {
       return false;
     }
     d->written = true;
-    if (d->storage == Storage::Global) markWrites(d->global == GlobalId::P, d->global == GlobalId::N);
+    if (d->storage == Storage::Global) {
+      const bool n = d->global == GlobalId::N;
+      markWrites(d->global == GlobalId::P, n, n && !surfaceNormalWrite_);
+    }
     return true;
   }
 
   // Records writes of P/N: on the function being checked (propagated at its calls), else the shader.
-  void markWrites(bool p, bool n) {
+  // `ownN`: the N written may differ from the displaced surface's normal (ShaderDecl::ownNormal).
+  void markWrites(bool p, bool n, bool ownN) {
     if (function_) {
       function_->writesP |= p;
       function_->writesN |= n;
+      function_->writesOwnN |= ownN;
     } else if (shader_) {
       shader_->assignsP |= p;
       shader_->assignsN |= n;
+      shader_->ownNormal |= ownN;
     }
+  }
+
+  // `calculatenormal(P)` or `normalize(calculatenormal(P))` of the global P: the displaced
+  // surface's own normal, which the renderer's micro-triangles already have.
+  static bool isSurfaceNormal(const Expr& e) {
+    if (e.kind != ExprKind::Call || e.operands.size() != 1) return false;
+    const Expr& a = *e.operands[0];
+    if (e.text == "normalize") return isSurfaceNormal(a);
+    return e.text == "calculatenormal" && a.kind == ExprKind::Identifier && a.decl &&
+           a.decl->storage == Storage::Global && a.decl->global == GlobalId::P;
   }
 
   Type checkAssign(Expr& e) {
@@ -904,7 +920,10 @@ class Checker {
     const Type tv = checkExpr(value, base == Tok::Eof ? tt : contextHint(base, tt, tt));
     e.isVarying = value.isVarying;
     if (tt.isError()) return set(e, kError);
-    if (!checkAssignable(target, e.opLoc, e.opRange)) {
+    surfaceNormalWrite_ = e.op == Tok::Assign && target.kind == ExprKind::Identifier && isSurfaceNormal(value);
+    const bool assignable = checkAssignable(target, e.opLoc, e.opRange);
+    surfaceNormalWrite_ = false;
+    if (!assignable) {
       if (written) ++written->reads;  // already an error: no "unused" on top of it
       return set(e, kError);
     }
@@ -1237,7 +1256,7 @@ class Checker {
         report(DiagId::WarnNarrowing, a.range.begin).range(a.range);
       }
     }
-    markWrites(f->writesP, f->writesN);
+    markWrites(f->writesP, f->writesN, f->writesOwnN);
     // User functions are inlined at every call: bound the code a call chain may expand to.
     inlineCost_ = std::min<uint64_t>(inlineCost_ + std::min<uint64_t>(f->inlineCost, 1ull << 40), 1ull << 40);
     if (inlineCost_ > kMaxInlineCost && !inlineReported_) {
@@ -1323,7 +1342,7 @@ class Checker {
         noteVaryingSource();
         break;
       case BuiltinShape::Displace:
-        markWrites(true, true);
+        markWrites(true, true, false);  // N = normalize(calculatenormal(P))
         noteVaryingSource();  // it reads P and N
         break;
       case BuiltinShape::Printf:
@@ -1766,6 +1785,7 @@ class Checker {
   // The variable whose initializer is being checked: its name is not in scope yet (C scoping
   // would make it read itself, uninitialized), so a use of it gets its own message.
   const VarDecl* initializing_ = nullptr;
+  bool surfaceNormalWrite_ = false;  // the assignment being checked is N = calculatenormal(P)
   ShaderDecl* shader_ = nullptr;
   FunctionDecl* function_ = nullptr;
   std::vector<FunctionDecl*> functionStack_;

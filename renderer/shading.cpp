@@ -7,6 +7,8 @@
 #include <cmath>
 #include <numeric>
 
+#include "renderer/subdivide.h"
+
 namespace relief {
 
 namespace {
@@ -153,9 +155,18 @@ bool Integrator::resolve(const Ray& ray, const Hit& hit, Surface* s) const {
   s->Ng = hit.Ng;
   s->N = hit.Ng;
   // Displaced surfaces shade with the micro-triangle's face normal (as in the paper): it carries
-  // the displaced detail, which interpolated input normals would not.
+  // the displaced detail, which interpolated input normals would not. A shader that sets N other
+  // than as the displaced surface's own normal (a bump) has that N as the shading normal
+  // (language.md §5), evaluated at the hit: it is not stored with the cached geometry.
   const bool displaced = options_.displaced && mesh.displacementIndex < scene_.displacements.size() &&
                          scene_.displacements[mesh.displacementIndex].shader != nullptr;
+  if (displaced) {
+    const Displacement& disp = scene_.displacements[mesh.displacementIndex];
+    glm::vec3 n;
+    if (disp.shader->shader().ownNormal() &&
+        displacedShadingNormal(mesh, hit.triangleIndex, disp, hit.bary, &n))
+      s->N = n;
+  }
   if (!displaced && !mesh.N.empty() && hit.triangleIndex < mesh.numTriangles()) {
     const uint32_t* idx = &mesh.indices[3 * size_t(hit.triangleIndex)];
     const float b1 = hit.bary.x, b2 = hit.bary.y;

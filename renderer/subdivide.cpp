@@ -516,15 +516,11 @@ void SubtreeMemo::learn(uint32_t code, const CullBox* box, uint64_t decisions) {
   boxes_[slot].store(w, std::memory_order_relaxed);
 }
 
-void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* displacement,
-                       MicroMesh& out, SubdivideCounters& counters, const CullBox* cull,
-                       const SubtreeMemo* known, std::vector<LearntSubtree>* learnt) {
-  thread_local Scratch scratch;
-  scratch.batch.constCount = 0;  // a new triangle: its uniform fields must be filled again
-  Vertices& vs = scratch.vertices;
-  vs.clear();
-  glm::vec3 p[3], n[3];
-  glm::vec2 uv[3], st[3];
+namespace {
+
+// The corners of input triangle `triangle` as the shader sees them at level 0.
+void cornerData(const Mesh& mesh, uint32_t triangle, glm::vec3 p[3], glm::vec3 n[3], glm::vec2 uv[3],
+                glm::vec2 st[3]) {
   const glm::vec2 cornerBary[3] = {{0, 0}, {1, 0}, {0, 1}};
   for (int c = 0; c < 3; ++c) {
     const uint32_t i = mesh.indices[3 * size_t(triangle) + c];
@@ -539,6 +535,54 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
   faceN = faceLen > 0.0f && std::isfinite(faceLen) ? faceN / faceLen : glm::vec3(0, 0, 1);
   for (int c = 0; c < 3; ++c)
     n[c] = mesh.N.size() != mesh.P.size() ? faceN : mesh.N[mesh.indices[3 * size_t(triangle) + c]];
+}
+
+}  // namespace
+
+bool displacedShadingNormal(const Mesh& mesh, uint32_t triangle, const Displacement& disp, glm::vec2 bary,
+                            glm::vec3* normal) {
+  if (!disp.shader || triangle >= mesh.numTriangles()) return false;
+  glm::vec3 p[3], n[3];
+  glm::vec2 uv[3], st[3];
+  cornerData(mesh, triangle, p, n, uv, st);
+  // One vertex where the hit is, set up as subdivision sets up its vertices (corner values
+  // interpolated, N normalized), at the level the subdivision of the undisplaced triangle reaches.
+  thread_local Vertices vs;
+  thread_local Batch batch;
+  vs.clear();
+  batch.constCount = 0;
+  const float w[3] = {1.0f - bary.x - bary.y, bary.x, bary.y};
+  const glm::vec3 ni = w[0] * n[0] + w[1] * n[1] + w[2] * n[2];
+  const float len = glm::length(ni);
+  vs.P.push_back(w[0] * p[0] + w[1] * p[1] + w[2] * p[2]);
+  vs.N.push_back(len > 0.0f && std::isfinite(len) ? ni / len : n[0]);
+  vs.uv.push_back(w[0] * uv[0] + w[1] * uv[1] + w[2] * uv[2]);
+  vs.st.push_back(w[0] * st[0] + w[1] * st[1] + w[2] * st[2]);
+  vs.bary.push_back(bary);
+  vs.level.push_back(uint8_t(undisplacedLevels(p, disp.edgeLength, std::clamp(disp.maxDepth, 0, kMaxSubdivisionDepth))));
+  vs.decided.push_back(0);
+  vs.displaced.emplace_back(0.0f);
+  const TriangleFrame frame = makeFrame(p, n, uv, st, mesh.N.size() == mesh.P.size());
+  SubdivideCounters counters;  // shading-time evaluations stay out of the fill statistics
+  displace(disp, frame, vs, 0, batch, counters);
+  const glm::vec3 out = batch.Nout.get(0);
+  const float outLen = glm::length(out);
+  if (!(outLen > 0.0f) || !std::isfinite(outLen)) return false;
+  *normal = out / outLen;
+  return true;
+}
+
+void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* displacement,
+                       MicroMesh& out, SubdivideCounters& counters, const CullBox* cull,
+                       const SubtreeMemo* known, std::vector<LearntSubtree>* learnt) {
+  thread_local Scratch scratch;
+  scratch.batch.constCount = 0;  // a new triangle: its uniform fields must be filled again
+  Vertices& vs = scratch.vertices;
+  vs.clear();
+  glm::vec3 p[3], n[3];
+  glm::vec2 uv[3], st[3];
+  const glm::vec2 cornerBary[3] = {{0, 0}, {1, 0}, {0, 1}};
+  cornerData(mesh, triangle, p, n, uv, st);
   for (int c = 0; c < 3; ++c) {
     vs.P.push_back(p[c]), vs.N.push_back(n[c]), vs.uv.push_back(uv[c]), vs.st.push_back(st[c]);
     vs.bary.push_back(cornerBary[c]), vs.level.push_back(0), vs.displaced.push_back(p[c]);

@@ -170,6 +170,12 @@ constexpr uint64_t kRunawaySubdivisions = 8;
 // The k above: halvings of the longest edge of triangle p to reach edgeLength, at most maxDepth.
 int undisplacedLevels(const glm::vec3 p[3], float edgeLength, int maxDepth);
 
+// The displacement shader's output N at barycentric `bary` (weights of corners 1 and 2) of input
+// triangle `triangle`, evaluated there as subdivision evaluates its vertices (language.md §5: the
+// output N is the shading normal). False when it is not a finite, nonzero vector. Thread-safe.
+bool displacedShadingNormal(const Mesh& mesh, uint32_t triangle, const Displacement& disp, glm::vec2 bary,
+                            glm::vec3* normal);
+
 // Returns the estimate (the sum of 4^k) for each of scene.displacements, meshes without a shader
 // counting nothing, and arms the runaway guard of every Displacement (ShaderProblemCounts).
 std::vector<double> setSubdivisionLimits(Scene& scene);

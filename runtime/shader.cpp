@@ -38,12 +38,13 @@ static bool isSpatial(ParamType t) {
 static bool isScalar(ParamType t) { return t == ParamType::Float || t == ParamType::Int; }
 
 CompiledShader::CompiledShader(std::string name, RlfShaderEntry entry, std::vector<ParamInfo> params,
-                               uint32_t blockSize, std::shared_ptr<void> keepAlive)
+                               uint32_t blockSize, std::shared_ptr<void> keepAlive, bool ownNormal)
     : name_(std::move(name)),
       entry_(entry),
       params_(std::move(params)),
       blockSize_(blockSize),
-      keepAlive_(std::move(keepAlive)) {}
+      keepAlive_(std::move(keepAlive)),
+      ownNormal_(ownNormal) {}
 
 const ParamInfo* CompiledShader::findParam(std::string_view name) const {
   for (const ParamInfo& p : params_)

@@ -46,13 +46,16 @@ struct ParamInfo {
 class CompiledShader {
  public:
   CompiledShader(std::string name, RlfShaderEntry entry, std::vector<ParamInfo> params,
-                 uint32_t blockSize, std::shared_ptr<void> keepAlive);
+                 uint32_t blockSize, std::shared_ptr<void> keepAlive, bool ownNormal = false);
 
   const std::string& name() const { return name_; }
   RlfShaderEntry entry() const { return entry_; }
   std::span<const ParamInfo> params() const { return params_; }
   const ParamInfo* findParam(std::string_view name) const;
   uint32_t blockSize() const { return blockSize_; }
+  // The output N may differ from the displaced surface's own normal (the shader bumps it: it
+  // writes N other than as calculatenormal(P)); language.md §5 makes that N the shading normal.
+  bool ownNormal() const { return ownNormal_; }
 
  private:
   std::string name_;
@@ -60,6 +63,7 @@ class CompiledShader {
   std::vector<ParamInfo> params_;
   uint32_t blockSize_;
   std::shared_ptr<void> keepAlive_;  // owns the JIT memory holding `entry_`
+  bool ownNormal_ = false;
 };
 
 // A value given to a parameter by a scene or the command line, typed as written there.

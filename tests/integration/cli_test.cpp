@@ -141,6 +141,49 @@ TEST(Relief, ImageIsIdenticalAcrossOrdersAndThreads) {
   }
 }
 
+// language.md §5: the shader's output N is the shading normal. A bump-only shader (N bent, P kept)
+// changes the shading, not the silhouette, and stays deterministic across threads and budgets; a
+// shader that only recomputes the surface's own normal shades like the micro-triangles.
+TEST(Relief, BumpOnlyShadersShadeWithTheirNormal) {
+  const fs::path dir = scratchDir();
+  writeFile(dir / "bumponly.disp",
+            "displacement bumponly(float Km = 0.05; float freq = 12) {\n"
+            "  N = normalize(calculatenormal(P + Km * noise(P * freq) * normalize(N)));\n"
+            "}\n");
+  writeFile(dir / "flat.disp", "displacement flat(float Km = 0.05; float freq = 12) { P += 0 * Km * freq * N; }\n");
+  writeFile(dir / "renormal.disp",
+            "displacement renormal(float Km = 0.05; float freq = 12) {\n"
+            "  P += 0 * Km * freq * N;\n"
+            "  N = normalize(calculatenormal(P));\n"
+            "}\n");
+  const std::string sphere = readFile(kSphereScene);
+  const size_t at = sphere.find("Displacement \"");
+  ASSERT_NE(at, std::string::npos);
+  const size_t nameEnd = sphere.find('"', at + 14);
+  auto sceneWith = [&](const std::string& shader) {
+    return writeFile(dir / (shader + ".rib"), sphere.substr(0, at + 14) + shader + sphere.substr(nameEnd));
+  };
+  const std::string base = " --quiet --resolution 96x72 -I " + dir.string() + " -I " + kSource + "/examples/shaders";
+  auto render = [&](const std::string& shader, const std::string& extra) {
+    const std::string image = (dir / (shader + std::to_string(extra.size()) + ".png")).string();
+    const RunResult r = run(kRelief + " " + sceneWith(shader).string() + base + extra + " -o " + image);
+    EXPECT_EQ(r.exitCode, 0) << r.err;
+    return image;
+  };
+  const std::string bumped = render("bumponly", " --threads 1");
+  const std::string flat = render("flat", " --threads 1");
+  relief::test::ImageDiff d = relief::test::compareImages(bumped, flat, 0.02f);
+  ASSERT_TRUE(d.loaded) << d.error;
+  EXPECT_GT(d.failingPixels, 500) << "the bump is not shaded";
+  d = relief::test::compareImages(render("renormal", " --threads 1"), flat, 0.0f);
+  EXPECT_EQ(d.failingPixels, 0);
+  for (const std::string extra : {" --threads 2", " --threads 2 --cache-triangles 3000 --order scanline"}) {
+    d = relief::test::compareImages(render("bumponly", extra), bumped, 0.0f);
+    ASSERT_TRUE(d.loaded) << d.error;
+    EXPECT_EQ(d.failingPixels, 0) << extra;
+  }
+}
+
 TEST(Relief, MissingSceneIsAnErrorNamingTheFile) {
   const fs::path image = scratchDir() / "none.png";
   RunResult r = run(kRelief + " /nonexistent/scene.rib --quiet -o " + image.string());
