@@ -2363,7 +2363,11 @@ class ShaderCodegen {
         const Dual edge = toFloatScalar(args[0]).c[0];
         const Dual x = toFloatScalar(args[1]).c[0];
         const size_t n = args.size();
-        const bool hasX2 = n == 3 || n == 5;
+        const bool hasX2 = n >= 3 && args[2].type.kind != TypeKind::String;
+        // The last "width" given wins, as with any repeated name/value option.
+        const Val* widthScale = nullptr;
+        for (size_t i = hasX2 ? 3 : 2; i + 1 < n; i += 2)
+          if (e.operands[i]->text == "width") widthScale = &args[i + 1];
         Dual lo, hi;
         if (hasX2) {
           lo = x;
@@ -2373,7 +2377,7 @@ class ShaderCodegen {
           const Val dv = load(slotFor(globals_[size_t(GlobalId::dv)]));
           Value* w = b_.CreateFAdd(intrinsic(llvm::Intrinsic::fabs, {b_.CreateFMul(x.du ? x.du : cf(0), du.c[0].v)}),
                                    intrinsic(llvm::Intrinsic::fabs, {b_.CreateFMul(x.dv ? x.dv : cf(0), dv.c[0].v)}));
-          if (n >= 4) w = b_.CreateFMul(w, toFloatScalar(args[n - 1]).c[0].v);
+          if (widthScale) w = b_.CreateFMul(w, toFloatScalar(*widthScale).c[0].v);
           const Dual half{b_.CreateFMul(w, cf(0.5f)), nullptr, nullptr};
           lo = dsub(x, half);
           hi = dadd(x, half);

@@ -1741,15 +1741,19 @@ class Checker {
         if (args[0]->type.isScalar()) return kFloat;
         return args[0]->type.isSpatial() ? kVector : kError;
       case BuiltinShape::Filterstep: {
+        // (e, x[, x2]) then RSL's name/value pairs: "width" (a float) and "filter" (a name,
+        // accepted and ignored as texture() does: the step is always box-filtered).
         auto scalar = [&](size_t i) { return args[i]->type.isScalar(); };
-        auto widthOption = [&](size_t i) {
-          return args[i]->kind == ExprKind::StringLiteral && args[i]->text == "width" && scalar(i + 1);
-        };
-        if (n == 2) return scalar(0) && scalar(1) ? kFloat : kError;
-        if (n == 3) return scalar(0) && scalar(1) && scalar(2) ? kFloat : kError;
-        if (n == 4) return scalar(0) && scalar(1) && widthOption(2) ? kFloat : kError;
-        if (n == 5) return scalar(0) && scalar(1) && scalar(2) && widthOption(3) ? kFloat : kError;
-        return kError;
+        if (n < 2 || !scalar(0) || !scalar(1)) return kError;
+        const size_t first = n >= 3 && scalar(2) ? 3 : 2;
+        if ((n - first) % 2 != 0) return kError;
+        for (size_t i = first; i < n; i += 2) {
+          if (args[i]->kind != ExprKind::StringLiteral) return kError;
+          const bool ok = (args[i]->text == "width" && scalar(i + 1)) ||
+                          (args[i]->text == "filter" && args[i + 1]->type.kind == TypeKind::String);
+          if (!ok) return kError;
+        }
+        return kFloat;
       }
       case BuiltinShape::Texture:  // checkTexture
       case BuiltinShape::Spline: return kError;  // checkSpline

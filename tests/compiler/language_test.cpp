@@ -166,6 +166,21 @@ displacement m(string obj = "object")
   EXPECT_EQ(printed, "12 -3 2\n12 2 2\n12 2 2\n1 6 1\n12 -3 2\n1 1 1\n0 -5 0\n1 1 1\n1 1 1\n12 2 2; 10.5 1 1.5\n");
 }
 
+// filterstep takes RSL's name/value pairs after its floats: "width" scales the filter width and
+// "filter" is accepted and ignored (the step is box-filtered, as texture() ignores its "filter").
+TEST(FilterstepTest, TakesWidthAndFilterOptions) {
+  TestBatch b(1);  // u = 0.25, du = 0.01: filterwidth(u) = 0.01
+  const std::string printed = evaluate(R"(
+displacement f()
+{
+    printf("%.3f %.3f %.3f\n", filterstep(0.252, u), filterstep(0.252, u, "filter", "gaussian"),
+           filterstep(0.252, u, "filter", "catmull-rom", "width", 2));
+    printf("%.3f %.3f\n", filterstep(0.252, u, 0.26, "filter", "box"), filterstep(0.252, u, "width", 2, "width", 1));
+})",
+                                       b);
+  EXPECT_EQ(printed, "0.300 0.300 0.400\n0.800 0.300\n");
+}
+
 TEST(StringTest, FormatAndConcatBuildStrings) {
   TestBatch b(1);
   const std::string printed = evaluate(R"(
