@@ -230,8 +230,10 @@ constexpr int kMaxLevel = 40;
 
 // Displaces vertices [first, end) in one batch; falls back to the undisplaced P where the shader
 // returns a non-finite position.
+// `shading`: an evaluation for the shading normal at a hit (displacedShadingNormal), kept out of
+// the shader's problem counts (they count displaced vertices); its status goes to *shadingStatus.
 void displace(const Displacement& disp, const TriangleFrame& frame, Vertices& vs, uint32_t first,
-              Batch& batch, SubdivideCounters& counters) {
+              Batch& batch, SubdivideCounters& counters, RlfStatus* shadingStatus = nullptr) {
   const uint32_t n = vs.size() - first;
   if (n == 0) return;
   batch.grow(n);
@@ -279,6 +281,10 @@ void displace(const Displacement& disp, const TriangleFrame& frame, Vertices& vs
   RlfStatus status{};
   const uint64_t start = readTicks();
   disp.shader->evaluate(b, status);
+  if (shadingStatus) {
+    *shadingStatus = status;
+    return;
+  }
   const uint64_t end = readTicks();
   if (end > start) counters.displaceTicks += end - start;  // cores' counters may disagree by a little
   counters.shaderPoints += n;
@@ -564,7 +570,11 @@ bool displacedShadingNormal(const Mesh& mesh, uint32_t triangle, const Displacem
   vs.displaced.emplace_back(0.0f);
   const TriangleFrame frame = makeFrame(p, n, uv, st, mesh.N.size() == mesh.P.size());
   SubdivideCounters counters;  // shading-time evaluations stay out of the fill statistics
-  displace(disp, frame, vs, 0, batch, counters);
+  RlfStatus status{};
+  displace(disp, frame, vs, 0, batch, counters, &status);
+  // As language.md §7 says, a bad final N (the shader then returns the input N) shades with the
+  // micro-triangle's own normal, and so does an invocation that hit the loop limit.
+  if (status.badNormal || status.nonFinite || status.loopLimit) return false;
   const glm::vec3 out = batch.Nout.get(0);
   const float outLen = glm::length(out);
   if (!(outLen > 0.0f) || !std::isfinite(outLen)) return false;
