@@ -730,20 +730,14 @@ class Checker {
         e.isVarying = base.isVarying || index.isVarying;
         if (bt.isError() || it.isError()) return set(e, kError);
         if (bt.isArray()) {
-          if (it.kind != TypeKind::Int) {
-            report(DiagId::ErrIndexNotInt, index.range.begin).arg(typeName(it)).range(index.range);
-            return set(e, kError);
-          }
-          if (bt.arrayLength > 0 && badConstantIndex(index, bt.arrayLength, bt)) return set(e, kError);
+          if (!intIndex(e.operands[1], it)) return set(e, kError);
+          if (bt.arrayLength > 0 && badConstantIndex(*e.operands[1], bt.arrayLength, bt)) return set(e, kError);
           return set(e, bt.element());
         }
         if (bt.kind == TypeKind::Matrix) {
           // m[i][j]: the inner index yields a row that only a second index may consume.
-          if (it.kind != TypeKind::Int) {
-            report(DiagId::ErrIndexNotInt, index.range.begin).arg(typeName(it)).range(index.range);
-            return set(e, kError);
-          }
-          if (badConstantIndex(index, 4, bt)) return set(e, kError);
+          if (!intIndex(e.operands[1], it)) return set(e, kError);
+          if (badConstantIndex(*e.operands[1], 4, bt)) return set(e, kError);
           if (base.matrixRow) return set(e, kFloat);
           if (!matrixRowAllowed) {
             report(DiagId::ErrMatrixRow, e.range.begin).range(e.range);
@@ -756,11 +750,8 @@ class Checker {
           report(DiagId::ErrNotIndexable, e.opLoc).arg(typeName(bt)).range(base.range);
           return set(e, kError);
         }
-        if (it.kind != TypeKind::Int) {
-          report(DiagId::ErrIndexNotInt, index.range.begin).arg(typeName(it)).range(index.range);
-          return set(e, kError);
-        }
-        if (badConstantIndex(index, 3, bt)) return set(e, kError);
+        if (!intIndex(e.operands[1], it)) return set(e, kError);
+        if (badConstantIndex(*e.operands[1], 3, bt)) return set(e, kError);
         return set(e, kFloat);
       }
       case ExprKind::InitList:
@@ -859,6 +850,28 @@ class Checker {
           .range(l.range)
           .range(r.range);
     return set(e, t);
+  }
+
+  // An index must be an int (§4.1). RSL has no int type and indexes with floats (`float i; …
+  // a[i]`), so a float index is accepted as an implicit conversion (§2.1): it truncates, with
+  // -Wnarrowing, through an int cast put in front of it. Anything else is an error.
+  bool intIndex(ExprPtr& index, const Type& it) {
+    if (it.kind == TypeKind::Int) return true;
+    if (it.kind != TypeKind::Float) {
+      report(DiagId::ErrIndexNotInt, index->range.begin).arg(typeName(it)).range(index->range);
+      return false;
+    }
+    report(DiagId::WarnNarrowing, index->range.begin).range(index->range);
+    auto cast = std::make_unique<Expr>(ExprKind::Construct, index->range);
+    cast->constructType = TypeKind::Int;
+    cast->isCast = true;
+    cast->opLoc = index->range.begin;
+    cast->opRange = index->range;
+    cast->isVarying = index->isVarying;
+    cast->operands.push_back(std::move(index));
+    set(*cast, kInt);
+    index = std::move(cast);
+    return true;
   }
 
   // Checks that `target` may be written; marks P/N writes for the host contract.

@@ -181,6 +181,25 @@ displacement f()
   EXPECT_EQ(printed, "0.300 0.300 0.400\n0.800 0.300\n");
 }
 
+// RSL has no int type and indexes arrays, triples and matrices with floats: they truncate.
+TEST(IndexTest, FloatIndicesTruncateAsRslLoopsNeed) {
+  TestBatch b(1);
+  const std::string printed = evaluate(R"(
+displacement f()
+{
+    float w[4] = {1, 2, 3, 4};
+    float i, sum = 0;
+    for (i = 0; i < 4; i += 1) sum += w[i];
+    vector q = vector(5, 6, 7);
+    matrix m = 2;
+    float x = 1.7;
+    w[x] = 10;
+    printf("%g %g %g %g %g\n", sum, q[x], m[x][1.2], w[1], w[2.9]);
+})",
+                                       b);
+  EXPECT_EQ(printed, "10 6 2 10 3\n");
+}
+
 TEST(StringTest, FormatAndConcatBuildStrings) {
   TestBatch b(1);
   const std::string printed = evaluate(R"(
