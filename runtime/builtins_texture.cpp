@@ -78,6 +78,11 @@ extern "C" int32_t rlf_texture(const RlfHostServices* services, const char* file
                                int32_t nchannels, float* out, float* dout_ds, float* dout_dt) {
   nchannels = std::clamp<int32_t>(nchannels, 1, 4);
   if (!filename || !*filename) {
+    // Unreadable like any missing file (language.md 6.7: one runtime error per file name).
+    try {
+      if (!options || !options->hasMissingColor) recordFailure("", "the file name is empty");
+    } catch (...) {
+    }
     fillMissing(options, nchannels, out, dout_ds, dout_dt);
     return 0;
   }

@@ -492,6 +492,14 @@ TEST(Relief, TexturesFollowTheSearchPathAndAMissingOneIsOneError) {
   EXPECT_NE(first, std::string::npos) << r.err;
   EXPECT_EQ(r.err.find(message, first + 1), std::string::npos) << r.err;  // once per file
   EXPECT_NEAR(centreDepth(dir / "missing.exr"), 5.0f, 1e-3f);  // fill value 0: not lifted
+
+  // An empty name is an unreadable file like any other: said once, and why.
+  r = run(kRelief + " " + sceneWith("empty", "").string() + " --quiet -o " + (dir / "empty.png").string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  const std::string empty = "relief: error: cannot read texture '': the file name is empty";
+  const size_t at = r.err.find(empty);
+  EXPECT_NE(at, std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find(empty, at + 1), std::string::npos) << r.err;
 }
 
 // A shader overflowing to infinity: the points stay undisplaced, the render finishes, and one warning names
