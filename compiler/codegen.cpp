@@ -1499,6 +1499,8 @@ class ShaderCodegen {
   Val matrixArith(Tok op, const Val& a, const Val& b) {
     const bool am = a.type.kind == TypeKind::Matrix, bm = b.type.kind == TypeKind::Matrix;
     if (am && bm) return op == Tok::Star ? matmul(a, b) : matmul(a, inverse(b));
+    // RSL's f/m: f·inverse(m).
+    if (op == Tok::Slash && bm) return matrixArith(Tok::Star, inverse(b), a);
     // With a scalar: element-wise (m*f, f*m, m/f).
     const Val& m = am ? a : b;
     const Dual f = toFloatScalar(am ? b : a).c[0];

@@ -42,11 +42,12 @@ Type binaryResult(Tok op, Type a, Type b) {
   if (a.isArray() || b.isArray()) return kError;
   const bool am = a.kind == TypeKind::Matrix, bm = b.kind == TypeKind::Matrix;
   if (am || bm) {
-    // §4.1: m*m, m/m (= m·inverse), m*f, f*m, m/f; == and != compare all elements.
+    // §4.1: m*m, m/m (= m·inverse), m*f, f*m, m/f; == and != compare all elements. Also RSL's
+    // f/m = f·inverse(m) (`1/m` is how RSL spells the inverse).
     const Type m{TypeKind::Matrix};
     switch (op) {
       case Tok::Star: return (am || a.isScalar()) && (bm || b.isScalar()) ? m : kError;
-      case Tok::Slash: return am && (bm || b.isScalar()) ? m : kError;
+      case Tok::Slash: return (am || a.isScalar()) && (bm || b.isScalar()) ? m : kError;
       case Tok::EqEq:
       case Tok::NotEq: return (am || a.isScalar()) && (bm || b.isScalar()) ? kInt : kError;
       default: return kError;

@@ -72,11 +72,12 @@ displacement m()
     matrix T = (1,0,0,0, 0,1,0,0, 0,0,1,0, 7,8,9,1);
     printf("%g %g %g %g\n", A[0][1], A[3][2], I[2][2] + I[2][1], D[1][1]);
     printf("%g\n", determinant(A));
-    matrix B = A * inverse(A), C = A / A;
+    matrix B = A * inverse(A), C = A / A, R = A * (1 / A), H = (2 / A) * A;  // RSL's 1/m is the inverse
     float err = 0;
     for (int r = 0; r < 4; ++r)
         for (int c = 0; c < 4; ++c)
-            err += abs(B[r][c] - (r == c)) + abs(C[r][c] - (r == c));
+            err += abs(B[r][c] - (r == c)) + abs(C[r][c] - (r == c)) + abs(R[r][c] - (r == c)) +
+                   abs(H[r][c] - 2 * (r == c));
     printf("%d\n", err < 1e-5);
     printf("%g\n", transpose(A));
     printf("%g\n", 2 * A / 4);
