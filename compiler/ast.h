@@ -125,6 +125,7 @@ struct Stmt {
   StmtPtr otherwise;
   StmtPtr body;
   std::unique_ptr<FunctionDecl> function;
+  int levels = 1;  // break/continue: RSL's `break n` leaves the n-th enclosing loop
 
   Stmt(StmtKind k, SourceRange r) : kind(k), range(r), keywordLoc(r.begin) {}
 };

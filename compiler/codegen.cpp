@@ -961,10 +961,10 @@ class ShaderCodegen {
       case StmtKind::DoWhile:
       case StmtKind::For: genLoop(s); break;
       case StmtKind::Break:
-        b_.CreateBr(loops_.back().breakTarget);
+        b_.CreateBr(loops_[loops_.size() - size_t(s.levels)].breakTarget);
         break;
       case StmtKind::Continue:
-        b_.CreateBr(loops_.back().continueTarget);
+        b_.CreateBr(loops_[loops_.size() - size_t(s.levels)].continueTarget);
         break;
       case StmtKind::Return:
         if (returns_.empty()) {

@@ -548,6 +548,14 @@ StmtPtr Parser::parseStatement() {
       const Token kw = consume();
       auto s = std::make_unique<Stmt>(kw.is(Tok::KwBreak) ? StmtKind::Break : StmtKind::Continue,
                                       kw.range());
+      // RSL's `break n` / `continue n`: the n-th enclosing loop (n a positive integer literal).
+      if (tok().is(Tok::IntLiteral)) {
+        const Token n = consume();
+        if (n.intValue < 1)
+          diags_.report(DiagId::ErrBreakLevel, n.loc).arg(kw.is(Tok::KwBreak) ? "break" : "continue").range(n.range());
+        s->levels = std::max(1, n.intValue);
+        s->range.end = n.end();
+      }
       if (!expectAfterPrev(Tok::Semi, kw.is(Tok::KwBreak) ? "'break'" : "'continue'") &&
           !missingSemiAtLineEnd())
         recovering_ = true;

@@ -539,6 +539,12 @@ class Checker {
           report(DiagId::ErrBreakOutsideLoop, s.keywordLoc)
               .arg(s.kind == StmtKind::Break ? "break" : "continue")
               .range({s.keywordLoc, s.keywordLoc.advanced(s.kind == StmtKind::Break ? 5 : 8)});
+        else if (s.levels > loopDepth_)
+          report(DiagId::ErrBreakTooDeep, s.keywordLoc)
+              .arg(s.kind == StmtKind::Break ? "break" : "continue")
+              .arg(std::to_string(s.levels))
+              .arg(std::to_string(loopDepth_))
+              .range(s.range);
         break;
       case StmtKind::Return: {
         const SourceRange kw{s.keywordLoc, s.keywordLoc.advanced(6)};
@@ -1990,7 +1996,10 @@ void UninitializedAnalysis::stmt(const Stmt& s) {
     case StmtKind::Break:
     case StmtKind::Continue: {
       std::vector<State>& targets = s.kind == StmtKind::Break ? breaks_ : continues_;
-      if (!targets.empty()) targets.back() = join(targets.back(), state_);
+      if (size_t(s.levels) <= targets.size()) {
+        State& target = targets[targets.size() - size_t(s.levels)];
+        target = join(target, state_);
+      }
       state_.dead = true;
       return;
     }

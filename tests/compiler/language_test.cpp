@@ -201,6 +201,29 @@ displacement f()
   EXPECT_EQ(printed, "10 6 2 10 3\n");
 }
 
+// RSL's break n / continue n leave or continue the n-th enclosing loop; -Wuninitialized follows
+// them (k is set on the only way out of the outer loop).
+TEST(LoopTest, BreakAndContinueTakeALoopCount) {
+  TestBatch b(1);
+  const std::string printed = evaluate(R"(
+displacement brk()
+{
+    float found = 0, visits = 0;
+    for (int i = 0; i < 4; i += 1) {
+        for (int j = 0; j < 4; j += 1) {
+            visits += 1;
+            if (j == 1) continue 2;
+            if (i == 2) { found = i * 10 + j; break 2; }
+        }
+    }
+    float k;
+    while (1) { while (1) { k = 3; break 2; } }
+    printf("%g %g %g\n", found, visits, k);
+})",
+                                       b);
+  EXPECT_EQ(printed, "20 5 3\n");
+}
+
 TEST(StringTest, FormatAndConcatBuildStrings) {
   TestBatch b(1);
   const std::string printed = evaluate(R"(
