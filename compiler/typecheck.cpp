@@ -178,6 +178,18 @@ class UninitializedAnalysis {
     return (cond->kind == ExprKind::IntLiteral && cond->intValue != 0) ||
            (cond->kind == ExprKind::FloatLiteral && cond->floatValue != 0.0f);
   }
+  // Ends the innermost loop's analysis: `exit` is the state where its condition ends it. With an
+  // always-true condition only its breaks leave it: what every break had assigned is assigned.
+  void leaveLoop(const Expr* cond, State exit) {
+    State broken = std::move(breaks_.back());
+    breaks_.pop_back(), continues_.pop_back();
+    if (alwaysTrue(cond)) {
+      broken.maybe.insert(exit.maybe.begin(), exit.maybe.end());
+      state_ = std::move(broken);
+    } else {
+      state_ = join(exit, broken);
+    }
+  }
   static State deadState() {
     State d;
     d.dead = true;
@@ -1961,15 +1973,7 @@ void UninitializedAnalysis::stmt(const Stmt& s) {
       state_ = join(state_, continues_.back());
       if (s.step) expr(*s.step);
       saved.maybe.insert(state_.maybe.begin(), state_.maybe.end());  // ...or may
-      State broken = std::move(breaks_.back());
-      breaks_.pop_back(), continues_.pop_back();
-      if (alwaysTrue(s.cond.get())) {
-        // Left only through a break: what every break had assigned is assigned after the loop.
-        broken.maybe.insert(saved.maybe.begin(), saved.maybe.end());
-        state_ = std::move(broken);
-      } else {
-        state_ = join(saved, broken);  // the body may not run
-      }
+      leaveLoop(s.cond.get(), std::move(saved));  // the body may not run
       return;
     }
     case StmtKind::DoWhile: {
@@ -1979,14 +1983,7 @@ void UninitializedAnalysis::stmt(const Stmt& s) {
       stmt(*s.body);
       state_ = join(state_, continues_.back());
       if (!state_.dead) expr(*s.cond);
-      State broken = std::move(breaks_.back());
-      breaks_.pop_back(), continues_.pop_back();
-      if (alwaysTrue(s.cond.get())) {
-        broken.maybe.insert(state_.maybe.begin(), state_.maybe.end());
-        state_ = std::move(broken);
-      } else {
-        state_ = join(state_, broken);
-      }
+      leaveLoop(s.cond.get(), std::move(state_));
       return;
     }
     case StmtKind::Return:

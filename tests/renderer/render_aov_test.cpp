@@ -174,16 +174,24 @@ TEST(RenderFilter, WiderFiltersBlurAnEdge) {
   }
 }
 
-TEST(RenderFilter, ImageIsBitIdenticalAcrossOrdersAndThreads) {
-  Scene scene = test::orthoScene(23, 2.0f);
-  scene.height = 17;
-  const uint32_t m = test::addMaterial(&scene, test::matte({0.9f, 0.6f, 0.3f}, 0.1f, 1.0f));
+// An orthographic view of a matte floor behind a glass box: camera, shadow, reflection and
+// refraction rays all reach something. Returns the matte material's index.
+uint32_t glassBoxScene(Scene* scene, int width, int height) {
+  *scene = test::orthoScene(width, 2.0f);
+  scene->height = height;
+  const uint32_t m = test::addMaterial(scene, test::matte({0.9f, 0.6f, 0.3f}, 0.1f, 1.0f));
   Material glass;
   glass.type = SurfaceType::Glass;
   glass.transmitColor = {0.6f, 0.9f, 1.0f};
-  const uint32_t g = test::addMaterial(&scene, glass);
-  scene.meshes.push_back(quad({-6, -6, 0}, {0, 12, 0}, {12, 0, 0}, m));
-  scene.meshes.push_back(test::box({-0.7f, -0.5f, -1.2f}, {0.4f, 0.6f, -0.6f}, g));
+  const uint32_t g = test::addMaterial(scene, glass);
+  scene->meshes.push_back(quad({-6, -6, 0}, {0, 12, 0}, {12, 0, 0}, m));
+  scene->meshes.push_back(test::box({-0.7f, -0.5f, -1.2f}, {0.4f, 0.6f, -0.6f}, g));
+  return m;
+}
+
+TEST(RenderFilter, ImageIsBitIdenticalAcrossOrdersAndThreads) {
+  Scene scene;
+  const uint32_t m = glassBoxScene(&scene, 23, 17);
   scene.meshes.push_back(quad({0.8f, 0.2f, -0.8f}, {0, 0.7f, 0}, {0.6f, 0, 0}, m));
   Light area;
   area.type = LightType::Area;
@@ -283,15 +291,8 @@ class BusyAccelerator : public Accelerator {
 // refraction rays alike, and traces them again later: the image, the AOVs and the ray counts must
 // be those of a render that never waited.
 TEST(RenderLoop, PutAsidePixelsAreTracedAgain) {
-  Scene scene = test::orthoScene(64, 2.0f);
-  scene.height = 40;  // 40 chunks of 64 pixels
-  const uint32_t m = test::addMaterial(&scene, test::matte({0.9f, 0.6f, 0.3f}, 0.1f, 1.0f));
-  Material glass;
-  glass.type = SurfaceType::Glass;
-  glass.transmitColor = {0.6f, 0.9f, 1.0f};
-  const uint32_t g = test::addMaterial(&scene, glass);
-  scene.meshes.push_back(quad({-6, -6, 0}, {0, 12, 0}, {12, 0, 0}, m));
-  scene.meshes.push_back(test::box({-0.7f, -0.5f, -1.2f}, {0.4f, 0.6f, -0.6f}, g));
+  Scene scene;
+  glassBoxScene(&scene, 64, 40);  // 40 chunks of 64 pixels
   scene.lights.push_back(test::pointLight({2, -1, -2}, glm::vec3(2.0f)));
   RenderOptions options;
   options.samplesPerPixel = 3;
