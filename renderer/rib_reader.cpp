@@ -328,6 +328,7 @@ struct AttributeState {
   float boundNamedScale = 1.0f;  // for a boundSpace made by CoordinateSystem
   float edgeLength = 0.05f;
   float flatness = 0.0f;
+  bool lightShadows = true;  // Attribute "light" "shadows" (BMRT): for lights declared from here
 };
 
 struct StackEntry {
@@ -1491,7 +1492,7 @@ bool RibParser::executeAttributes(const Call& call, bool* handled) {
     std::string category;
     if (!positionalString(call, 0, &category)) return false;
     if (category != "displacementbound" && category != "bound" && category != "relief" &&
-        category != "visibility") {
+        category != "visibility" && category != "light") {
       // Before reading the parameters, as for Option.
       warnOnce(call.line, "attribute/" + category,
                "unsupported attribute '" + category + "' ignored");
@@ -1525,6 +1526,18 @@ bool RibParser::executeAttributes(const Call& call, bool* handled) {
       if (!(attr_.edgeLength > 0)) return fail(call.line, "'edgelength' must be positive");
       if (!(attr_.flatness >= 0)) return fail(call.line, "'flatness' must be >= 0");
       warnUnusedParams(call, params, {"edgelength", "flatness"});
+    } else if (category == "light") {
+      // BMRT's (and Aqsis') switch for the lights declared after it: "on" traces shadow rays, as
+      // every Relief light does by default; "off" lights without them, as RenderMan's standard
+      // lights do (they have no shadow() call).
+      if (findParam(params, "shadows")) {
+        std::string mode;
+        if (!stringParam(call, params, "shadows", &mode)) return false;
+        if (mode != "on" && mode != "off")
+          return fail(call.line, "'light': 'shadows' must be \"on\" or \"off\", not '" + mode + "'");
+        attr_.lightShadows = mode == "on";
+      }
+      warnUnusedParams(call, params, {"shadows"});
     } else if (category == "visibility") {
       // Shadow casting. PRMan 11+ says "int transmission" [0|1]; older RIB says "string
       // transmission" ["transparent"|"opaque"|"Os"|"shader"]. Other ray kinds are all visible.
@@ -1599,6 +1612,7 @@ bool RibParser::doLight(const Call& call) {
   light.handle = handle;
   light.sourceFile = fileName_;
   light.sourceLine = call.line;
+  light.shadows = attr_.lightShadows;
   const glm::mat4& m = attr_.ctm;
   auto point = [&](glm::vec3 p) { return glm::vec3(m * glm::vec4(p, 1.0f)); };
   glm::vec3 from(0.0f), to(0.0f, 0.0f, 1.0f);
@@ -1607,8 +1621,13 @@ bool RibParser::doLight(const Call& call) {
     return false;
   auto direction = [&]() -> bool {
     const glm::vec3 d = point(to) - point(from);
-    if (!(glm::length(d) > 0.0f))
-      return fail(call.line, "'" + name + "': 'from' and 'to' coincide");
+    if (!(glm::length(d) > 0.0f)) {
+      // RenderMan's solar()/illuminate() along a zero axis light nothing; the frame still renders.
+      warn(call.line, "'" + name + "': 'from' and 'to' coincide: the light has no direction and lights nothing");
+      light.color = glm::vec3(0.0f);
+      return true;
+    }
+    if (!std::isfinite(glm::length(d))) return fail(call.line, "'" + name + "': 'from' or 'to' is not finite");
     light.direction = glm::normalize(d);
     return true;
   };

@@ -53,6 +53,7 @@ struct Light {
   glm::vec3 corner{0}, edgeU{1, 0, 0}, edgeV{0, 1, 0};
   float radius = 1.0f;
   int samples = 16;
+  bool shadows = true;     // traces shadow rays (Attribute "light" "shadows" "off": it does not)
   std::string handle;      // for Illuminate; empty if the RIB gave none
   std::string sourceFile;  // where the LightSource call was
   int sourceLine = 0;

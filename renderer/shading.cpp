@@ -259,8 +259,12 @@ void Integrator::illuminate(const Surface& s, uint64_t seed, RenderStats* stats,
   const std::vector<uint32_t>& ids = lightsOf(*s.mesh);
   // Shadow rays start off the side of the surface the light is on (the geometric side: a smooth
   // shading normal may lean over the horizon of the true surface).
-  auto shadow = [&](const glm::vec3& L, float distance, const glm::vec3& Cl) {
+  auto shadow = [&](const glm::vec3& L, float distance, const glm::vec3& Cl, bool traced) {
     if (isBlack(Cl)) return;
+    if (!traced) {
+      out->push_back({L, Cl});
+      return;
+    }
     const float side = glm::dot(s.Ng, L) >= 0.0f ? 1.0f : -1.0f;
     Ray r;
     r.origin = s.P + side * epsilon_ * s.Ng;
@@ -279,7 +283,7 @@ void Integrator::illuminate(const Surface& s, uint64_t seed, RenderStats* stats,
         break;
       case LightType::Distant: {
         const glm::vec3 L = -light.direction;
-        if (glm::dot(s.Nf, L) > 0.0f) shadow(L, 1e30f, light.color);
+        if (glm::dot(s.Nf, L) > 0.0f) shadow(L, 1e30f, light.color, light.shadows);
         break;
       }
       case LightType::Point:
@@ -299,7 +303,7 @@ void Integrator::illuminate(const Surface& s, uint64_t seed, RenderStats* stats,
                    smoothstep(std::cos(light.coneAngle),
                               std::cos(light.coneAngle - light.coneDeltaAngle), cosAngle);
         }
-        shadow(L, d, light.color * atten);
+        shadow(L, d, light.color * atten, light.shadows);
         break;
       }
       case LightType::Area: {
@@ -339,7 +343,7 @@ void Integrator::illuminate(const Surface& s, uint64_t seed, RenderStats* stats,
           // the light acts as a point light of its intensity.
           const float cosLight = -glm::dot(normal, L);
           if (!(cosLight > 0.0f)) continue;
-          shadow(L, d, light.color * (cosLight / (float(n) * d2)));
+          shadow(L, d, light.color * (cosLight / (float(n) * d2)), light.shadows);
         }
         break;
       }

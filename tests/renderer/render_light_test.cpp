@@ -5,6 +5,7 @@
 // (the Illuminate render reads its scene from RIB, since the reader decides each mesh's lights).
 #include <algorithm>
 #include <cmath>
+#include <sstream>
 
 #include <gtest/gtest.h>
 
@@ -240,6 +241,40 @@ TEST(RenderLight, IlluminateCanLeaveASurfaceUnlit) {
   EXPECT_NEAR(centre(lights + "Illuminate \"key\" 0\n" + sphere).r, 0.25f, 1e-3f);
   EXPECT_EQ(centre(lights + "Illuminate \"key\" 0\nIlluminate \"fill\" 0\n" + sphere), glm::vec3(0.0f));
   EXPECT_EQ(centre(sphere + lights), glm::vec3(0.0f));
+}
+
+// BMRT's Attribute "light" "shadows": "off" makes the lights declared after it trace no shadow
+// rays (RenderMan's standard lights have no shadow() call), "on" restores them. A backdrop sphere
+// around everything then no longer darkens the scene.
+TEST(RenderLight, LightShadowsAttributeSwitchesShadowRays) {
+  auto centre = [](const std::string& world, std::string* warnings = nullptr) {
+    SceneError error;
+    RibReadOptions options;
+    std::ostringstream log;
+    options.warnings = &log;
+    std::optional<Scene> scene = readRibString("Format 9 9 1\nWorldBegin\n" + world + "WorldEnd\n", "light.rib", options, &error);
+    EXPECT_TRUE(scene) << error.format();
+    if (warnings) *warnings = log.str();
+    return scene ? test::renderWith(*scene).pixel(4, 4) : glm::vec3(-1.0f);
+  };
+  const std::string backdrop =
+      "AttributeBegin\nSurface \"constant\"\nColor [0.5 0.5 0.5]\nSphere 50 -50 50 360\nAttributeEnd\n";
+  const std::string sphere = "AttributeBegin\nTranslate 0 0 5\nSphere 0.8 -0.8 0.8 360\nAttributeEnd\n";
+  const std::string key = "LightSource \"distantlight\" 1 \"from\" [0 0 0] \"to\" [0 0 1]\n";
+  EXPECT_EQ(centre(key + backdrop + sphere), glm::vec3(0.0f));  // shadowed by the backdrop
+  EXPECT_NEAR(centre("Attribute \"light\" \"shadows\" [\"off\"]\n" + key + backdrop + sphere).r, 1.0f, 1e-3f);
+  EXPECT_EQ(centre("Attribute \"light\" \"shadows\" [\"off\"]\nAttribute \"light\" \"string shadows\" [\"on\"]\n" +
+                   key + backdrop + sphere),
+            glm::vec3(0.0f));
+  // A light whose from and to coincide has no direction: it lights nothing, with a warning.
+  std::string warnings;
+  EXPECT_EQ(centre("LightSource \"distantlight\" 1 \"to\" [0 0 0]\n" + sphere, &warnings), glm::vec3(0.0f));
+  EXPECT_NE(warnings.find("light.rib:3: warning: 'distantlight': 'from' and 'to' coincide"), std::string::npos)
+      << warnings;
+  SceneError error;
+  EXPECT_FALSE(readRibString("WorldBegin\nAttribute \"light\" \"shadows\" [\"maybe\"]\nWorldEnd\n", "bad.rib",
+                             RibReadOptions{}, &error));
+  EXPECT_NE(error.format().find("bad.rib:2"), std::string::npos) << error.format();
 }
 
 TEST(RenderLight, AmbientLightsAddUnshadowed) {
