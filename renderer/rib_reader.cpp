@@ -1205,7 +1205,8 @@ bool RibParser::executeCamera(const Call& call, bool* handled) {
       warnOnce(call.line, "mode/" + mode, "display mode '" + mode + "' written as 'rgb'");
       mode = "rgb";
     }
-    if (!name.empty() && name[0] == '+') {
+    const bool added = !name.empty() && name[0] == '+';
+    if (added) {
       name = name.substr(1);
     } else {
       scene_.displays.clear();
@@ -1214,7 +1215,8 @@ bool RibParser::executeCamera(const Call& call, bool* handled) {
     if (name.empty()) return fail(call.line, "'Display' needs a file name");
     // There is no window to show a framebuffer in; a name without a format gets PNG.
     if (!std::filesystem::path(name).has_extension()) {
-      warn(call.line, "display '" + name + "' has no image extension; writing '" + name + ".png'");
+      if (added || !options_.mainDisplayReplaced)
+        warn(call.line, "display '" + name + "' has no image extension; writing '" + name + ".png'");
       name += ".png";
     }
     scene_.displays.push_back(name);

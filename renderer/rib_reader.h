@@ -38,6 +38,9 @@ struct RibReadOptions {
   // outside frame blocks plus that block; the other blocks are only checked for balance, since
   // FrameEnd restores what their calls set (RenderMan). A file without FrameBegin is frame 0.
   int frame = 0;
+  // The image's name comes from elsewhere (relief -o): the main Display's file name is not used,
+  // so it gets no warning about its missing extension (an added "+" display still does).
+  bool mainDisplayReplaced = false;
 };
 
 // One RIB token. Requests are bare words; everything else is an argument.

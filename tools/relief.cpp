@@ -753,6 +753,7 @@ int run(const CommandLine& cl) {
     readOptions.defaultTexturePath = {sceneDir.empty() ? std::string(".") : sceneDir.string()};
   }
   readOptions.warnings = warnings;
+  readOptions.mainDisplayReplaced = !cl.output.empty();
   relief::SceneError error;
   // --frame names a FrameBegin number; listing the numbers reads no frame, so a broken frame
   // elsewhere in the file does not stop this one.
@@ -869,6 +870,14 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
       *warnings << cl.scene << ": warning: no Display in the scene; writing '" << outputs[0]
                 << "'\n";
   }
+  // RenderMan's default surface needs no light; Relief's matte does: say why the image is black.
+  const bool anyLight = !scene.lights.empty() || !scene.distantLights.empty() || scene.ambient > 0.0f;
+  const bool anyLitSurface = std::any_of(scene.meshes.begin(), scene.meshes.end(), [&](const relief::Mesh& m) {
+    return m.materialIndex >= scene.materials.size() || scene.materials[m.materialIndex].type != relief::SurfaceType::Constant;
+  });
+  if (!anyLight && anyLitSurface && warnings)
+    *warnings << cl.scene << ": warning: the scene has no LightSource, so its surfaces (other than "
+              << "Surface \"constant\") render black\n";
   std::vector<std::string> outputKeys;
   for (size_t i = 0; i < outputs.size(); ++i) {
     std::error_code ignored;

@@ -184,6 +184,32 @@ TEST(Relief, BumpOnlyShadersShadeWithTheirNormal) {
   }
 }
 
+// A scene without lights renders black matte surfaces (RenderMan's default surface would need no
+// light): relief says so. A main Display that -o replaces gets no warning about its name.
+TEST(Relief, SceneWithoutLightsAndReplacedDisplayName) {
+  const fs::path dir = scratchDir();
+  const fs::path scene = writeFile(dir / "dark.rib",
+                                   "Format 16 12 1\nDisplay \"RenderMan\" \"framebuffer\" \"rgb\"\n"
+                                   "WorldBegin\nTranslate 0 0 5\nSphere 1 -1 1 360\nWorldEnd\n");
+  RunResult r = run(kRelief + " " + scene.string() + " -o " + (dir / "dark.png").string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_NE(r.err.find(scene.string() + ": warning: the scene has no LightSource"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("no image extension"), std::string::npos) << r.err;
+  // Lit, or only constant surfaces: nothing to say.
+  const fs::path lit = writeFile(dir / "lit.rib",
+                                 "Format 16 12 1\nWorldBegin\nLightSource \"ambientlight\" 1\n"
+                                 "Surface \"constant\"\nTranslate 0 0 5\nSphere 1 -1 1 360\nWorldEnd\n");
+  r = run(kRelief + " " + lit.string() + " -o " + (dir / "lit.png").string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_EQ(r.err.find("LightSource"), std::string::npos) << r.err;
+  const fs::path constant = writeFile(dir / "constant.rib",
+                                      "Format 16 12 1\nWorldBegin\nSurface \"constant\"\nTranslate 0 0 5\n"
+                                      "Sphere 1 -1 1 360\nWorldEnd\n");
+  r = run(kRelief + " " + constant.string() + " -o " + (dir / "constant.png").string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_EQ(r.err.find("LightSource"), std::string::npos) << r.err;
+}
+
 TEST(Relief, MissingSceneIsAnErrorNamingTheFile) {
   const fs::path image = scratchDir() / "none.png";
   RunResult r = run(kRelief + " /nonexistent/scene.rib --quiet -o " + image.string());
