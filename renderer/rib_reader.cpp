@@ -374,8 +374,10 @@ class RibParser {
                         std::to_string(e.line) + " has no '" +
                         (e.attribute ? "AttributeEnd" : "TransformEnd") + "'");
     } else if (recording_) {
-      fail(eofLine, "unexpected end of file: 'ObjectBegin' at line " +
-                        std::to_string(recordingLine_) + " has no 'ObjectEnd'");
+      fail(eofLine, recordingArchive_ ? "unexpected end of file: 'ArchiveBegin' at line " +
+                                            std::to_string(recordingLine_) + " has no 'ArchiveEnd'"
+                                      : "unexpected end of file: 'ObjectBegin' at line " +
+                                            std::to_string(recordingLine_) + " has no 'ObjectEnd'");
     } else if (inWorld_) {
       fail(eofLine, "unexpected end of file: 'WorldBegin' at line " + std::to_string(worldLine_) +
                         " has no 'WorldEnd'");
@@ -956,6 +958,8 @@ class RibParser {
   };
   std::map<std::string, std::vector<RecordedCall>> objects_;
   std::vector<RecordedCall>* recording_ = nullptr;
+  bool recordingArchive_ = false;  // recording_ is an inline archive, ended by ArchiveEnd
+  std::map<std::string, std::vector<RecordedCall>> inlineArchives_;  // ArchiveBegin/End, for ReadArchive
   std::string recordingName_;
   int recordingLine_ = 0;
   std::vector<std::pair<std::string, int>> recordingBlocks_;  // blocks open in the object (name, line)
@@ -1003,6 +1007,19 @@ bool RibParser::execute(const Call& call) {
     }
     return true;
   }
+  if (recording_ && recordingArchive_) {
+    // An inline archive (ArchiveBegin "name" ... ArchiveEnd) is text kept for ReadArchive "name",
+    // which runs it where it is read, like an archive file.
+    if (name == "ArchiveBegin")
+      return fail(call.line, "'ArchiveBegin' inside 'ArchiveBegin' (line " + std::to_string(recordingLine_) + ")");
+    if (name == "ArchiveEnd") {
+      recording_ = nullptr;
+      recordingArchive_ = false;
+      return true;
+    }
+    recording_->push_back(RecordedCall{call, fileName_});
+    return true;
+  }
   if (recording_) {
     // An object's blocks must balance within it: checked here, where the lines are known, and even
     // if the object is never instanced.
@@ -1028,12 +1045,24 @@ bool RibParser::execute(const Call& call) {
       recordingBlocks_.pop_back();
     }
     if (name == "ObjectBegin" || name == "WorldBegin" || name == "WorldEnd" ||
-        name == "FrameBegin" || name == "FrameEnd")
+        name == "FrameBegin" || name == "FrameEnd" || name == "ArchiveBegin")
       return fail(call.line, "'" + name + "' inside 'ObjectBegin' (line " +
                                  std::to_string(recordingLine_) + ")");
     recording_->push_back(RecordedCall{call, fileName_});
     return true;
   }
+  if (name == "ArchiveBegin") {
+    std::string archive;
+    if (call.args.empty() || !positionalString(call, 0, &archive))
+      return fail(call.line, "'ArchiveBegin' expects a name");
+    recording_ = &inlineArchives_[archive];
+    recording_->clear();
+    recordingArchive_ = true;
+    recordingName_ = archive;
+    recordingLine_ = call.line;
+    return true;
+  }
+  if (name == "ArchiveEnd") return fail(call.line, "'ArchiveEnd' without 'ArchiveBegin'");
   if (name == "ObjectBegin") {
     std::string handle;
     if (call.args.size() != 1 || !lightHandle(call.args[0], &handle))
@@ -2745,6 +2774,23 @@ bool RibParser::readArchive(const Call& call, const std::string& name) {
     return fail(call.line, "'" + call.name + "' nested more than " +
                                std::to_string(kMaxArchiveDepth) +
                                " deep (does an archive read itself?)");
+  if (const auto inlined = inlineArchives_.find(name);
+      inlined != inlineArchives_.end() && &inlined->second != recording_) {
+    // An inline archive runs where it is read, as a file would (no attribute block of its own).
+    const std::string savedFile = fileName_;
+    ++archiveDepth_;
+    bool ok = true;
+    for (const RecordedCall& recorded : inlined->second) {
+      fileName_ = recorded.file;
+      if (!execute(recorded.call)) {
+        ok = false;
+        break;
+      }
+    }
+    --archiveDepth_;
+    fileName_ = savedFile;
+    return ok;
+  }
   std::string tried;
   const std::string path = findFile(name, &tried);
   if (path.empty())

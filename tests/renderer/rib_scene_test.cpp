@@ -1212,3 +1212,37 @@ TEST(RibErrors, SurvivesMutatedFeatureScene) {
 
 }  // namespace
 }  // namespace relief
+
+namespace relief {
+namespace {
+
+// ArchiveBegin "name" ... ArchiveEnd keeps its calls for ReadArchive "name", which runs them where
+// it is read (current transform and attributes), as many times as it is read; the block itself
+// draws nothing.
+TEST(RibArchives, InlineArchivesRunWhereTheyAreRead) {
+  ReadResult r = read("ArchiveBegin \"tri\"\nColor [0 1 0]\nPolygon \"P\" [0 0 0  1 0 0  0 1 0]\nArchiveEnd\n" +
+                      world("ReadArchive \"tri\"\nTranslate 5 0 0\nReadArchive \"tri\""));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  ASSERT_EQ(r.scene->meshes.size(), 2u);
+  EXPECT_EQ(r.scene->meshes[1].P[0], glm::vec3(5, 0, 0));
+  EXPECT_EQ(r.scene->materials[r.scene->meshes[1].materialIndex].color, glm::vec3(0, 1, 0));
+  EXPECT_EQ(r.warnings.find("ArchiveBegin"), std::string::npos) << r.warnings;
+  ReadResult unread = read(world("ArchiveBegin \"tri\"\nPolygon \"P\" [0 0 0  1 0 0  0 1 0]\nArchiveEnd"));
+  ASSERT_TRUE(unread.scene) << unread.error.format();
+  EXPECT_TRUE(unread.scene->meshes.empty());
+  // Errors name the line.
+  ReadResult open = read(world("ArchiveBegin \"a\"\nSphere 1 -1 1 360"));
+  EXPECT_FALSE(open.scene);
+  EXPECT_NE(open.error.format().find("'ArchiveBegin' at line 2 has no 'ArchiveEnd'"), std::string::npos)
+      << open.error.format();
+  ReadResult stray = read(world("ArchiveEnd"));
+  EXPECT_FALSE(stray.scene);
+  EXPECT_NE(stray.error.format().find("test.rib:2: error: 'ArchiveEnd' without 'ArchiveBegin'"), std::string::npos)
+      << stray.error.format();
+  ReadResult loop = read(world("ArchiveBegin \"a\"\nReadArchive \"a\"\nArchiveEnd\nReadArchive \"a\""));
+  EXPECT_FALSE(loop.scene);
+  EXPECT_NE(loop.error.format().find("nested more than 32 deep"), std::string::npos) << loop.error.format();
+}
+
+}  // namespace
+}  // namespace relief
