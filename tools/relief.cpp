@@ -920,8 +920,18 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
     estimates = relief::setSubdivisionLimits(scene);
     bool tooMuch = false;
     for (size_t i = 0; i < estimates.size(); ++i) {
-      if (estimates[i] <= relief::kMaxEstimatedMicroTriangles) continue;
       const relief::Displacement& d = scene.displacements[i];
+      // Far below the guard but slow and large: the default edge length is in world units, so a
+      // scene modelled in large units (a sphere of radius 100) asks for this without saying so.
+      constexpr double kManyMicroTriangles = 5e7;
+      if (estimates[i] > kManyMicroTriangles && estimates[i] <= relief::kMaxEstimatedMicroTriangles &&
+          warnings)
+        *warnings << d.sourceFile << ":" << d.sourceLine << ": warning: displacement shader '"
+                  << d.shader->name() << "': an edge length of " << d.edgeLength << " (world units) asks for about "
+                  << formatCount(estimates[i]) << " micro-triangles on the whole undisplaced surface; "
+                  << "rendering may be slow and large: " << edgeLengthSetting(cl.edgeLength > 0.0f)
+                  << " sets it\n";
+      if (estimates[i] <= relief::kMaxEstimatedMicroTriangles) continue;
       std::cerr << d.sourceFile << ":" << d.sourceLine << ": error: displacement shader '"
                 << d.shader->name() << "': an edge length of " << d.edgeLength << " asks for about "
                 << formatCount(estimates[i]) << " micro-triangles on the undisplaced surface alone, more than "

@@ -210,6 +210,31 @@ TEST(Relief, SceneWithoutLightsAndReplacedDisplayName) {
   EXPECT_EQ(r.err.find("LightSource"), std::string::npos) << r.err;
 }
 
+// The default edge length is in world units: a scene modelled in large units asks for hundreds of
+// millions of micro-triangles without saying so. relief warns at the Displacement, naming the
+// setting (the sphere is behind the camera, so nothing is subdivided here).
+TEST(Relief, ManyMicroTrianglesAreAWarningNamingTheEdgeLength) {
+  const fs::path dir = scratchDir();
+  const fs::path scene = writeFile(dir / "big.rib",
+                                   "Format 8 6 1\nProjection \"perspective\" \"fov\" [40]\nWorldBegin\n"
+                                   "LightSource \"distantlight\" 1\n"
+                                   "Attribute \"displacementbound\" \"float sphere\" [5]\n"
+                                   "Displacement \"bumps\" \"float Km\" [5]\n"
+                                   "Translate 0 0 -400\nSphere 100 -100 100 360\nWorldEnd\n");
+  const std::string base = kRelief + " " + scene.string() + " -I " + kSource + "/examples/shaders -o " +
+                           (dir / "big.png").string();
+  RunResult r = run(base);
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_NE(r.err.find(scene.string() + ":6: warning: displacement shader 'bumps': an edge length of 0.05 "
+                                         "(world units) asks for about"),
+            std::string::npos)
+      << r.err;
+  EXPECT_NE(r.err.find("Attribute \"relief\" \"float edgelength\" sets it"), std::string::npos) << r.err;
+  r = run(base + " --edge-length 2");
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_EQ(r.err.find("micro-triangles"), std::string::npos) << r.err;
+}
+
 TEST(Relief, MissingSceneIsAnErrorNamingTheFile) {
   const fs::path image = scratchDir() / "none.png";
   RunResult r = run(kRelief + " /nonexistent/scene.rib --quiet -o " + image.string());
