@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <climits>
+#include <cmath>
 #include <cstdint>
 #include <map>
 #include <set>
@@ -815,6 +816,15 @@ class Checker {
       *value = e.op == Tok::Minus ? -int64_t(e.operands[0]->intValue) : e.operands[0]->intValue;
       return true;
     }
+    // A float literal index, truncated by the cast intIndex put in front of it (`a[3.5]` is a[3]).
+    if (e.kind == ExprKind::Construct && e.isCast && e.constructType == TypeKind::Int && e.operands.size() == 1) {
+      const Expr& f = *e.operands[0];
+      const bool negated = f.kind == ExprKind::Unary && f.op == Tok::Minus;
+      const Expr& lit = negated ? *f.operands[0] : f;
+      if (lit.kind != ExprKind::FloatLiteral || !(std::fabs(lit.floatValue) < 1e9f)) return false;
+      *value = int64_t(negated ? -lit.floatValue : lit.floatValue);
+      return true;
+    }
     return false;
   }
   bool badConstantIndex(const Expr& index, int limit, Type t) {
@@ -880,6 +890,9 @@ class Checker {
       report(DiagId::ErrIndexNotInt, index->range.begin).arg(typeName(it)).range(index->range);
       return false;
     }
+    // A silent probe (suppress_) checks this tree again for real: the cast and the warning are
+    // the real pass's, or the warning would be lost with the probe's reports.
+    if (suppress_) return true;
     report(DiagId::WarnNarrowing, index->range.begin).range(index->range);
     auto cast = std::make_unique<Expr>(ExprKind::Construct, index->range);
     cast->constructType = TypeKind::Int;

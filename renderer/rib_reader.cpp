@@ -1652,13 +1652,14 @@ bool RibParser::doLight(const Call& call) {
     return false;
   auto direction = [&]() -> bool {
     const glm::vec3 d = point(to) - point(from);
+    if (!std::isfinite(d.x) || !std::isfinite(d.y) || !std::isfinite(d.z))
+      return fail(call.line, "'" + name + "': 'from' or 'to' is not finite");
     if (!(glm::length(d) > 0.0f)) {
       // RenderMan's solar()/illuminate() along a zero axis light nothing; the frame still renders.
       warn(call.line, "'" + name + "': 'from' and 'to' coincide: the light has no direction and lights nothing");
       light.color = glm::vec3(0.0f);
       return true;
     }
-    if (!std::isfinite(glm::length(d))) return fail(call.line, "'" + name + "': 'from' or 'to' is not finite");
     light.direction = glm::normalize(d);
     return true;
   };
@@ -2774,13 +2775,14 @@ bool RibParser::readArchive(const Call& call, const std::string& name) {
     return fail(call.line, "'" + call.name + "' nested more than " +
                                std::to_string(kMaxArchiveDepth) +
                                " deep (does an archive read itself?)");
-  if (const auto inlined = inlineArchives_.find(name);
-      inlined != inlineArchives_.end() && &inlined->second != recording_) {
+  if (const auto inlined = inlineArchives_.find(name); inlined != inlineArchives_.end()) {
     // An inline archive runs where it is read, as a file would (no attribute block of its own).
+    // From a copy: what it runs may define an archive of the same name again.
+    const std::vector<RecordedCall> calls = inlined->second;
     const std::string savedFile = fileName_;
     ++archiveDepth_;
     bool ok = true;
-    for (const RecordedCall& recorded : inlined->second) {
+    for (const RecordedCall& recorded : calls) {
       fileName_ = recorded.file;
       if (!execute(recorded.call)) {
         ok = false;
@@ -2813,7 +2815,13 @@ bool RibParser::readArchive(const Call& call, const std::string& name) {
   pos_ = 0;
   fileName_ = path;
   ++archiveDepth_;
-  const bool ok = runCalls();
+  const bool openBefore = recording_ != nullptr;
+  bool ok = runCalls();
+  // A block opened in this file must close in it, or it would swallow the reader's requests.
+  if (ok && !openBefore && recording_)
+    ok = fail(recordingLine_, "end of archive: '" + std::string(recordingArchive_ ? "ArchiveBegin" : "ObjectBegin") +
+                                  "' at line " + std::to_string(recordingLine_) + " has no '" +
+                                  (recordingArchive_ ? "ArchiveEnd" : "ObjectEnd") + "'");
   --archiveDepth_;
   tokens_ = std::move(savedTokens);
   pos_ = savedPos;

@@ -164,8 +164,12 @@ bool Integrator::resolve(const Ray& ray, const Hit& hit, Surface* s) const {
     const Displacement& disp = scene_.displacements[mesh.displacementIndex];
     glm::vec3 n;
     if (disp.shader->shader().ownNormal() &&
-        displacedShadingNormal(mesh, hit.triangleIndex, disp, hit.bary, &n))
+        displacedShadingNormal(mesh, hit.triangleIndex, disp, hit.bary, &n)) {
       s->N = n;
+      // The shader's N faces as the input normal does; where given normals oppose the winding,
+      // they define the outside, as for undisplaced surfaces below.
+      if (glm::dot(s->N, s->Ng) < 0.0f) s->Ng = -s->Ng;
+    }
   }
   if (!displaced && !mesh.N.empty() && hit.triangleIndex < mesh.numTriangles()) {
     const uint32_t* idx = &mesh.indices[3 * size_t(hit.triangleIndex)];

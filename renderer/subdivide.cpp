@@ -276,7 +276,9 @@ void displace(const Displacement& disp, const TriangleFrame& frame, Vertices& vs
   b.dtdu = batch.dtdu.data(), b.dtdv = batch.dtdv.data();
   b.dNdu = batch.dNdu.view(), b.dNdv = batch.dNdv.view();
   b.spaces = &disp.spaces;
-  b.services = disp.services;
+  // printf output comes from the displaced vertices only: a shading-time evaluation may repeat
+  // (a pixel put aside and traced again), which would make the output depend on the threads.
+  b.services = shadingStatus ? nullptr : disp.services;
   b.Pout = batch.Pout.view(), b.Nout = batch.Nout.view();
   RlfStatus status{};
   const uint64_t start = readTicks();

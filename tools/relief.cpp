@@ -99,6 +99,9 @@ constexpr const char* kUsage =
     "  RELIEF_SUBTREES=0         no subtree memos (exact boxes and simplification decisions\n"
     "                            kept per input triangle), RELIEF_PROXIES=0 no voxel proxies\n"
     "                            (kept BVH roots): for measurements; the image is the same\n"
+    "  RELIEF_WALK=shared|stretches  how threads share the pixels (default: shared under a\n"
+    "                            cache budget, stretches otherwise): for measurements; the image\n"
+    "                            is the same\n"
     "  RELIEF_CHECK_BUDGET=1     check the cache budget after every fill (debug)\n"
     "  RELIEF_IMAGE_LIBRARY=FILE the OpenImageIO plugin (textures, formats other than\n"
     "                            png/ppm/pgm), loaded on first use (default: <libdir>/relief/)\n"
@@ -987,7 +990,8 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
   renderOptions.displaced = cl.displace;
   // Under a budget a shared walk keeps one working set for all threads (render.h).
   renderOptions.sharedWalk = cl.accel == "grid" && accelOptions.cacheBudgetTriangles != UINT64_MAX;
-  if (const char* env = std::getenv("RELIEF_WALK")) renderOptions.sharedWalk = std::string_view(env) == "shared";
+  if (const char* env = std::getenv("RELIEF_WALK"); env && cl.accel == "grid")
+    renderOptions.sharedWalk = std::string_view(env) == "shared";
   Progress progress(*accel, ::isatty(STDERR_FILENO) != 0);
   if (!cl.quiet) renderOptions.progress = [&progress](int percent) { progress.update(percent); };
 

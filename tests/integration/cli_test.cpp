@@ -182,6 +182,24 @@ TEST(Relief, BumpOnlyShadersShadeWithTheirNormal) {
     ASSERT_TRUE(d.loaded) << d.error;
     EXPECT_EQ(d.failingPixels, 0) << extra;
   }
+  // Given normals opposite the winding define the outside, bumped or not: the bent N is lit
+  // from the camera's side like the undisplaced quad, not turned away into black.
+  writeFile(dir / "tilt.disp", "displacement tilt(float Km = 0.2) { N = normalize(normalize(N) + Km * (vector noise(P * 8) - 0.5)); }\n");
+  const std::string quad =
+      "Format 16 12 1\nProjection \"perspective\" \"fov\" [40]\nTranslate 0 0 5\nWorldBegin\n"
+      "LightSource \"distantlight\" 1 \"from\" [0 0 -1] \"to\" [0 0 0]\n"
+      "Attribute \"displacementbound\" \"float sphere\" [0.06]\nAttribute \"relief\" \"float edgelength\" [0.5]\n";
+  const std::string patch = "PointsPolygons [4] [0 1 2 3] \"P\" [-1 -1 0  -1 1 0  1 1 0  1 -1 0] \"N\" [0 0 1  0 0 1  0 0 1  0 0 1]\nWorldEnd\n";
+  auto centre = [&](const std::string& name, const std::string& scene) {
+    const std::string image = (dir / (name + ".ppm")).string();
+    const RunResult r = run(kRelief + " " + writeFile(dir / (name + ".rib"), scene).string() + " --quiet -I " +
+                            dir.string() + " -o " + image);
+    EXPECT_EQ(r.exitCode, 0) << r.err;
+    const std::string ppm = readFile(image);
+    return ppm.size() > 3 ? static_cast<unsigned char>(ppm[ppm.size() - 3 * (6 * 16 + 8) - 2]) : 0;  // a centre pixel's green
+  };
+  EXPECT_GT(centre("plain", quad + patch), 100);
+  EXPECT_GT(centre("tilted", quad + "Displacement \"tilt\"\n" + patch), 100);
 }
 
 // A scene without lights renders black matte surfaces (RenderMan's default surface would need no

@@ -733,6 +733,32 @@ TEST(RibReader, ReadArchiveIncludesFilesRelativeToTheReader) {
   std::filesystem::remove_all(dir);
 }
 
+// An inline archive read while a file it reads defines the same name again runs its own calls to
+// the end (from a copy); a block opened in an archive file must close in it.
+TEST(RibReader, InlineArchivesSurviveRedefinitionAndCloseInTheirFile) {
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("relief-inline-" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  std::string redefine = "ArchiveBegin \"a\"\n";
+  for (int i = 0; i < 200; ++i) redefine += "Polygon \"P\" [0 0 0  1 0 0  0 1 0]\n";
+  std::ofstream(dir / "redefine.rib") << redefine << "ArchiveEnd\n";
+  std::ofstream(dir / "main.rib") << "ArchiveBegin \"a\"\nReadArchive \"redefine.rib\"\n"
+                                     "Translate 1 0 0\nPolygon \"P\" [0 0 0  1 0 0  0 1 0]\nArchiveEnd\n"
+                                     "WorldBegin\nReadArchive \"a\"\nReadArchive \"a\"\nWorldEnd\n";
+  std::ofstream(dir / "open.rib") << "ArchiveBegin \"x\"\n";
+  std::ofstream(dir / "swallow.rib") << "WorldBegin\nReadArchive \"open.rib\"\nSphere 1 -1 1 360\nArchiveEnd\nWorldEnd\n";
+  SceneError error;
+  std::optional<Scene> scene = readRibFile((dir / "main.rib").string(), RibReadOptions{}, &error);
+  ASSERT_TRUE(scene) << error.format();
+  ASSERT_EQ(scene->meshes.size(), 201u);  // the first read's own polygon, then the new archive
+  expectNear(scene->meshes[0].P[0], glm::vec3(1, 0, 0));
+  EXPECT_FALSE(readRibFile((dir / "swallow.rib").string(), RibReadOptions{}, &error));
+  EXPECT_EQ(error.file, (dir / "open.rib").string());
+  EXPECT_EQ(error.line, 1);
+  EXPECT_NE(error.message.find("'ArchiveBegin' at line 1 has no 'ArchiveEnd'"), std::string::npos) << error.message;
+  std::filesystem::remove_all(dir);
+}
+
 TEST(RibReader, MissingFileIsAnErrorNamingIt) {
   SceneError error;
   EXPECT_FALSE(readRibFile("/nonexistent/scene.rib", RibReadOptions{}, &error));
