@@ -770,6 +770,8 @@ class RibParser {
   bool doProcedural(const Call& call);
   bool doObjectInstance(const Call& call);
   bool readArchive(const Call& call, const std::string& name);
+  struct RecordedCall;
+  bool replay(const std::vector<RecordedCall>& calls);
   bool buildPolygonMesh(const Call& call, const std::vector<int>& nloops,
                         const std::vector<int>& nverts, const std::vector<int>& verts,
                         size_t first);
@@ -2702,6 +2704,21 @@ bool RibParser::doProcedural(const Call& call) {
   return readArchive(call, call.args[1].strings[0]);
 }
 
+// Runs recorded calls (an object's or an inline archive's), each in the file it came from.
+bool RibParser::replay(const std::vector<RecordedCall>& calls) {
+  const std::string savedFile = fileName_;
+  bool ok = true;
+  for (const RecordedCall& recorded : calls) {
+    fileName_ = recorded.file;
+    if (!execute(recorded.call)) {
+      ok = false;
+      break;
+    }
+  }
+  fileName_ = savedFile;
+  return ok;
+}
+
 // ObjectInstance handle: replays the calls recorded between ObjectBegin and ObjectEnd inside an
 // attribute block, so the instance is placed by the transform and attributes current here.
 bool RibParser::doObjectInstance(const Call& call) {
@@ -2721,18 +2738,9 @@ bool RibParser::doObjectInstance(const Call& call) {
   const size_t depth = stack_.size();
   // An instance may be the sample of an enclosing motion block; its own calls are not samples.
   const int motionLine = std::exchange(motionLine_, 0);
-  const std::string savedFile = fileName_;
   ++instanceDepth_;
-  bool ok = true;
-  for (const RecordedCall& recorded : object->second) {
-    fileName_ = recorded.file;
-    if (!execute(recorded.call)) {
-      ok = false;
-      break;
-    }
-  }
+  const bool ok = replay(object->second);
   --instanceDepth_;
-  fileName_ = savedFile;
   if (ok && (stack_.size() != depth || motionLine_ != 0))
     return fail(call.line,
                 "object '" + handle + "' has unbalanced attribute, transform or motion blocks");
@@ -2779,18 +2787,9 @@ bool RibParser::readArchive(const Call& call, const std::string& name) {
     // An inline archive runs where it is read, as a file would (no attribute block of its own).
     // From a copy: what it runs may define an archive of the same name again.
     const std::vector<RecordedCall> calls = inlined->second;
-    const std::string savedFile = fileName_;
     ++archiveDepth_;
-    bool ok = true;
-    for (const RecordedCall& recorded : calls) {
-      fileName_ = recorded.file;
-      if (!execute(recorded.call)) {
-        ok = false;
-        break;
-      }
-    }
+    const bool ok = replay(calls);
     --archiveDepth_;
-    fileName_ = savedFile;
     return ok;
   }
   std::string tried;
