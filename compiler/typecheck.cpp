@@ -907,14 +907,15 @@ class Checker {
   }
 
   // Checks that `target` may be written; marks P/N writes for the host contract.
-  bool checkAssignable(Expr& target, SourceLoc opLoc, SourceRange opRange) {
-    Expr* base = &target;
-    while (base->kind == ExprKind::Index) base = base->operands[0].get();
-    if (base->kind != ExprKind::Identifier) {
+  // `surfaceNormal`: the value written is the displaced surface's own normal (isSurfaceNormal),
+  // so a write of N does not make the shader's normal its own (ShaderDecl::ownNormal).
+  bool checkAssignable(Expr& target, SourceLoc opLoc, SourceRange opRange, bool surfaceNormal = false) {
+    const Expr& base = indexRoot(target);
+    if (base.kind != ExprKind::Identifier) {
       report(DiagId::ErrNotAssignable, opLoc).range(opRange).range(target.range);
       return false;
     }
-    VarDecl* d = base->decl;
+    VarDecl* d = base.decl;
     if (!d) return false;
     if (!d->writable) {
       report(DiagId::ErrReadOnly, opLoc).arg(d->name).range(opRange).range(target.range);
@@ -923,7 +924,7 @@ class Checker {
     d->written = true;
     if (d->storage == Storage::Global) {
       const bool n = d->global == GlobalId::N;
-      markWrites(d->global == GlobalId::P, n, n && !surfaceNormalWrite_);
+      markWrites(d->global == GlobalId::P, n, n && !surfaceNormal);
     }
     return true;
   }
@@ -965,10 +966,8 @@ class Checker {
     const Type tv = checkExpr(value, base == Tok::Eof ? tt : contextHint(base, tt, tt));
     e.isVarying = value.isVarying;
     if (tt.isError()) return set(e, kError);
-    surfaceNormalWrite_ = e.op == Tok::Assign && target.kind == ExprKind::Identifier && isSurfaceNormal(value);
-    const bool assignable = checkAssignable(target, e.opLoc, e.opRange);
-    surfaceNormalWrite_ = false;
-    if (!assignable) {
+    const bool surfaceNormal = e.op == Tok::Assign && target.kind == ExprKind::Identifier && isSurfaceNormal(value);
+    if (!checkAssignable(target, e.opLoc, e.opRange, surfaceNormal)) {
       if (written) ++written->reads;  // already an error: no "unused" on top of it
       return set(e, kError);
     }
@@ -1834,7 +1833,6 @@ class Checker {
   // The variable whose initializer is being checked: its name is not in scope yet (C scoping
   // would make it read itself, uninitialized), so a use of it gets its own message.
   const VarDecl* initializing_ = nullptr;
-  bool surfaceNormalWrite_ = false;  // the assignment being checked is N = calculatenormal(P)
   ShaderDecl* shader_ = nullptr;
   FunctionDecl* function_ = nullptr;
   std::vector<FunctionDecl*> functionStack_;
