@@ -77,16 +77,8 @@ extern "C" int32_t rlf_texture(const RlfHostServices* services, const char* file
                                float dtdx, float dsdy, float dtdy, const RlfTextureOptions* options,
                                int32_t nchannels, float* out, float* dout_ds, float* dout_dt) {
   nchannels = std::clamp<int32_t>(nchannels, 1, 4);
-  if (!filename || !*filename) {
-    // Unreadable like any missing file (language.md 6.7: one runtime error per file name).
-    try {
-      if (!options || !options->hasMissingColor) recordFailure("", "the file name is empty");
-    } catch (...) {
-    }
-    fillMissing(options, nchannels, out, dout_ds, dout_dt);
-    return 0;
-  }
-  if (services && services->texture) {
+  const bool named = filename && *filename;
+  if (named && services && services->texture) {
     const int ok = services->texture(services->context, filename, s, t, dsdx, dtdx, dsdy, dtdy, options, nchannels,
                                      out, dout_ds, dout_dt);
     if (!ok) fillMissing(options, nchannels, out, dout_ds, dout_dt);
@@ -94,8 +86,10 @@ extern "C" int32_t rlf_texture(const RlfHostServices* services, const char* file
   }
   // Nothing may unwind through JIT frames. The host counts failures; the first per file is printed.
   try {
-    std::string why;
-    if (const RlfImageLibrary* library = textureLibrary(&why)) {
+    // An empty name is unreadable like any missing file (language.md 6.7: one runtime error per
+    // file name).
+    std::string why = named ? "" : "the file name is empty";
+    if (const RlfImageLibrary* library = named ? textureLibrary(&why) : nullptr) {
       char message[512];
       message[0] = 0;
       if (library->texture(filename, s, t, dsdx, dtdx, dsdy, dtdy, options, nchannels, out, dout_ds, dout_dt,
@@ -103,7 +97,7 @@ extern "C" int32_t rlf_texture(const RlfHostServices* services, const char* file
         return 1;
       why = message;
     }
-    if (!options || !options->hasMissingColor) recordFailure(filename, why);
+    if (!options || !options->hasMissingColor) recordFailure(named ? filename : "", why);
   } catch (...) {
   }
   fillMissing(options, nchannels, out, dout_ds, dout_dt);
