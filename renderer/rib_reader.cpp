@@ -374,10 +374,7 @@ class RibParser {
                         std::to_string(e.line) + " has no '" +
                         (e.attribute ? "AttributeEnd" : "TransformEnd") + "'");
     } else if (recording_) {
-      fail(eofLine, recordingArchive_ ? "unexpected end of file: 'ArchiveBegin' at line " +
-                                            std::to_string(recordingLine_) + " has no 'ArchiveEnd'"
-                                      : "unexpected end of file: 'ObjectBegin' at line " +
-                                            std::to_string(recordingLine_) + " has no 'ObjectEnd'");
+      fail(eofLine, "unexpected end of file: " + unclosedRecording());
     } else if (inWorld_) {
       fail(eofLine, "unexpected end of file: 'WorldBegin' at line " + std::to_string(worldLine_) +
                         " has no 'WorldEnd'");
@@ -770,6 +767,11 @@ class RibParser {
   bool doProcedural(const Call& call);
   bool doObjectInstance(const Call& call);
   bool readArchive(const Call& call, const std::string& name);
+  // "'ObjectBegin' at line N has no 'ObjectEnd'" (or ArchiveBegin's) for the open recording.
+  std::string unclosedRecording() const {
+    const char* what = recordingArchive_ ? "Archive" : "Object";
+    return std::string("'") + what + "Begin' at line " + std::to_string(recordingLine_) + " has no '" + what + "End'";
+  }
   struct RecordedCall;
   bool replay(const std::vector<RecordedCall>& calls);
   bool buildPolygonMesh(const Call& call, const std::vector<int>& nloops,
@@ -2381,10 +2383,7 @@ bool RibParser::buildPolygonMesh(const Call& call, const std::vector<int>& nloop
                    " points that is not convex is fanned from its first corner, its holes ignored; "
                    "split it into smaller polygons");
   }
-  // A mirroring transform flips the current coordinate system and, with it, the current
-  // orientation (RI spec, "Orientation"), so the polygon keeps its side: the winding the world
-  // points have after the mirror is reversed back, as the quadrics do (tessellate.cpp).
-  return addMesh(std::move(mesh), call.line);
+  return addMesh(std::move(mesh), call.line);  // which keeps the winding under a mirroring transform
 }
 
 // Patch and PatchMesh: an nu x nv grid of control points (u fastest) cut into bilinear or bicubic
@@ -2818,9 +2817,7 @@ bool RibParser::readArchive(const Call& call, const std::string& name) {
   bool ok = runCalls();
   // A block opened in this file must close in it, or it would swallow the reader's requests.
   if (ok && !openBefore && recording_)
-    ok = fail(recordingLine_, "end of archive: '" + std::string(recordingArchive_ ? "ArchiveBegin" : "ObjectBegin") +
-                                  "' at line " + std::to_string(recordingLine_) + " has no '" +
-                                  (recordingArchive_ ? "ArchiveEnd" : "ObjectEnd") + "'");
+    ok = fail(recordingLine_, "end of archive: " + unclosedRecording());
   --archiveDepth_;
   tokens_ = std::move(savedTokens);
   pos_ = savedPos;
