@@ -214,18 +214,14 @@ TEST(Relief, SceneWithoutLightsAndReplacedDisplayName) {
   EXPECT_NE(r.err.find(scene.string() + ": warning: the scene has no LightSource"), std::string::npos) << r.err;
   EXPECT_EQ(r.err.find("no image extension"), std::string::npos) << r.err;
   // Lit, or only constant surfaces: nothing to say.
-  const fs::path lit = writeFile(dir / "lit.rib",
-                                 "Format 16 12 1\nWorldBegin\nLightSource \"ambientlight\" 1\n"
-                                 "Surface \"constant\"\nTranslate 0 0 5\nSphere 1 -1 1 360\nWorldEnd\n");
-  r = run(kRelief + " " + lit.string() + " -o " + (dir / "lit.png").string());
-  ASSERT_EQ(r.exitCode, 0) << r.err;
-  EXPECT_EQ(r.err.find("LightSource"), std::string::npos) << r.err;
-  const fs::path constant = writeFile(dir / "constant.rib",
-                                      "Format 16 12 1\nWorldBegin\nSurface \"constant\"\nTranslate 0 0 5\n"
-                                      "Sphere 1 -1 1 360\nWorldEnd\n");
-  r = run(kRelief + " " + constant.string() + " -o " + (dir / "constant.png").string());
-  ASSERT_EQ(r.exitCode, 0) << r.err;
-  EXPECT_EQ(r.err.find("LightSource"), std::string::npos) << r.err;
+  for (const auto& [name, world] : {std::pair<std::string, std::string>{"lit", "LightSource \"ambientlight\" 1\n"},
+                                    {"constant", "Surface \"constant\"\n"}}) {
+    const fs::path quiet = writeFile(dir / (name + ".rib"), "Format 16 12 1\nWorldBegin\n" + world +
+                                                                "Translate 0 0 5\nSphere 1 -1 1 360\nWorldEnd\n");
+    r = run(kRelief + " " + quiet.string() + " -o " + (dir / (name + ".png")).string());
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    EXPECT_EQ(r.err.find("LightSource"), std::string::npos) << name << ": " << r.err;
+  }
 }
 
 // The default edge length is in world units: a scene modelled in large units asks for hundreds of
