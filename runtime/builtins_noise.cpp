@@ -7,6 +7,10 @@
 #include <cstdint>
 #include <cstring>
 
+#if defined(__x86_64__) || defined(__i386__)
+#include <immintrin.h>
+#endif
+
 namespace {
 
 [[gnu::always_inline]] inline uint32_t mix32(uint32_t h) {
@@ -153,7 +157,9 @@ float noise(const float* p, float* grad, const int32_t* period = nullptr) {
 // three rounds of lerps for the value, with the weights' derivatives giving the analytic gradient.
 // The generic loop above spent about 1,100 instructions a call on index bookkeeping; this is the
 // same function (same lattice, gradients and fade), rounded differently in the last bits.
-float noise3(const float* p, float* grad) {
+// noise3Avx2 below computes the very same operations eight corners at a time; the two must stay
+// bit-identical (tests/runtime/noise_test.cpp), since which one runs depends on the CPU.
+float noise3Portable(const float* p, float* grad) {
   if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2])) {
     grad[0] = grad[1] = grad[2] = 0;
     return 0.5f;
@@ -201,6 +207,122 @@ float noise3(const float* p, float* grad) {
   return 0.5f + 0.5f * value;
 }
 
+
+#if defined(__x86_64__) || defined(__i386__)
+#define RELIEF_NOISE_AVX2 1
+// noise3Portable, eight lattice corners to a vector: the corner hashes in three rounds of eight
+// lanes instead of fourteen scalar finalizers, the gradients by table permutes instead of a
+// division and loads, and the lerp trees on [value, gx, gy, gz] columns. Every floating-point
+// operation is the one noise3Portable does, in the same order (and the build forbids contraction
+// into FMA), so the two agree to the bit.
+[[gnu::target("avx2")]] inline __m256i mix32x8(__m256i h) {
+  h = _mm256_xor_si256(h, _mm256_srli_epi32(h, 16));
+  h = _mm256_mullo_epi32(h, _mm256_set1_epi32(int32_t(0x85ebca6bu)));
+  h = _mm256_xor_si256(h, _mm256_srli_epi32(h, 13));
+  h = _mm256_mullo_epi32(h, _mm256_set1_epi32(int32_t(0xc2b2ae35u)));
+  return _mm256_xor_si256(h, _mm256_srli_epi32(h, 16));
+}
+
+// lerp(a, b, t) = a + t * (b - a), as in noise3Portable.
+[[gnu::target("avx2")]] inline __m128 lerp4(__m128 a, __m128 b, __m128 t) {
+  return _mm_add_ps(a, _mm_mul_ps(t, _mm_sub_ps(b, a)));
+}
+
+[[gnu::target("avx2")]] float noise3Avx2(const float* p, float* grad) {
+  if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2])) {
+    grad[0] = grad[1] = grad[2] = 0;
+    return 0.5f;
+  }
+  int32_t cells[3][2];
+  float f[3], s[3], ds[3];
+  for (int i = 0; i < 3; ++i) {
+    const int32_t base = cellOf(p[i]);
+    cells[i][0] = base;
+    cells[i][1] = int32_t(uint32_t(base) + 1u);
+    f[i] = p[i] - std::floor(p[i]);
+    s[i] = fade(f[i]);
+    ds[i] = fadeDeriv(f[i]);
+  }
+  // Lane k is corner k: bit 0 picks the x cell, bit 1 the y cell, bit 2 the z cell.
+  const __m256i cx = _mm256_setr_epi32(cells[0][0], cells[0][1], cells[0][0], cells[0][1],
+                                       cells[0][0], cells[0][1], cells[0][0], cells[0][1]);
+  const __m256i cy = _mm256_setr_epi32(cells[1][0], cells[1][0], cells[1][1], cells[1][1],
+                                       cells[1][0], cells[1][0], cells[1][1], cells[1][1]);
+  const __m256i cz = _mm256_setr_epi32(cells[2][0], cells[2][0], cells[2][0], cells[2][0],
+                                       cells[2][1], cells[2][1], cells[2][1], cells[2][1]);
+  __m256i h = _mm256_set1_epi32(int32_t(kHashSeed));
+  h = mix32x8(_mm256_xor_si256(h, _mm256_mullo_epi32(cx, _mm256_set1_epi32(int32_t(kHashPrimes[0])))));
+  h = mix32x8(_mm256_xor_si256(h, _mm256_mullo_epi32(cy, _mm256_set1_epi32(int32_t(kHashPrimes[1])))));
+  h = mix32x8(_mm256_xor_si256(h, _mm256_mullo_epi32(cz, _mm256_set1_epi32(int32_t(kHashPrimes[2])))));
+  // (h >> 8) % 12: the quotient by 12 is the high word of x * 0xaaaaaaab shifted by 3, taken on the
+  // even lanes and then on the odd ones.
+  const __m256i x = _mm256_srli_epi32(h, 8);
+  const __m256i magic = _mm256_set1_epi32(int32_t(0xaaaaaaabu));
+  const __m256i qEven = _mm256_srli_epi64(_mm256_mul_epu32(x, magic), 35);
+  const __m256i qOdd = _mm256_srli_epi64(_mm256_mul_epu32(_mm256_srli_epi64(x, 32), magic), 35);
+  const __m256i q = _mm256_or_si256(qEven, _mm256_slli_epi64(qOdd, 32));
+  const __m256i q12 = _mm256_add_epi32(_mm256_slli_epi32(q, 3), _mm256_slli_epi32(q, 2));
+  const __m256i dir = _mm256_sub_epi32(x, q12);
+  // kDirs3 by column: directions 0-7 permute from one table, 8-11 from another.
+  const __m256i high = _mm256_cmpgt_epi32(dir, _mm256_set1_epi32(7));
+  static constexpr float kLo[3][8] = {{1, -1, 1, -1, 1, -1, 1, -1},
+                                      {1, 1, -1, -1, 0, 0, 0, 0},
+                                      {0, 0, 0, 0, 1, 1, -1, -1}};
+  static constexpr float kHi[3][8] = {{0, 0, 0, 0, 0, 0, 0, 0},
+                                      {1, -1, 1, -1, 1, -1, 1, -1},
+                                      {1, 1, -1, -1, 1, 1, -1, -1}};
+  __m256 g[3];
+  for (int c = 0; c < 3; ++c)
+    g[c] = _mm256_blendv_ps(_mm256_permutevar8x32_ps(_mm256_loadu_ps(kLo[c]), dir),
+                            _mm256_permutevar8x32_ps(_mm256_loadu_ps(kHi[c]), dir),
+                            _mm256_castsi256_ps(high));
+  const __m256 dx = _mm256_sub_ps(_mm256_set1_ps(f[0]), _mm256_setr_ps(0, 1, 0, 1, 0, 1, 0, 1));
+  const __m256 dy = _mm256_sub_ps(_mm256_set1_ps(f[1]), _mm256_setr_ps(0, 0, 1, 1, 0, 0, 1, 1));
+  const __m256 dz = _mm256_sub_ps(_mm256_set1_ps(f[2]), _mm256_setr_ps(0, 0, 0, 0, 1, 1, 1, 1));
+  const __m256 n = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(g[0], dx), _mm256_mul_ps(g[1], dy)),
+                                 _mm256_mul_ps(g[2], dz));
+  // Columns c[k] = [n, gx, gy, gz] of corner k.
+  __m128 c0 = _mm256_castps256_ps128(n), c1 = _mm256_castps256_ps128(g[0]);
+  __m128 c2 = _mm256_castps256_ps128(g[1]), c3 = _mm256_castps256_ps128(g[2]);
+  __m128 c4 = _mm256_extractf128_ps(n, 1), c5 = _mm256_extractf128_ps(g[0], 1);
+  __m128 c6 = _mm256_extractf128_ps(g[1], 1), c7 = _mm256_extractf128_ps(g[2], 1);
+  _MM_TRANSPOSE4_PS(c0, c1, c2, c3);
+  _MM_TRANSPOSE4_PS(c4, c5, c6, c7);
+  const __m128 s0 = _mm_set1_ps(s[0]), s1 = _mm_set1_ps(s[1]), s2 = _mm_set1_ps(s[2]);
+  // x first, then y, then z, as tri() and the value in noise3Portable.
+  const __m128 y0 = lerp4(c0, c1, s0), y1 = lerp4(c2, c3, s0);
+  const __m128 y2 = lerp4(c4, c5, s0), y3 = lerp4(c6, c7, s0);
+  const __m128 z0 = lerp4(y0, y1, s1), z1 = lerp4(y2, y3, s1);
+  const __m128 v = lerp4(z0, z1, s2);  // [value, tri(gx), tri(gy), tri(gz)]
+  // Lane 0 of each is the n-column's derivative term.
+  const __m128 ddx = lerp4(lerp4(_mm_sub_ps(c1, c0), _mm_sub_ps(c3, c2), s1),
+                           lerp4(_mm_sub_ps(c5, c4), _mm_sub_ps(c7, c6), s1), s2);
+  const __m128 ddy = lerp4(_mm_sub_ps(y1, y0), _mm_sub_ps(y3, y2), s2);
+  const __m128 ddz = _mm_sub_ps(z1, z0);
+  alignas(16) float out[4];
+  _mm_store_ps(out, v);
+  const float value = out[0];
+  const float dvalue[3] = {out[1] + ds[0] * _mm_cvtss_f32(ddx), out[2] + ds[1] * _mm_cvtss_f32(ddy),
+                           out[3] + ds[2] * _mm_cvtss_f32(ddz)};
+  if (value <= -1 || value >= 1) {  // rare overshoot: flat at the clamp
+    grad[0] = grad[1] = grad[2] = 0;
+    return value <= -1 ? 0.0f : 1.0f;
+  }
+  for (int k = 0; k < 3; ++k) grad[k] = 0.5f * dvalue[k];
+  return 0.5f + 0.5f * value;
+}
+#endif
+
+using Noise3Fn = float (*)(const float*, float*);
+
+Noise3Fn pickNoise3() {
+#ifdef RELIEF_NOISE_AVX2
+  __builtin_cpu_init();  // may run before the CPU-model constructor
+  if (__builtin_cpu_supports("avx2")) return noise3Avx2;
+#endif
+  return noise3Portable;
+}
+
 }  // namespace
 
 extern "C" {
@@ -213,8 +335,9 @@ float rlf_noise2(float x, float y, float* grad2) {
 }
 
 float rlf_noise3(float x, float y, float z, float* grad3) {
+  static const Noise3Fn impl = pickNoise3();
   const float p[3] = {x, y, z};
-  return noise3(p, grad3);
+  return impl(p, grad3);
 }
 
 float rlf_noise4(float x, float y, float z, float w, float* grad4) {
@@ -257,3 +380,19 @@ float rlf_cellnoise(const float* p, int dims, int channel) {
 }
 
 }  // extern "C"
+
+namespace relief::noise_detail {
+
+float noise3Portable(const float* p, float* grad) { return ::noise3Portable(p, grad); }
+
+bool noise3Avx2Available() { return pickNoise3() != ::noise3Portable; }
+
+float noise3Avx2(const float* p, float* grad) {
+#ifdef RELIEF_NOISE_AVX2
+  return ::noise3Avx2(p, grad);
+#else
+  return ::noise3Portable(p, grad);
+#endif
+}
+
+}  // namespace relief::noise_detail

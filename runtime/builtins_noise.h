@@ -22,3 +22,13 @@ float rlf_random(const float* inputs5, int ordinal, int channel);
 #ifdef __cplusplus
 }
 #endif
+
+#ifdef __cplusplus
+// The 3D noise's two implementations, for the test that holds them bit-identical and the benchmark
+// that compares them; rlf_noise3 picks one by CPU.
+namespace relief::noise_detail {
+float noise3Portable(const float* p, float* grad);
+bool noise3Avx2Available();
+float noise3Avx2(const float* p, float* grad);  // only where noise3Avx2Available()
+}  // namespace relief::noise_detail
+#endif

@@ -1,0 +1,87 @@
+// The 3D noise's vectorised implementation against the portable one: images must not depend on
+// which CPU rendered them, so the two have to agree to the bit, value and gradient, everywhere.
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <limits>
+#include <random>
+#include <vector>
+
+#include "runtime/builtins_noise.h"
+
+namespace {
+
+using relief::noise_detail::noise3Avx2;
+using relief::noise_detail::noise3Avx2Available;
+using relief::noise_detail::noise3Portable;
+
+uint32_t bits(float f) {
+  uint32_t b;
+  std::memcpy(&b, &f, 4);
+  return b;
+}
+
+// Points where rounding, lattice cells and the clamp are most likely to tell two implementations
+// apart: lattice points and their float neighbours, both signs of zero, large and wrapping
+// coordinates, non-finite values, and plain random points at several scales.
+std::vector<std::array<float, 3>> probePoints() {
+  std::vector<std::array<float, 3>> points;
+  std::mt19937 rng(11);
+  const float scales[] = {1e-3f, 1.0f, 50.0f, 1e4f, 3e9f};
+  for (float scale : scales) {
+    std::uniform_real_distribution<float> dist(-scale, scale);
+    for (int i = 0; i < 40000; ++i) points.push_back({dist(rng), dist(rng), dist(rng)});
+  }
+  const float inf = std::numeric_limits<float>::infinity();
+  const float special[] = {0.0f, -0.0f, 1.0f, -1.0f, 0.5f, std::nextafter(1.0f, 0.0f),
+                           std::nextafter(-1.0f, 0.0f), std::nextafter(0.0f, 1.0f), 2147483520.0f,
+                           -2147483648.0f, 4294967296.0f, 1e30f, -1e30f, inf, -inf,
+                           std::numeric_limits<float>::quiet_NaN()};
+  for (float a : special)
+    for (float b : special)
+      for (float c : special) points.push_back({a, b, c});
+  std::uniform_int_distribution<int> cell(-100, 100);
+  for (int i = 0; i < 20000; ++i) {
+    std::array<float, 3> p;
+    for (float& v : p) {
+      const float k = float(cell(rng));
+      const int nudge = int(rng() % 3);
+      v = nudge == 0 ? k : nudge == 1 ? std::nextafter(k, -inf) : std::nextafter(k, inf);
+    }
+    points.push_back(p);
+  }
+  return points;
+}
+
+TEST(Noise3, VectorisedAgreesWithPortableToTheBit) {
+  if (!noise3Avx2Available()) GTEST_SKIP() << "this CPU has no AVX2; only the portable noise runs";
+  size_t compared = 0, clamped = 0;
+  for (const auto& p : probePoints()) {
+    float ga[3] = {-7, -7, -7}, gb[3] = {-9, -9, -9};
+    const float a = noise3Portable(p.data(), ga);
+    const float b = noise3Avx2(p.data(), gb);
+    ASSERT_EQ(bits(a), bits(b)) << p[0] << ' ' << p[1] << ' ' << p[2];
+    for (int k = 0; k < 3; ++k) ASSERT_EQ(bits(ga[k]), bits(gb[k])) << k << ": " << p[0] << ' ' << p[1] << ' ' << p[2];
+    ++compared;
+    if (a == 0.0f || a == 1.0f) ++clamped;
+  }
+  EXPECT_GT(compared, 200000u);
+  EXPECT_LT(clamped, compared / 100);  // the values compared are real noise, not the clamp
+}
+
+TEST(Noise3, ShadersGetOneOfTheTwo) {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> dist(-20, 20);
+  for (int i = 0; i < 1000; ++i) {
+    const float p[3] = {dist(rng), dist(rng), dist(rng)};
+    float g[3], gp[3];
+    const float n = rlf_noise3(p[0], p[1], p[2], g);
+    ASSERT_EQ(bits(n), bits(noise3Portable(p, gp)));
+    for (int k = 0; k < 3; ++k) ASSERT_EQ(bits(g[k]), bits(gp[k]));
+  }
+}
+
+}  // namespace
