@@ -1,6 +1,6 @@
 // Shader benchmarks: points per second of the JIT-compiled §9 example shaders (all seven) through the batch ABI,
 // against the same formulas hand-written in C++ (with the derivative work the shader implies), and
-// the parse+check+codegen+JIT latency of each shader at -O2. Targets: JIT throughput within 1.25x of
+// the parse+check+codegen+JIT latency of each shader at -O2, and the noise's two implementations. Targets: JIT throughput within 1.25x of
 // C++; compile latency under 30 ms (docs/performance.md).
 #include <benchmark/benchmark.h>
 
@@ -474,7 +474,29 @@ void BM_Compile(benchmark::State& state, const Example& ex) {
   }
 }
 
+// rlf_noise3's two implementations on the same points (the portable one and the AVX2 one, which
+// agree to the bit): calls per second, so one run gives their ratio.
+void BM_Noise3(benchmark::State& state, bool vectorised) {
+  if (vectorised && !noise_detail::noise3Avx2Available()) {
+    state.SkipWithError("this CPU has no AVX2");
+    return;
+  }
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> dist(-40, 40);
+  std::vector<float> points(3 * kPoolSize);
+  for (float& v : points) v = dist(rng);
+  auto fn = vectorised ? noise_detail::noise3Avx2 : noise_detail::noise3Portable;
+  for (auto _ : state) {
+    float sum = 0, grad[3];
+    for (uint32_t i = 0; i < kPoolSize; ++i) sum += fn(&points[3 * i], grad) + grad[0];
+    benchmark::DoNotOptimize(sum);
+  }
+  state.SetItemsProcessed(int64_t(state.iterations()) * kPoolSize);
+}
+
 void registerAll() {
+  benchmark::RegisterBenchmark("noise3/portable", BM_Noise3, false);
+  benchmark::RegisterBenchmark("noise3/avx2", BM_Noise3, true);
   for (const Example& ex : kExamples) {
     for (int batch : {256, 4096}) {
       benchmark::RegisterBenchmark((std::string("shade/") + ex.name + "/jit").c_str(), BM_Shade, ex, true)
