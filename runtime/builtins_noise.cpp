@@ -233,23 +233,32 @@ float noise3Portable(const float* p, float* grad) {
     grad[0] = grad[1] = grad[2] = 0;
     return 0.5f;
   }
-  int32_t cells[3][2];
-  float f[3], s[3], ds[3];
-  for (int i = 0; i < 3; ++i) {
-    const int32_t base = cellOf(p[i]);
-    cells[i][0] = base;
-    cells[i][1] = int32_t(uint32_t(base) + 1u);
-    f[i] = p[i] - std::floor(p[i]);
-    s[i] = fade(f[i]);
-    ds[i] = fadeDeriv(f[i]);
-  }
+  // The three axes side by side: fractions, fades and cells, operation for operation as fade(),
+  // fadeDeriv() and cellOf().
+  const __m128 pv = _mm_setr_ps(p[0], p[1], p[2], 0.0f);
+  const __m128 floorv = _mm_floor_ps(pv);
+  const __m128 t = _mm_sub_ps(pv, floorv);
+  const __m128 sv = _mm_mul_ps(
+      _mm_mul_ps(_mm_mul_ps(t, t), t),
+      _mm_add_ps(_mm_mul_ps(t, _mm_sub_ps(_mm_mul_ps(t, _mm_set1_ps(6)), _mm_set1_ps(15))), _mm_set1_ps(10)));
+  const __m128 dsv = _mm_mul_ps(_mm_mul_ps(_mm_mul_ps(_mm_set1_ps(30), t), t),
+                                _mm_add_ps(_mm_mul_ps(t, _mm_sub_ps(t, _mm_set1_ps(2))), _mm_set1_ps(1)));
+  alignas(16) float f[4], s[4], ds[4];
+  _mm_store_ps(f, t);
+  _mm_store_ps(s, sv);
+  _mm_store_ps(ds, dsv);
+  const __m128 magnitude = _mm_andnot_ps(_mm_set1_ps(-0.0f), pv);
+  const bool inRange = (_mm_movemask_ps(_mm_cmplt_ps(magnitude, _mm_set1_ps(2147483648.0f))) & 7) == 7;
+  const __m128i base =
+      inRange ? _mm_cvttps_epi32(floorv) : _mm_setr_epi32(cellOf(p[0]), cellOf(p[1]), cellOf(p[2]), 0);
   // Lane k is corner k: bit 0 picks the x cell, bit 1 the y cell, bit 2 the z cell.
-  const __m256i cx = _mm256_setr_epi32(cells[0][0], cells[0][1], cells[0][0], cells[0][1],
-                                       cells[0][0], cells[0][1], cells[0][0], cells[0][1]);
-  const __m256i cy = _mm256_setr_epi32(cells[1][0], cells[1][0], cells[1][1], cells[1][1],
-                                       cells[1][0], cells[1][0], cells[1][1], cells[1][1]);
-  const __m256i cz = _mm256_setr_epi32(cells[2][0], cells[2][0], cells[2][0], cells[2][0],
-                                       cells[2][1], cells[2][1], cells[2][1], cells[2][1]);
+  const __m256i base8 = _mm256_broadcastsi128_si256(base);
+  const __m256i cx = _mm256_add_epi32(_mm256_permutevar8x32_epi32(base8, _mm256_set1_epi32(0)),
+                                      _mm256_setr_epi32(0, 1, 0, 1, 0, 1, 0, 1));
+  const __m256i cy = _mm256_add_epi32(_mm256_permutevar8x32_epi32(base8, _mm256_set1_epi32(1)),
+                                      _mm256_setr_epi32(0, 0, 1, 1, 0, 0, 1, 1));
+  const __m256i cz = _mm256_add_epi32(_mm256_permutevar8x32_epi32(base8, _mm256_set1_epi32(2)),
+                                      _mm256_setr_epi32(0, 0, 0, 0, 1, 1, 1, 1));
   __m256i h = _mm256_set1_epi32(int32_t(kHashSeed));
   h = mix32x8(_mm256_xor_si256(h, _mm256_mullo_epi32(cx, _mm256_set1_epi32(int32_t(kHashPrimes[0])))));
   h = mix32x8(_mm256_xor_si256(h, _mm256_mullo_epi32(cy, _mm256_set1_epi32(int32_t(kHashPrimes[1])))));
