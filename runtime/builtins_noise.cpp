@@ -1,6 +1,7 @@
 // Perlin-type gradient noise with analytic gradient (language.md §6.5) for JIT-compiled shaders.
 // Lattice gradients come from an integer hash (no tables, no state), so results are identical
-// across runs, threads and entry points.
+// across runs, threads and entry points. The 3D noise, which fBm and its kin call once per octave,
+// also has an AVX2 twin that agrees with it to the bit, so results do not depend on the CPU either.
 #include "runtime/builtins_noise.h"
 
 #include <cmath>
@@ -207,14 +208,13 @@ float noise3Portable(const float* p, float* grad) {
   return 0.5f + 0.5f * value;
 }
 
-
 #if defined(__x86_64__) || defined(__i386__)
 #define RELIEF_NOISE_AVX2 1
 // noise3Portable, eight lattice corners to a vector: the corner hashes in three rounds of eight
 // lanes instead of fourteen scalar finalizers, the gradients by table permutes instead of a
-// division and loads, and the lerp trees on [value, gx, gy, gz] columns. Every floating-point
-// operation is the one noise3Portable does, in the same order (and the build forbids contraction
-// into FMA), so the two agree to the bit.
+// division and loads, the lerp trees on [value, gx, gy, gz] columns, and the three axes' fades
+// side by side. Every floating-point operation is the one noise3Portable does, in the same order
+// (and the build forbids contraction into FMA), so the two agree to the bit.
 [[gnu::target("avx2")]] inline __m256i mix32x8(__m256i h) {
   h = _mm256_xor_si256(h, _mm256_srli_epi32(h, 16));
   h = _mm256_mullo_epi32(h, _mm256_set1_epi32(int32_t(0x85ebca6bu)));
