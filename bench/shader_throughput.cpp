@@ -494,9 +494,31 @@ void BM_Noise3(benchmark::State& state, bool vectorised) {
   state.SetItemsProcessed(int64_t(state.iterations()) * kPoolSize);
 }
 
+// The other dimensions' noise through the shaders' entry points: calls per second.
+void BM_NoiseDims(benchmark::State& state, int dims) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> dist(-40, 40);
+  std::vector<float> points(4 * kPoolSize);
+  for (float& v : points) v = dist(rng);
+  for (auto _ : state) {
+    float sum = 0, grad[4];
+    for (uint32_t i = 0; i < kPoolSize; ++i) {
+      const float* p = &points[4 * i];
+      sum += dims == 1   ? rlf_noise1(p[0], grad)
+             : dims == 2 ? rlf_noise2(p[0], p[1], grad)
+                         : rlf_noise4(p[0], p[1], p[2], p[3], grad);
+      sum += grad[0];
+    }
+    benchmark::DoNotOptimize(sum);
+  }
+  state.SetItemsProcessed(int64_t(state.iterations()) * kPoolSize);
+}
+
 void registerAll() {
   benchmark::RegisterBenchmark("noise3/portable", BM_Noise3, false);
   benchmark::RegisterBenchmark("noise3/avx2", BM_Noise3, true);
+  for (int dims : {1, 2, 4})
+    benchmark::RegisterBenchmark(("noise" + std::to_string(dims)).c_str(), BM_NoiseDims, dims);
   for (const Example& ex : kExamples) {
     for (int batch : {256, 4096}) {
       benchmark::RegisterBenchmark((std::string("shade/") + ex.name + "/jit").c_str(), BM_Shade, ex, true)
