@@ -6,10 +6,12 @@
 #include <zlib.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cerrno>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <thread>
 
 namespace relief {
 namespace {
@@ -118,10 +120,36 @@ void filterRow(const uint8_t* row, const uint8_t* prev, size_t size, int bpp, st
   }
 }
 
+// Rows per compressed band. Each band is a raw deflate stream primed with the 32 KB of filtered
+// rows before it (so matches reach across the seam as in one stream) and ended by a sync flush, so
+// the bands concatenate into one deflate stream; the zlib wrapper's Adler-32 covers all of them.
+constexpr int kBandRows = 64;
+constexpr size_t kDeflateWindow = size_t(1) << 15;
+
+// Compresses data[begin, end) as one band; `last` ends the deflate stream. False on a zlib failure.
+bool deflateBand(const std::vector<uint8_t>& data, size_t begin, size_t end, bool last,
+                 std::vector<uint8_t>& out) {
+  z_stream z{};
+  if (deflateInit2(&z, 6, Z_DEFLATED, -15, 8, Z_DEFAULT_STRATEGY) != Z_OK) return false;
+  const size_t primed = std::min(begin, kDeflateWindow);
+  bool ok = primed == 0 || deflateSetDictionary(&z, data.data() + begin - primed, uInt(primed)) == Z_OK;
+  out.resize(deflateBound(&z, uLong(end - begin)) + 16);
+  z.next_in = const_cast<Bytef*>(data.data() + begin);
+  z.avail_in = uInt(end - begin);
+  z.next_out = out.data();
+  z.avail_out = uInt(out.size());
+  const int status = ok ? deflate(&z, last ? Z_FINISH : Z_SYNC_FLUSH) : Z_STREAM_ERROR;
+  ok = ok && (last ? status == Z_STREAM_END : status == Z_OK) && z.avail_in == 0;
+  out.resize(out.size() - z.avail_out);
+  deflateEnd(&z);
+  return ok;
+}
+
 }  // namespace
 
 bool writePng(const std::string& path, const Image8& image, bool srgb,
-              const std::vector<std::pair<std::string, std::string>>& text, std::string* error) {
+              const std::vector<std::pair<std::string, std::string>>& text, std::string* error,
+              int threads) {
   static const uint8_t kColourType[5] = {0, 0, 4, 2, 6};
   if (image.channels < 1 || image.channels > 4 || image.width <= 0 || image.height <= 0) {
     *error = "PNG holds 1 to 4 channels";
@@ -129,38 +157,35 @@ bool writePng(const std::string& path, const Image8& image, bool srgb,
   }
   const size_t rowBytes = size_t(image.width) * size_t(image.channels);
 
-  // The zlib stream of all filtered rows, compressed as they are produced.
-  z_stream z{};
-  if (deflateInit(&z, 6) != Z_OK) {
-    *error = "zlib initialisation failed";
-    return false;
-  }
-  std::vector<uint8_t> compressed, filtered, trial;
-  uint8_t buffer[1 << 16];
-  bool zlibOk = true;
-  auto pump = [&](const uint8_t* data, size_t size, int flush) {
-    z.next_in = const_cast<Bytef*>(data);
-    z.avail_in = uInt(size);
-    do {
-      z.next_out = buffer;
-      z.avail_out = sizeof buffer;
-      const int status = deflate(&z, flush);
-      if (status == Z_STREAM_ERROR) zlibOk = false;
-      compressed.insert(compressed.end(), buffer, buffer + (sizeof buffer - z.avail_out));
-    } while (zlibOk && (z.avail_out == 0 || (flush == Z_FINISH && z.avail_in > 0)));
-  };
-  for (int y = 0; y < image.height && zlibOk; ++y) {
+  std::vector<uint8_t> filtered, trial;
+  filtered.reserve(size_t(image.height) * (rowBytes + 1));
+  for (int y = 0; y < image.height; ++y) {
     const uint8_t* row = image.pixels + size_t(y) * rowBytes;
-    filtered.clear();
     filterRow(row, y > 0 ? row - rowBytes : nullptr, rowBytes, image.channels, filtered, trial);
-    pump(filtered.data(), filtered.size(), Z_NO_FLUSH);
   }
-  if (zlibOk) pump(nullptr, 0, Z_FINISH);
-  deflateEnd(&z);
+  const int numBands = (image.height + kBandRows - 1) / kBandRows;
+  std::vector<std::vector<uint8_t>> bands(static_cast<size_t>(numBands));
+  std::atomic<int> nextBand{0};
+  std::atomic<bool> zlibOk{true};
+  auto work = [&] {
+    for (int b; (b = nextBand.fetch_add(1)) < numBands && zlibOk.load();) {
+      const size_t begin = size_t(b) * kBandRows * (rowBytes + 1);
+      const size_t end = std::min(filtered.size(), begin + size_t(kBandRows) * (rowBytes + 1));
+      if (!deflateBand(filtered, begin, end, b + 1 == numBands, bands[size_t(b)])) zlibOk = false;
+    }
+  };
+  std::vector<std::thread> helpers;
+  for (int t = 1; t < std::min(threads, numBands); ++t) helpers.emplace_back(work);
+  work();
+  for (std::thread& h : helpers) h.join();
   if (!zlibOk) {
     *error = "zlib compression failed";
     return false;
   }
+  // The zlib stream: header (deflate, 32 KB window, default level), the bands, Adler-32.
+  std::vector<uint8_t> compressed = {0x78, 0x9c};
+  for (const std::vector<uint8_t>& band : bands) compressed.insert(compressed.end(), band.begin(), band.end());
+  putU32(compressed, uint32_t(adler32_z(adler32_z(0, nullptr, 0), filtered.data(), filtered.size())));
 
   OutFile file(path);
   static const uint8_t kSignature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};

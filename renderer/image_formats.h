@@ -20,8 +20,11 @@ struct Image8 {
 // PNG with zlib compression and per-row adaptive filters. `srgb`: a colour image (sRGB, gAMA and
 // cHRM chunks); otherwise data values (gAMA 1: linear). `text` pairs become
 // tEXt chunks (keywords PNG cannot store are skipped). Returns false with the reason in *error.
+// The rows are compressed in bands of fixed height, up to `threads` bands at once: the file's
+// bytes depend on the image alone, never on the thread count.
 bool writePng(const std::string& path, const Image8& image, bool srgb,
-              const std::vector<std::pair<std::string, std::string>>& text, std::string* error);
+              const std::vector<std::pair<std::string, std::string>>& text, std::string* error,
+              int threads = 1);
 
 // Binary PGM (1 channel) or PPM (3 channels); PNM has no alpha. False with the reason in *error.
 bool writePnm(const std::string& path, const Image8& image, std::string* error);

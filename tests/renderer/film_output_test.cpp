@@ -277,6 +277,41 @@ TEST(FilmOutput, PngUsesAndDecodesEveryRowFilter) {
     for (int x = 0; x < width; ++x) EXPECT_EQ(px[size_t(y * width + x)], float(rows[y][x])) << x << "," << y;
 }
 
+// A PNG taller than one compression band (writePng compresses 64-row bands, several at once):
+// the same bytes whatever the thread count, one valid zlib stream (uncompress checks the Adler-32
+// over every band), and the exact pixels back.
+TEST(FilmOutput, PngBandsGiveTheSameFileOnAnyThreadCount) {
+  const int width = 37, height = 203;
+  const Film film = patternFilm(width, height, false);
+  const fs::path dir = scratch();
+  auto bytesOf = [](const fs::path& path) {
+    std::ifstream in(path, std::ios::binary);
+    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  };
+  std::string first;
+  for (int threads : {1, 2, 3, 8}) {
+    SCOPED_TRACE(threads);
+    ImageWriteOptions options;
+    options.threads = threads;
+    const fs::path path = dir / ("bands" + std::to_string(threads) + ".png");
+    std::string error;
+    ASSERT_TRUE(film.write(path.string(), &error, options)) << error;
+    const std::string bytes = bytesOf(path);
+    if (first.empty()) first = bytes;
+    EXPECT_EQ(bytes, first);
+    EXPECT_EQ(pngRowFilters(path, width * 3).size(), size_t(height));  // every row inflated
+  }
+  int channels = 0;
+  const std::vector<float> px = readBack(dir / "bands3.png", OIIO::TypeDesc::UINT8, &channels);
+  ASSERT_EQ(channels, 3);
+  ASSERT_EQ(px.size(), size_t(width * height * 3));
+  int wrong = 0;
+  for (int y = 0; y < height; ++y)
+    for (int x = 0; x < width; ++x)
+      for (int k = 0; k < 3; ++k) wrong += px[size_t(y * width + x) * 3 + size_t(k)] != expectedByte(film.pixel(x, y)[k], true);
+  EXPECT_EQ(wrong, 0);
+}
+
 TEST(FilmOutput, PngCarriesMetadataAndItsColourSpace) {
   const fs::path path = scratch() / "m.png";
   ImageWriteOptions options;
