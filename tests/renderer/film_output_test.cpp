@@ -242,7 +242,7 @@ std::vector<int> pngRowFilters(const fs::path& path, int rowBytes) {
     if (file.compare(at + 4, 4, "IDAT") == 0) idat += file.substr(at + 8, length);
     at += 12 + length;
   }
-  std::vector<uint8_t> raw(1 << 16);
+  std::vector<uint8_t> raw(size_t(rowBytes + 1) * 1024);  // up to 1024 rows
   uLongf size = uLongf(raw.size());
   EXPECT_EQ(uncompress(raw.data(), &size, reinterpret_cast<const Bytef*>(idat.data()), uLong(idat.size())), Z_OK);
   std::vector<int> filters;
@@ -277,11 +277,12 @@ TEST(FilmOutput, PngUsesAndDecodesEveryRowFilter) {
     for (int x = 0; x < width; ++x) EXPECT_EQ(px[size_t(y * width + x)], float(rows[y][x])) << x << "," << y;
 }
 
-// A PNG taller than one compression band (writePng compresses 64-row bands, several at once):
-// the same bytes whatever the thread count, one valid zlib stream (uncompress checks the Adler-32
-// over every band), and the exact pixels back.
+// A PNG taller than one compression band (writePng compresses 64-row bands, several at once) and
+// large enough for its 8-bit conversion to be split among threads: the same bytes whatever the
+// thread count, one valid zlib stream (uncompress checks the Adler-32 over every band), and the
+// exact pixels back.
 TEST(FilmOutput, PngBandsGiveTheSameFileOnAnyThreadCount) {
-  const int width = 37, height = 203;
+  const int width = 331, height = 203;
   const Film film = patternFilm(width, height, false);
   const fs::path dir = scratch();
   auto bytesOf = [](const fs::path& path) {
