@@ -545,6 +545,18 @@ void cornerData(const Mesh& mesh, uint32_t triangle, glm::vec3 p[3], glm::vec3 n
     n[c] = mesh.N.size() != mesh.P.size() ? faceN : mesh.N[mesh.indices[3 * size_t(triangle) + c]];
 }
 
+// The three corners as the first vertices of a subdivision (level 0, displaced = undisplaced until
+// the shader runs).
+void pushCorners(Vertices& vs, const glm::vec3 p[3], const glm::vec3 n[3], const glm::vec2 uv[3],
+                 const glm::vec2 st[3]) {
+  const glm::vec2 cornerBary[3] = {{0, 0}, {1, 0}, {0, 1}};
+  for (int c = 0; c < 3; ++c) {
+    vs.P.push_back(p[c]), vs.N.push_back(n[c]), vs.uv.push_back(uv[c]), vs.st.push_back(st[c]);
+    vs.bary.push_back(cornerBary[c]), vs.level.push_back(0), vs.displaced.push_back(p[c]);
+    vs.decided.push_back(0);
+  }
+}
+
 }  // namespace
 
 bool displacedShadingNormal(const Mesh& mesh, uint32_t triangle, const Displacement& disp, glm::vec2 bary,
@@ -553,27 +565,19 @@ bool displacedShadingNormal(const Mesh& mesh, uint32_t triangle, const Displacem
   glm::vec3 p[3], n[3];
   glm::vec2 uv[3], st[3];
   cornerData(mesh, triangle, p, n, uv, st);
-  // One vertex where the hit is, set up as subdivision sets up its vertices (corner values
-  // interpolated, N normalized), at the level the subdivision of the undisplaced triangle reaches.
+  // One vertex where the hit is, made from the corners as subdivision makes its interior points,
+  // at the level the subdivision of the undisplaced triangle reaches; only it is evaluated.
   thread_local Vertices vs;
   thread_local Batch batch;
   vs.clear();
   batch.constCount = 0;
-  const float w[3] = {1.0f - bary.x - bary.y, bary.x, bary.y};
-  const glm::vec3 ni = w[0] * n[0] + w[1] * n[1] + w[2] * n[2];
-  const float len = glm::length(ni);
-  vs.P.push_back(w[0] * p[0] + w[1] * p[1] + w[2] * p[2]);
-  vs.N.push_back(len > 0.0f && std::isfinite(len) ? ni / len : n[0]);
-  vs.uv.push_back(w[0] * uv[0] + w[1] * uv[1] + w[2] * uv[2]);
-  vs.st.push_back(w[0] * st[0] + w[1] * st[1] + w[2] * st[2]);
-  vs.bary.push_back(bary);
-  vs.level.push_back(uint8_t(undisplacedLevels(p, disp.edgeLength, std::clamp(disp.maxDepth, 0, kMaxSubdivisionDepth))));
-  vs.decided.push_back(0);
-  vs.displaced.emplace_back(0.0f);
+  pushCorners(vs, p, n, uv, st);
+  addInteriorPoint(vs, 0, 1, 2, 1.0f - bary.x - bary.y, bary.x, bary.y,
+                   undisplacedLevels(p, disp.edgeLength, std::clamp(disp.maxDepth, 0, kMaxSubdivisionDepth)));
   const TriangleFrame frame = makeFrame(p, n, uv, st, mesh.N.size() == mesh.P.size());
   SubdivideCounters counters;  // shading-time evaluations stay out of the fill statistics
   RlfStatus status{};
-  displace(disp, frame, vs, 0, batch, counters, &status);
+  displace(disp, frame, vs, 3, batch, counters, &status);
   // As language.md §7 says, a bad final N (the shader then returns the input N) shades with the
   // micro-triangle's own normal, and so does an invocation that hit the loop limit.
   if (status.badNormal || status.nonFinite || status.loopLimit) return false;
@@ -593,13 +597,8 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
   vs.clear();
   glm::vec3 p[3], n[3];
   glm::vec2 uv[3], st[3];
-  const glm::vec2 cornerBary[3] = {{0, 0}, {1, 0}, {0, 1}};
   cornerData(mesh, triangle, p, n, uv, st);
-  for (int c = 0; c < 3; ++c) {
-    vs.P.push_back(p[c]), vs.N.push_back(n[c]), vs.uv.push_back(uv[c]), vs.st.push_back(st[c]);
-    vs.bary.push_back(cornerBary[c]), vs.level.push_back(0), vs.displaced.push_back(p[c]);
-    vs.decided.push_back(0);
-  }
+  pushCorners(vs, p, n, uv, st);
 
   const bool displaced = displacement != nullptr && displacement->shader != nullptr;
   out.indices.clear();
