@@ -173,6 +173,16 @@ float noise(const float* p, float* grad, const int32_t* period = nullptr) {
   return 0.5f + 0.5f * signedValue;
 }
 
+// The signed 3D noise value and its gradient as rlf_noise3 returns them: [0, 1], gradient halved.
+float noise3Result(float value, const float dvalue[3], float* grad) {
+  if (value <= -1 || value >= 1) {  // rare overshoot: flat at the clamp
+    grad[0] = grad[1] = grad[2] = 0;
+    return value <= -1 ? 0.0f : 1.0f;
+  }
+  for (int k = 0; k < 3; ++k) grad[k] = 0.5f * dvalue[k];
+  return 0.5f + 0.5f * value;
+}
+
 // The 3D case, which fBm and every spatial noise use, written out: eight corner dot products, then
 // three rounds of lerps for the value, with the weights' derivatives giving the analytic gradient.
 // The generic loop above spent about 1,100 instructions a call on index bookkeeping; this is the
@@ -219,12 +229,7 @@ float noise3Portable(const float* p, float* grad) {
   const float ddy = lerp(y1 - y0, y3 - y2, s[2]);
   const float ddz = z1 - z0;
   const float dvalue[3] = {tri(gx) + ds[0] * ddx, tri(gy) + ds[1] * ddy, tri(gz) + ds[2] * ddz};
-  if (value <= -1 || value >= 1) {  // rare overshoot: flat at the clamp
-    grad[0] = grad[1] = grad[2] = 0;
-    return value <= -1 ? 0.0f : 1.0f;
-  }
-  for (int k = 0; k < 3; ++k) grad[k] = 0.5f * dvalue[k];
-  return 0.5f + 0.5f * value;
+  return noise3Result(value, dvalue, grad);
 }
 
 #if defined(__x86_64__) || defined(__i386__)
@@ -241,6 +246,18 @@ float noise3Portable(const float* p, float* grad) {
   h = _mm256_mullo_epi32(h, _mm256_set1_epi32(int32_t(0xc2b2ae35u)));
   return _mm256_xor_si256(h, _mm256_srli_epi32(h, 16));
 }
+
+// kDirs3 column by column for lane permutes: [0][c][k] is direction k's component c (k < 8),
+// [1][c][k] direction 8 + k % 4's.
+constexpr auto kDirColumns = [] {
+  std::array<std::array<std::array<float, 8>, 3>, 2> columns{};
+  for (size_t c = 0; c < 3; ++c)
+    for (size_t k = 0; k < 8; ++k) {
+      columns[0][c][k] = kDirs3[k][c];
+      columns[1][c][k] = kDirs3[8 + k % 4][c];
+    }
+  return columns;
+}();
 
 // lerp(a, b, t) = a + t * (b - a), as in noise3Portable.
 [[gnu::target("avx2")]] inline __m128 lerp4(__m128 a, __m128 b, __m128 t) {
@@ -293,16 +310,10 @@ float noise3Portable(const float* p, float* grad) {
   const __m256i dir = _mm256_sub_epi32(x, q12);
   // kDirs3 by column: directions 0-7 permute from one table, 8-11 from another.
   const __m256i high = _mm256_cmpgt_epi32(dir, _mm256_set1_epi32(7));
-  static constexpr float kLo[3][8] = {{1, -1, 1, -1, 1, -1, 1, -1},
-                                      {1, 1, -1, -1, 0, 0, 0, 0},
-                                      {0, 0, 0, 0, 1, 1, -1, -1}};
-  static constexpr float kHi[3][8] = {{0, 0, 0, 0, 0, 0, 0, 0},
-                                      {1, -1, 1, -1, 1, -1, 1, -1},
-                                      {1, 1, -1, -1, 1, 1, -1, -1}};
   __m256 g[3];
   for (int c = 0; c < 3; ++c)
-    g[c] = _mm256_blendv_ps(_mm256_permutevar8x32_ps(_mm256_loadu_ps(kLo[c]), dir),
-                            _mm256_permutevar8x32_ps(_mm256_loadu_ps(kHi[c]), dir),
+    g[c] = _mm256_blendv_ps(_mm256_permutevar8x32_ps(_mm256_loadu_ps(kDirColumns[0][c].data()), dir),
+                            _mm256_permutevar8x32_ps(_mm256_loadu_ps(kDirColumns[1][c].data()), dir),
                             _mm256_castsi256_ps(high));
   const __m256 dx = _mm256_sub_ps(_mm256_set1_ps(f[0]), _mm256_setr_ps(0, 1, 0, 1, 0, 1, 0, 1));
   const __m256 dy = _mm256_sub_ps(_mm256_set1_ps(f[1]), _mm256_setr_ps(0, 0, 1, 1, 0, 0, 1, 1));
@@ -332,12 +343,7 @@ float noise3Portable(const float* p, float* grad) {
   const float value = out[0];
   const float dvalue[3] = {out[1] + ds[0] * _mm_cvtss_f32(ddx), out[2] + ds[1] * _mm_cvtss_f32(ddy),
                            out[3] + ds[2] * _mm_cvtss_f32(ddz)};
-  if (value <= -1 || value >= 1) {  // rare overshoot: flat at the clamp
-    grad[0] = grad[1] = grad[2] = 0;
-    return value <= -1 ? 0.0f : 1.0f;
-  }
-  for (int k = 0; k < 3; ++k) grad[k] = 0.5f * dvalue[k];
-  return 0.5f + 0.5f * value;
+  return noise3Result(value, dvalue, grad);
 }
 #endif
 
