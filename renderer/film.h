@@ -26,7 +26,7 @@ struct ImageWriteOptions {
   bool srgb = true;
   // String attributes stored in the file's header where the format has one (EXR, TIFF).
   std::vector<std::pair<std::string, std::string>> metadata;
-  // Threads that may compress a PNG (its bytes do not depend on how many).
+  // Threads that may convert to 8 bits and compress a PNG (the bytes do not depend on how many).
   int threads = 1;
 };
 

@@ -21,7 +21,6 @@
 #include <set>
 #include <streambuf>
 #include <string>
-#include <thread>
 #include <utility>
 #include <vector>
 
@@ -1054,7 +1053,7 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
     const bool floats = relief::isFloatFormat(path);
     relief::ImageWriteOptions writeOptions;
     writeOptions.metadata = metadata;
-    writeOptions.threads = cl.threads > 0 ? cl.threads : int(std::max(1u, std::thread::hardware_concurrency()));
+    writeOptions.threads = std::max(1, int(renderStats.threads));  // as many as rendered
     const relief::Film* image = &film;
     std::optional<relief::Film> mapped;  // AOVs made viewable for 8-bit formats
     switch (outputKind(modes[i])) {
