@@ -14,23 +14,33 @@
 namespace relief {
 namespace {
 
-// Undisplaced attributes of the vertices of one subdivision, structure of arrays.
+// Undisplaced attributes of the vertices of one subdivision, structure of arrays. The arrays only
+// grow (their length is the capacity, `count` the vertices in use): a new vertex costs one
+// capacity check instead of one per array, and every field of it is written by whoever appends it.
 struct Vertices {
   std::vector<glm::vec3> P, N;
   std::vector<glm::vec2> uv, st, bary;
   std::vector<uint8_t> level;
-  std::vector<uint8_t> decided;  // midpoints: its edge's simplification decision was queued
+  std::vector<uint8_t> decided;  // midpoints: kUndecided, kQueued or kFlatEdge (its edge's decision)
   std::vector<glm::vec3> displaced;
-  void clear() {
-    P.clear(), N.clear(), uv.clear(), st.clear(), bary.clear(), level.clear(), decided.clear();
-    displaced.clear();
+  uint32_t count = 0;
+  void clear() { count = 0; }
+  void truncate(uint32_t n) { count = n; }
+  uint32_t size() const { return count; }
+  // The index of a new vertex, its fields to be written by the caller.
+  uint32_t append() {
+    if (count == P.size()) grow();
+    return count++;
   }
-  void truncate(uint32_t n) {
+  void grow() {
+    const size_t n = std::max<size_t>(256, 2 * P.size());
     P.resize(n), N.resize(n), uv.resize(n), st.resize(n), bary.resize(n), level.resize(n);
     decided.resize(n), displaced.resize(n);
   }
-  uint32_t size() const { return uint32_t(P.size()); }
 };
+
+// Vertices::decided of a midpoint.
+constexpr uint8_t kUndecided = 0, kQueued = 1, kFlatEdge = 2;
 
 struct Float3Soa {
   std::vector<float> x, y, z;
@@ -63,29 +73,29 @@ class EdgeMap {
  public:
   void clear() {
     if (++generation_ == 0) {  // stamps wrapped: really clear
-      std::fill(stamps_.begin(), stamps_.end(), 0u);
+      for (Slot& slot : slots_) slot.stamp = 0;
       generation_ = 1;
     }
     size_ = 0;
   }
   // Returns the value slot for `key` and whether it was just inserted (then holding -1).
-  std::pair<int64_t*, bool> tryEmplace(uint64_t key) {
-    if (2 * (size_ + 1) > stamps_.size()) grow();
+  std::pair<int32_t*, bool> tryEmplace(uint64_t key) {
+    if (2 * (size_ + 1) > slots_.size()) grow();
     size_t i = hash(key);
-    while (stamps_[i] == generation_) {
-      if (keys_[i] == key) return {&values_[i], false};
-      i = (i + 1) & (stamps_.size() - 1);
+    while (slots_[i].stamp == generation_) {
+      if (slots_[i].key == key) return {&slots_[i].value, false};
+      i = (i + 1) & (slots_.size() - 1);
     }
-    stamps_[i] = generation_, keys_[i] = key, values_[i] = -1;
+    slots_[i] = {key, -1, generation_};
     ++size_;
-    return {&values_[i], true};
+    return {&slots_[i].value, true};
   }
   int64_t find(uint64_t key) const {
-    if (stamps_.empty()) return -1;
+    if (slots_.empty()) return -1;
     size_t i = hash(key);
-    while (stamps_[i] == generation_) {
-      if (keys_[i] == key) return values_[i];
-      i = (i + 1) & (stamps_.size() - 1);
+    while (slots_[i].stamp == generation_) {
+      if (slots_[i].key == key) return slots_[i].value;
+      i = (i + 1) & (slots_.size() - 1);
     }
     return -1;
   }
@@ -95,25 +105,34 @@ class EdgeMap {
   // see only the larger vertex index, so the edges around a vertex would share a slot).
   size_t hash(uint64_t k) const { return size_t((k * 0x9E3779B97F4A7C15ull) >> shift_); }
   void grow() {
-    std::vector<uint32_t> oldStamps = std::move(stamps_);
-    std::vector<uint64_t> oldKeys = std::move(keys_);
-    std::vector<int64_t> oldValues = std::move(values_);
-    const size_t capacity = std::max<size_t>(64, oldStamps.size() * 2);
-    stamps_.assign(capacity, 0u), keys_.resize(capacity), values_.resize(capacity);
+    std::vector<Slot> old = std::move(slots_);
+    const size_t capacity = std::max<size_t>(64, old.size() * 2);
+    slots_.assign(capacity, Slot{});
     shift_ = 64 - std::countr_zero(capacity);
     const uint32_t oldGeneration = generation_;
     generation_ = 1;
     size_ = 0;
-    for (size_t i = 0; i < oldStamps.size(); ++i)
-      if (oldStamps[i] == oldGeneration) *tryEmplace(oldKeys[i]).first = oldValues[i];
+    for (const Slot& slot : old)
+      if (slot.stamp == oldGeneration) *tryEmplace(slot.key).first = slot.value;
   }
-  std::vector<uint32_t> stamps_;
-  std::vector<uint64_t> keys_;
-  std::vector<int64_t> values_;
+  // 16-byte slots: a probe reads one cache line, not one per field.
+  struct Slot {
+    uint64_t key = 0;
+    int32_t value = 0;  // vertex counts stay far below 2^31 (memory runs out first)
+    uint32_t stamp = 0;
+  };
+  std::vector<Slot> slots_;
   uint32_t generation_ = 1;
   size_t size_ = 0;
   int shift_ = 63;
 };
+
+// The edge map's key of edge (a, b) either way round: (min << 32) | max, as the smaller of the two
+// packings, which compiles to a conditional move (half the edges come each way round, so a branch
+// on the order mispredicts often).
+inline uint64_t edgeKey(uint32_t a, uint32_t b) {
+  return std::min((uint64_t(a) << 32) | b, (uint64_t(b) << 32) | a);
+}
 
 struct Scratch {
   Vertices vertices;
@@ -342,17 +361,18 @@ void displace(const Displacement& disp, const TriangleFrame& frame, Vertices& vs
 // Appends the midpoint of edge (a, b). Every attribute is 0.5 * (x_a + x_b): addition commutes
 // exactly, so both triangles sharing the edge get the same bits whichever way round they see it.
 uint32_t addMidpoint(Vertices& vs, uint32_t a, uint32_t b) {
-  vs.P.push_back(0.5f * (vs.P[a] + vs.P[b]));
+  const uint32_t m = vs.append();
+  vs.P[m] = 0.5f * (vs.P[a] + vs.P[b]);
   glm::vec3 n = vs.N[a] + vs.N[b];
   float len = glm::length(n);
-  vs.N.push_back(len > 0.0f && std::isfinite(len) ? n / len : vs.N[std::min(a, b)]);
-  vs.uv.push_back(0.5f * (vs.uv[a] + vs.uv[b]));
-  vs.st.push_back(0.5f * (vs.st[a] + vs.st[b]));
-  vs.bary.push_back(0.5f * (vs.bary[a] + vs.bary[b]));
-  vs.level.push_back(uint8_t(std::max(vs.level[a], vs.level[b]) + 1));
-  vs.decided.push_back(0);
-  vs.displaced.emplace_back(0.0f);
-  return vs.size() - 1;
+  vs.N[m] = len > 0.0f && std::isfinite(len) ? n / len : vs.N[std::min(a, b)];
+  vs.uv[m] = 0.5f * (vs.uv[a] + vs.uv[b]);
+  vs.st[m] = 0.5f * (vs.st[a] + vs.st[b]);
+  vs.bary[m] = 0.5f * (vs.bary[a] + vs.bary[b]);
+  vs.level[m] = uint8_t(std::max(vs.level[a], vs.level[b]) + 1);
+  vs.decided[m] = kUndecided;
+  vs.displaced[m] = glm::vec3(0.0f);
+  return m;
 }
 
 void push(std::vector<uint32_t>& list, uint32_t a, uint32_t b, uint32_t c) {
@@ -371,17 +391,18 @@ constexpr int kMaxInteriorDepth = 5;
 // for interior samples and centres only, which no other triangle sees, so no symmetry is needed.
 uint32_t addInteriorPoint(Vertices& vs, uint32_t a, uint32_t b, uint32_t c, float wa, float wb,
                           float wc, int level) {
-  vs.P.push_back(wa * vs.P[a] + wb * vs.P[b] + wc * vs.P[c]);
+  const uint32_t m = vs.append();
+  vs.P[m] = wa * vs.P[a] + wb * vs.P[b] + wc * vs.P[c];
   const glm::vec3 n = wa * vs.N[a] + wb * vs.N[b] + wc * vs.N[c];
   const float len = glm::length(n);
-  vs.N.push_back(len > 0.0f && std::isfinite(len) ? n / len : vs.N[a]);
-  vs.uv.push_back(wa * vs.uv[a] + wb * vs.uv[b] + wc * vs.uv[c]);
-  vs.st.push_back(wa * vs.st[a] + wb * vs.st[b] + wc * vs.st[c]);
-  vs.bary.push_back(wa * vs.bary[a] + wb * vs.bary[b] + wc * vs.bary[c]);
-  vs.level.push_back(uint8_t(level));
-  vs.decided.push_back(0);
-  vs.displaced.emplace_back(0.0f);
-  return vs.size() - 1;
+  vs.N[m] = len > 0.0f && std::isfinite(len) ? n / len : vs.N[a];
+  vs.uv[m] = wa * vs.uv[a] + wb * vs.uv[b] + wc * vs.uv[c];
+  vs.st[m] = wa * vs.st[a] + wb * vs.st[b] + wc * vs.st[c];
+  vs.bary[m] = wa * vs.bary[a] + wb * vs.bary[b] + wc * vs.bary[c];
+  vs.level[m] = uint8_t(level);
+  vs.decided[m] = kUndecided;
+  vs.displaced[m] = glm::vec3(0.0f);
+  return m;
 }
 
 float distanceToSegment2(glm::vec3 p, glm::vec3 q, glm::vec3 m) {
@@ -551,9 +572,10 @@ void pushCorners(Vertices& vs, const glm::vec3 p[3], const glm::vec3 n[3], const
                  const glm::vec2 st[3]) {
   const glm::vec2 cornerBary[3] = {{0, 0}, {1, 0}, {0, 1}};
   for (int c = 0; c < 3; ++c) {
-    vs.P.push_back(p[c]), vs.N.push_back(n[c]), vs.uv.push_back(uv[c]), vs.st.push_back(st[c]);
-    vs.bary.push_back(cornerBary[c]), vs.level.push_back(0), vs.displaced.push_back(p[c]);
-    vs.decided.push_back(0);
+    const uint32_t k = vs.append();
+    vs.P[k] = p[c], vs.N[k] = n[c], vs.uv[k] = uv[c], vs.st[k] = st[c];
+    vs.bary[k] = cornerBary[c], vs.level[k] = 0, vs.displaced[k] = p[c];
+    vs.decided[k] = kUndecided;
   }
 }
 
@@ -629,7 +651,6 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
     std::vector<uint32_t>& activeCodes = scratch.activeCodes;
     std::vector<uint32_t>& nextCodes = scratch.nextCodes;
     activeCodes.assign({1});
-    scratch.ranks.assign(size_t(1) << (1 + 2 * kCullRounds), 0);
     const float cullGrow = std::max(0.0f, disp.boundWorld);
     // Whether this subdivision can teach `known` anything: a subtree of the last cull round, or
     // one finished earlier, kept without a known box, or a decision made afresh. (Boxes of
@@ -648,13 +669,13 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
     // end points farther apart than edgeLength, and depth left); kKept otherwise. Reads only the
     // edge's two end vertices, so both sides of a shared edge get the same answer.
     auto expand = [&](uint32_t a, uint32_t b) -> int64_t {
-      const uint64_t key = (uint64_t(std::min(a, b)) << 32) | std::max(a, b);
+      const uint64_t key = edgeKey(a, b);
       auto [value, inserted] = edges.tryEmplace(key);
       if (inserted) {
         const glm::vec3 d = vs.displaced[a] - vs.displaced[b];
         const bool wants = glm::dot(d, d) > edgeLength2;
         const bool allowed = std::max(vs.level[a], vs.level[b]) + 1 <= maxDepth;
-        if (wants && allowed) *value = addMidpoint(vs, a, b);
+        if (wants && allowed) *value = int32_t(addMidpoint(vs, a, b));
         depthLimited += wants && !allowed;
       }
       return *value;
@@ -687,16 +708,22 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
     auto midpoint = [&](uint32_t a, uint32_t b, uint32_t code) -> int64_t {
       const int64_t mid = expand(a, b);
       if (simplify && mid >= 0) {
-        const uint64_t key = (uint64_t(std::min(a, b)) << 32) | std::max(a, b);
+        const uint64_t key = edgeKey(a, b);
         bool flat = false;
         const bool memoized = memoize && memoDecision(code, flat);
         if (learnt) scratch.edgeCalls.push_back({code, key});
-        if (!vs.decided[size_t(mid)]) {
-          vs.decided[size_t(mid)] = 1;
+        if (vs.decided[size_t(mid)] == kUndecided) {
+          vs.decided[size_t(mid)] = kQueued;
           probes.push_back({key, a, b, uint32_t(mid), memoized ? flat : true, memoized});
         }
       }
       return mid;
+    };
+    // What the edge map holds now for an edge whose answer `mid` came from midpoint() earlier in
+    // this round: the only change since can be its decision that the edge stays whole
+    // (decideFlatEdges), which marks its midpoint; this spares a second hash lookup per edge.
+    auto settled = [&](int64_t mid) -> int64_t {
+      return mid >= 0 && vs.decided[size_t(mid)] == kFlatEdge ? kFlat : mid;
     };
     // Simplification, edge part (paper 3.1, made crack-free): an edge that wants splitting is kept
     // whole when every point its own recursive subdivision would create along it (the points the
@@ -738,7 +765,10 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
         }
       }
       for (const Probe& pr : probes)
-        if (pr.flat) *edges.tryEmplace(pr.key).first = kFlat;  // its points stay unreferenced
+        if (pr.flat) {
+          *edges.tryEmplace(pr.key).first = kFlat;  // its points stay unreferenced
+          vs.decided[pr.mid] = kFlatEdge;
+        }
       probes.clear();
     };
     // Simplification, interior part: a triangle left with three whole edges of which at least one
@@ -757,9 +787,7 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
       const uint32_t firstCentre = vs.size();
       for (size_t k = 0; k < active.size(); k += 3) {
         const uint32_t a = active[k], b = active[k + 1], c = active[k + 2];
-        int64_t m[3] = {edges.find((uint64_t(std::min(a, b)) << 32) | std::max(a, b)),
-                        edges.find((uint64_t(std::min(b, c)) << 32) | std::max(b, c)),
-                        edges.find((uint64_t(std::min(c, a)) << 32) | std::max(c, a))};
+        const int64_t m[3] = {settled(scratch.mids[k]), settled(scratch.mids[k + 1]), settled(scratch.mids[k + 2])};
         if (m[0] >= 0 || m[1] >= 0 || m[2] >= 0) continue;
         if (m[0] != kFlat && m[1] != kFlat && m[2] != kFlat) continue;
         const int level = std::max({vs.level[a], vs.level[b], vs.level[c]});
@@ -866,6 +894,9 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
       if (runaway) pc->runaway.store(true, std::memory_order_relaxed);
     };
     for (int round = 0; !active.empty(); ++round) {
+      // Ranks are counted from the first round past the cull rounds (most triangles of a fine
+      // mesh finish before it).
+      if (round == kCullRounds + 1) scratch.ranks.assign(size_t(1) << (1 + 2 * kCullRounds), 0);
       countGuardWork();
       if (disp.problems && disp.problems->runaway.load(std::memory_order_relaxed)) {
         // The render is stopping (setSubdivisionLimits): leave the rest, learn nothing.
@@ -916,9 +947,7 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
         int64_t m[3];  // m[e] on edge (v[e], v[e+1])
         int numSplit = 0;
         for (int e = 0; e < 3; ++e) {
-          m[e] = !simplify ? mids[k + size_t(e)]
-                           : edges.find((uint64_t(std::min(v[e], v[(e + 1) % 3])) << 32) |
-                                        std::max(v[e], v[(e + 1) % 3]));
+          m[e] = settled(mids[k + size_t(e)]);
           numSplit += m[e] >= 0;
         }
         if (numSplit == 0 && simplify && scratch.centre[k / 3] >= 0) {
@@ -971,7 +1000,10 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
       // 2V - B - 2 triangles (Euler); the unsimplified mesh triangulates (about) every point
       // evaluated here: the points along flat edges exactly, interiors as sampled.
       uint64_t border = 0;
-      for (glm::vec2 b : vs.bary) border += b.x == 0.0f || b.y == 0.0f || b.x + b.y == 1.0f;
+      for (uint32_t i = 0; i < vs.size(); ++i) {
+        const glm::vec2 b = vs.bary[i];
+        border += b.x == 0.0f || b.y == 0.0f || b.x + b.y == 1.0f;
+      }
       const int64_t points = int64_t(vs.size() + samplePoints);
       before = uint64_t(std::max(int64_t(after), 2 * points - int64_t(border) - 2));
     }
@@ -987,9 +1019,9 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
     out.ids.push_back(kWholeTriangleId);
     ++counters.trianglesBeforeSimplification, ++counters.trianglesAfterSimplification;
   }
-  out.P = vs.displaced;
-  out.bary = vs.bary;
-  out.level = vs.level;
+  out.P.assign(vs.displaced.begin(), vs.displaced.begin() + vs.size());
+  out.bary.assign(vs.bary.begin(), vs.bary.begin() + vs.size());
+  out.level.assign(vs.level.begin(), vs.level.begin() + vs.size());
 }
 
 int undisplacedLevels(const glm::vec3 p[3], float edgeLength, int maxDepth) {
