@@ -90,6 +90,11 @@ class EdgeMap {
     ++size_;
     return {&slots_[i].value, true};
   }
+  // Starts loading `key`'s slot: a fill's tables outgrow the L2 cache, and each probe of them
+  // would otherwise wait for memory.
+  void prefetch(uint64_t key) const {
+    if (!slots_.empty()) __builtin_prefetch(&slots_[hash(key)]);
+  }
   int64_t find(uint64_t key) const {
     if (slots_.empty()) return -1;
     size_t i = hash(key);
@@ -928,9 +933,16 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
       // spares a second hash lookup per edge below.
       std::vector<int64_t>& mids = scratch.mids;
       mids.resize(active.size());
-      for (size_t k = 0; k < active.size(); k += 3)
+      constexpr size_t kPrefetchAhead = 3 * 4;  // triangles ahead, in indices
+      for (size_t k = 0; k < active.size(); k += 3) {
+        if (k + kPrefetchAhead + 2 < active.size()) {
+          const uint32_t* f = &active[k + kPrefetchAhead];
+          edges.prefetch(edgeKey(f[0], f[1])), edges.prefetch(edgeKey(f[1], f[2]));
+          edges.prefetch(edgeKey(f[2], f[0]));
+        }
         for (int e = 0; e < 3; ++e)
           mids[k + size_t(e)] = midpoint(active[k + e], active[k + (e + 1) % 3], activeCodes[k / 3]);
+      }
       displace(disp, frame, vs, firstNew, scratch.batch, counters);
       if (simplify) {
         decideFlatEdges();
