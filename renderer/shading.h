@@ -27,6 +27,8 @@ struct RenderStats {
   // (RenderOptions::sharedWalk); their rays are counted once, when traced to the end.
   uint64_t deferredPixels = 0;
   bool sharedWalk = false;  // the threads shared one walk over the pixels (RenderOptions)
+  // Most bytes of traced samples held at once while they waited for filtering (render.cpp).
+  uint64_t peakSampleBytes = 0;
   // The render stopped before every pixel was traced: a subdivision ran away (subdivide.h,
   // setSubdivisionLimits). The film is then incomplete and must not be written.
   bool stopped = false;

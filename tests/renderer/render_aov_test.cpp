@@ -227,6 +227,35 @@ TEST(RenderFilter, ImageIsBitIdenticalAcrossOrdersAndThreads) {
   }
 }
 
+// Traced samples wait for filtering only until every pixel within the filter's reach is traced:
+// in scanline order, a few rows' worth, not the image's. The image is the same whatever the order
+// (ImageIsBitIdenticalAcrossOrdersAndThreads), so the bound is on memory alone.
+TEST(RenderFilter, SamplesAreHeldOnlyWhileNeeded) {
+  Scene scene;
+  glassBoxScene(&scene, 96, 80);
+  const uint64_t everySample = uint64_t(96) * 80 * 16 * 16;  // 16 spp, 16 bytes each
+  for (FilterType f : {FilterType::Box, FilterType::BlackmanHarris}) {
+    RenderOptions o;
+    o.filter = f;
+    o.samplesPerPixel = 16;
+    o.threads = 1;
+    o.order = PixelOrder::Scanline;
+    test::BruteForceAccelerator accel(scene);
+    Film film(scene.width, scene.height);
+    const RenderStats stats = render(scene, accel, o, &film);
+    // Both reach into the next 8x8 tile only: three rows of tiles are held at most (24 of 80 rows).
+    EXPECT_GT(stats.peakSampleBytes, 0u) << filterName(f);
+    EXPECT_LE(stats.peakSampleBytes, everySample * 24 / 80) << filterName(f);
+    EXPECT_TRUE(film.data() == test::renderWith(scene, [&] {
+                  RenderOptions h = o;
+                  h.order = PixelOrder::Hilbert;
+                  h.threads = 3;
+                  return h;
+                }()).data())
+        << filterName(f);
+  }
+}
+
 TEST(RenderFilter, SampleOffsetsAreStratified) {
   for (int count : {2, 3, 4, 5, 9, 16}) {
     const int side = int(std::lround(std::sqrt(double(count))));
