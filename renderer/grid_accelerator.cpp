@@ -156,16 +156,24 @@ void buildBvh(VoxelGeometry& g, float padding) {
     glm::vec3 centre;
     uint32_t index;
   };
-  thread_local std::vector<Bounds3> boxes;
+  // Triangle boxes padded to 4 floats a corner, for whole-vector min and max in the binning.
+  struct alignas(16) Box {
+    glm::vec3 lo;
+    float padLo;
+    glm::vec3 hi;
+    float padHi;
+  };
+  thread_local std::vector<Box> boxes;
   thread_local std::vector<Ref> refs;
   boxes.resize(n);
   refs.resize(n);
   glm::vec3 lo(std::numeric_limits<float>::infinity()), hi(-std::numeric_limits<float>::infinity());
   for (uint32_t i = 0; i < n; ++i) {
     const glm::uvec3 t = g.triangle(i);
-    Bounds3& b = boxes[i];
+    Box& b = boxes[i];
     b.lo = glm::min(g.P[t.x], glm::min(g.P[t.y], g.P[t.z])) - glm::vec3(padding);
     b.hi = glm::max(g.P[t.x], glm::max(g.P[t.y], g.P[t.z])) + glm::vec3(padding);
+    b.padLo = b.padHi = 0.0f;
     refs[i] = {0.5f * (b.lo + b.hi), i};
     lo = glm::min(lo, b.lo), hi = glm::max(hi, b.hi);
   }
@@ -199,7 +207,7 @@ void buildBvh(VoxelGeometry& g, float padding) {
     glm::vec3 blo(std::numeric_limits<float>::infinity()), bhi(-std::numeric_limits<float>::infinity());
     glm::vec3 clo = blo, chi = bhi;
     for (uint32_t k = task.begin; k < task.end; ++k) {
-      const Bounds3& b = boxes[refs[k].index];
+      const Box& b = boxes[refs[k].index];
       blo = glm::min(blo, b.lo), bhi = glm::max(bhi, b.hi);
       clo = glm::min(clo, refs[k].centre), chi = glm::max(chi, refs[k].centre);
     }
@@ -226,12 +234,36 @@ void buildBvh(VoxelGeometry& g, float padding) {
       auto binOf = [&](const Ref& r) {
         return std::min(int((r.centre[axis] - clo[axis]) * toBin), kBvhBins - 1);
       };
+#if defined(__SSE2__)
+      // Two sets of bin boxes, for even and odd triangles: neighbouring triangles mostly fall in
+      // one bin, and with one set each update would wait for the previous one's store. Only the
+      // boxes' areas are used, so how the two are merged cannot change the tree.
+      __m128 binLo[2][kBvhBins], binHi[2][kBvhBins];
+      for (int i = 0; i < kBvhBins; ++i)
+        for (int set = 0; set < 2; ++set)
+          binLo[set][i] = _mm_set1_ps(std::numeric_limits<float>::infinity()),
+          binHi[set][i] = _mm_set1_ps(-std::numeric_limits<float>::infinity());
+      for (uint32_t k = task.begin; k < task.end; ++k) {
+        const int i = binOf(refs[k]);
+        const Box& t = boxes[refs[k].index];
+        binLo[k & 1][i] = _mm_min_ps(binLo[k & 1][i], _mm_load_ps(&t.lo.x));
+        binHi[k & 1][i] = _mm_max_ps(binHi[k & 1][i], _mm_load_ps(&t.hi.x));
+        ++bins[i].count;
+      }
+      for (int i = 0; i < kBvhBins; ++i) {
+        alignas(16) float lo[4], hi[4];
+        _mm_store_ps(lo, _mm_min_ps(binLo[0][i], binLo[1][i]));
+        _mm_store_ps(hi, _mm_max_ps(binHi[0][i], binHi[1][i]));
+        bins[i].box = {glm::vec3(lo[0], lo[1], lo[2]), glm::vec3(hi[0], hi[1], hi[2])};
+      }
+#else
       for (uint32_t k = task.begin; k < task.end; ++k) {
         Bin& b = bins[binOf(refs[k])];
-        const Bounds3& t = boxes[refs[k].index];
+        const Box& t = boxes[refs[k].index];
         b.box.lo = glm::min(b.box.lo, t.lo), b.box.hi = glm::max(b.box.hi, t.hi);
         ++b.count;
       }
+#endif
       auto area = [](const Bounds3& b) {
         const glm::vec3 d = b.hi - b.lo;
         return d.x * d.y + d.y * d.z + d.z * d.x;
