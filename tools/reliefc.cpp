@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cerrno>
+#include <cstring>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -37,6 +39,8 @@ constexpr const char* kUsage =
     "  -ferror-limit=N            stop after N errors (default 20, 0: no limit)\n"
     "  -floop-limit=N             loop iterations per shading point before it aborts (default 1048576)\n"
     "  --emit-llvm                print the optimized LLVM IR\n"
+    "  -o file                    write what is printed (IR, syntax tree, --eval) to file, and\n"
+    "                             only if every input compiled; alone it means --emit-llvm\n"
     "  --emit-ast                 print the syntax tree\n"
     "  --color=auto|always|never  colored diagnostics\n"
     "  --diagnostics-format=text|json\n"
@@ -57,6 +61,7 @@ struct Args {
   std::string shader;
   std::vector<std::pair<std::string, std::string>> params;
   std::string at;
+  std::string output;  // -o: empty for standard output
   unsigned errorLimit = 20;
   std::vector<std::string> disabledWarnings;
   std::vector<std::string> errorWarnings, notErrorWarnings;  // -Werror=<name>, -Wno-error=<name>
@@ -70,6 +75,30 @@ bool parseCount(const char* text, uint32_t* out) {
   const unsigned long n = std::strtoul(text, &end, 10);
   if (*end || n > 0x7fffffffUL) return false;
   *out = uint32_t(n);
+  return true;
+}
+
+// Writes `text` to `path` under a temporary name in the same directory, then renames it into
+// place: readers never see a partial file. False with *error set on failure (nothing left behind).
+bool writeFileAtomically(const std::string& path, const std::string& text, std::string* error) {
+  const std::string tmp = path + ".reliefc-" + std::to_string(getpid());
+  FILE* f = std::fopen(tmp.c_str(), "wb");
+  if (!f) {
+    *error = std::strerror(errno);
+    return false;
+  }
+  const bool written = std::fwrite(text.data(), 1, text.size(), f) == text.size();
+  const int savedErrno = errno;
+  if (std::fclose(f) != 0 || !written) {
+    *error = std::strerror(written ? errno : savedErrno);
+    std::remove(tmp.c_str());
+    return false;
+  }
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+    *error = std::strerror(errno);
+    std::remove(tmp.c_str());
+    return false;
+  }
   return true;
 }
 
@@ -299,6 +328,11 @@ int main(int argc, char** argv) {
       uint32_t n = 0;  // 0: no limit
       if (!parseCount(a.c_str() + 14, &n)) return usageError("bad value for -ferror-limit: '" + a.substr(14) + "'");
       args.errorLimit = n;
+    } else if (a == "-o" || (a.rfind("-o", 0) == 0 && a.size() > 2)) {
+      if (a == "-o" && i + 1 >= argc) return usageError("missing file name after '-o'");
+      if (!args.output.empty()) return usageError("'-o' given more than once");
+      args.output = a == "-o" ? argv[++i] : a.substr(2);
+      if (args.output.empty()) return usageError("empty file name after '-o'");
     } else if (a == "--emit-llvm") {
       args.emitLlvm = true;
     } else if (a == "--emit-ast") {
@@ -338,6 +372,13 @@ int main(int argc, char** argv) {
   if (std::count(args.files.begin(), args.files.end(), "-") > 1)
     return usageError("standard input ('-') named more than once: it can be read only once");
   if (args.eval && args.files.size() != 1) return usageError("--eval takes exactly one file");
+  // `reliefc shader.disp -o shader.ll` asks for the IR, as clang's -S -emit-llvm would give it.
+  if (!args.output.empty() && !args.emitAst && !args.eval) args.emitLlvm = true;
+  // What would go to standard output is collected and written to the -o file at the end, so a
+  // failed compile leaves no file (and an earlier one intact) rather than a partial one.
+  std::ostringstream collected;
+  std::streambuf* const stdoutBuffer = args.output.empty() || args.output == "-" ? nullptr
+                                                                                : std::cout.rdbuf(collected.rdbuf());
 
   // Problems with the options themselves, in the format asked for (JSON Lines stay valid).
   for (const std::string& message : optionWarnings) {
@@ -394,6 +435,16 @@ int main(int argc, char** argv) {
     if (args.eval) {
       const int rc = evaluate(args, result);
       if (rc) exitCode = std::max(exitCode, rc);
+    }
+  }
+  if (stdoutBuffer) {
+    std::cout.rdbuf(stdoutBuffer);
+    if (exitCode == 0) {
+      std::string error;
+      if (!writeFileAtomically(args.output, collected.str(), &error)) {
+        std::cerr << "reliefc: error: cannot write '" << args.output << "': " << error << "\n";
+        exitCode = 2;
+      }
     }
   }
   if (!args.json) {

@@ -274,6 +274,43 @@ TEST(CliTest, StandardInputAndTheEndOfOptions) {
   EXPECT_EQ(reliefc("-odd.disp", dir).exitCode, 2);  // taken for an option
 }
 
+// -o writes what would be printed to a file, only when every input compiled: a failed compile
+// leaves an earlier file as it was, and an unwritable path is an I/O error (exit 2) naming it.
+TEST(CliTest, OutputFileIsWrittenOnlyWhenEveryInputCompiles) {
+  const fs::path dir = fs::path(::testing::TempDir()) / ("reliefc_o_" + std::to_string(getpid()));
+  fs::create_directories(dir);
+  std::ofstream(dir / "lift.disp") << "displacement lift(float Km = 0.05)\n{\n    P += Km * normalize(N);\n}\n";
+  std::ofstream(dir / "broken.disp") << "displacement d() { P += N * Kn; }\n";
+  const CliRun printed = reliefc("--emit-llvm lift.disp", dir);
+  ASSERT_EQ(printed.exitCode, 0) << printed.err;
+  ASSERT_NE(printed.out.find("define"), std::string::npos) << printed.out;
+
+  // Alone, -o means --emit-llvm; nothing goes to standard output then.
+  const CliRun written = reliefc("lift.disp -o lift.ll", dir);
+  EXPECT_EQ(written.exitCode, 0) << written.err;
+  EXPECT_EQ(written.out, "");
+  EXPECT_EQ(readFile(dir / "lift.ll"), printed.out);
+  const CliRun ast = reliefc("--emit-ast -olift.ast lift.disp", dir);
+  EXPECT_EQ(ast.exitCode, 0) << ast.err;
+  EXPECT_EQ(readFile(dir / "lift.ast"), reliefc("--emit-ast lift.disp", dir).out);
+
+  // An error in any input: exit 1, and the earlier file is untouched.
+  const CliRun failed = reliefc("lift.disp broken.disp -o lift.ll", dir);
+  EXPECT_EQ(failed.exitCode, 1);
+  EXPECT_EQ(readFile(dir / "lift.ll"), printed.out);
+  EXPECT_EQ(failed.out, "");
+
+  const CliRun unwritable = reliefc("lift.disp -o no/such/dir/lift.ll", dir);
+  EXPECT_EQ(unwritable.exitCode, 2);
+  EXPECT_NE(unwritable.err.find("cannot write 'no/such/dir/lift.ll'"), std::string::npos) << unwritable.err;
+  EXPECT_EQ(reliefc("lift.disp -o", dir).exitCode, 2);
+  EXPECT_EQ(reliefc("lift.disp -o a.ll -o b.ll", dir).exitCode, 2);
+  // Nothing but the two outputs is left in the directory (no temporary files).
+  size_t files = 0;
+  for (const auto& e : fs::directory_iterator(dir)) files += e.is_regular_file();
+  EXPECT_EQ(files, 4u);
+}
+
 // §7: the loop limit is a run-time error: said as one, with exit code 1.
 TEST(CliTest, EvalLoopLimitIsAnErrorExitCode) {
   const fs::path loop = writeTemp("relief_loop.disp", "displacement spin() { float x = 0; while (x >= 0) x += 1; P += x * N; }\n");
