@@ -14,12 +14,23 @@
 namespace relief {
 namespace {
 
+struct Float3Soa {
+  std::vector<float> x, y, z;
+  void resize(size_t n) { x.resize(n), y.resize(n), z.resize(n); }
+  void set(size_t i, glm::vec3 v) { x[i] = v.x, y[i] = v.y, z[i] = v.z; }
+  glm::vec3 get(size_t i) const { return {x[i], y[i], z[i]}; }
+  RlfFloat3Array view(size_t first = 0) { return {x.data() + first, y.data() + first, z.data() + first}; }
+};
+
 // Undisplaced attributes of the vertices of one subdivision, structure of arrays. The arrays only
 // grow (their length is the capacity, `count` the vertices in use): a new vertex costs one
 // capacity check instead of one per array, and every field of it is written by whoever appends it.
+// P, N, u, v, s and t are kept as the shader batch takes them (RlfShadingBatch), so a batch points
+// into them instead of copying them.
 struct Vertices {
-  std::vector<glm::vec3> P, N;
-  std::vector<glm::vec2> uv, st, bary;
+  Float3Soa P, N;
+  std::vector<float> u, v, s, t;
+  std::vector<glm::vec2> bary;
   std::vector<uint8_t> level;
   std::vector<uint8_t> decided;  // midpoints: kUndecided, kQueued or kFlatEdge (its edge's decision)
   std::vector<glm::vec3> displaced;
@@ -27,14 +38,19 @@ struct Vertices {
   void clear() { count = 0; }
   void truncate(uint32_t n) { count = n; }
   uint32_t size() const { return count; }
+  glm::vec2 uv(uint32_t k) const { return {u[k], v[k]}; }
+  glm::vec2 st(uint32_t k) const { return {s[k], t[k]}; }
+  void setUv(uint32_t k, glm::vec2 p) { u[k] = p.x, v[k] = p.y; }
+  void setSt(uint32_t k, glm::vec2 p) { s[k] = p.x, t[k] = p.y; }
   // The index of a new vertex, its fields to be written by the caller.
   uint32_t append() {
-    if (count == P.size()) grow();
+    if (count == u.size()) grow();
     return count++;
   }
   void grow() {
-    const size_t n = std::max<size_t>(256, 2 * P.size());
-    P.resize(n), N.resize(n), uv.resize(n), st.resize(n), bary.resize(n), level.resize(n);
+    const size_t n = std::max<size_t>(256, 2 * u.size());
+    P.resize(n), N.resize(n), u.resize(n), v.resize(n), s.resize(n), t.resize(n);
+    bary.resize(n), level.resize(n);
     decided.resize(n), displaced.resize(n);
   }
 };
@@ -42,27 +58,19 @@ struct Vertices {
 // Vertices::decided of a midpoint.
 constexpr uint8_t kUndecided = 0, kQueued = 1, kFlatEdge = 2;
 
-struct Float3Soa {
-  std::vector<float> x, y, z;
-  void resize(size_t n) { x.resize(n), y.resize(n), z.resize(n); }
-  void set(size_t i, glm::vec3 v) { x[i] = v.x, y[i] = v.y, z[i] = v.z; }
-  glm::vec3 get(size_t i) const { return {x[i], y[i], z[i]}; }
-  RlfFloat3Array view() { return {x.data(), y.data(), z.data()}; }
-};
-
 // The SoA buffers of one shader batch, reused across calls on one thread.
 struct Batch {
-  Float3Soa P, N, Ng, dPdu, dPdv, dNdu, dNdv, Pout, Nout;
-  std::vector<float> u, v, s, t, du, dv, dsdu, dsdv, dtdu, dtdv;
+  Float3Soa Ng, dPdu, dPdv, dNdu, dNdv, Pout, Nout;  // P, N, u, v, s, t: views into the Vertices
+  std::vector<float> du, dv, dsdu, dsdv, dtdu, dtdv;
   // Elements [0, constCount) of the fields uniform over an input triangle (Ng, dPdu, dPdv, dNdu,
   // dNdv, the s/t seeds) already hold the current triangle's values: each call fills them once.
   uint32_t constCount = 0;
   void grow(size_t n) {
-    if (P.x.size() < n) resize(std::max(n, 2 * P.x.size()));
+    if (Pout.x.size() < n) resize(std::max(n, 2 * Pout.x.size()));
   }
   void resize(size_t n) {
-    for (Float3Soa* a : {&P, &N, &Ng, &dPdu, &dPdv, &dNdu, &dNdv, &Pout, &Nout}) a->resize(n);
-    for (std::vector<float>* a : {&u, &v, &s, &t, &du, &dv, &dsdu, &dsdv, &dtdu, &dtdv}) a->resize(n);
+    for (Float3Soa* a : {&Ng, &dPdu, &dPdv, &dNdu, &dNdv, &Pout, &Nout}) a->resize(n);
+    for (std::vector<float>* a : {&du, &dv, &dsdu, &dsdv, &dtdu, &dtdv}) a->resize(n);
   }
 };
 
@@ -278,23 +286,20 @@ void displace(const Displacement& disp, const TriangleFrame& frame, Vertices& vs
     return table;
   }();
   for (uint32_t i = 0; i < n; ++i) {
-    const uint32_t k = first + i;
-    batch.P.set(i, vs.P[k]);
-    batch.N.set(i, vs.N[k]);
-    batch.u[i] = vs.uv[k].x, batch.v[i] = vs.uv[k].y;
-    batch.s[i] = vs.st[k].x, batch.t[i] = vs.st[k].y;
-    const float sp = spacing[size_t(std::min<int>(vs.level[k], kMaxLevel))];
+    const float sp = spacing[size_t(std::min<int>(vs.level[first + i], kMaxLevel))];
     batch.du[i] = frame.uExtent * sp, batch.dv[i] = frame.vExtent * sp;
-    // The ABI has the shader write every output; preset them anyway so a shader that does not
-    // cannot leak an earlier batch's values (thread-dependent) into the geometry.
-    batch.Pout.set(i, vs.P[k]);
-    batch.Nout.set(i, vs.N[k]);
   }
+  // The ABI has the shader write every output; preset them anyway so a shader that does not
+  // cannot leak an earlier batch's values (thread-dependent) into the geometry.
+  const size_t bytes = size_t(n) * sizeof(float);
+  std::memcpy(batch.Pout.x.data(), &vs.P.x[first], bytes), std::memcpy(batch.Pout.y.data(), &vs.P.y[first], bytes);
+  std::memcpy(batch.Pout.z.data(), &vs.P.z[first], bytes), std::memcpy(batch.Nout.x.data(), &vs.N.x[first], bytes);
+  std::memcpy(batch.Nout.y.data(), &vs.N.y[first], bytes), std::memcpy(batch.Nout.z.data(), &vs.N.z[first], bytes);
   RlfShadingBatch b{};
   b.count = n;
-  b.P = batch.P.view(), b.N = batch.N.view(), b.Ng = batch.Ng.view();
+  b.P = vs.P.view(first), b.N = vs.N.view(first), b.Ng = batch.Ng.view();
   b.dPdu = batch.dPdu.view(), b.dPdv = batch.dPdv.view();
-  b.u = batch.u.data(), b.v = batch.v.data(), b.s = batch.s.data(), b.t = batch.t.data();
+  b.u = &vs.u[first], b.v = &vs.v[first], b.s = &vs.s[first], b.t = &vs.t[first];
   b.du = batch.du.data(), b.dv = batch.dv.data();
   b.dsdu = batch.dsdu.data(), b.dsdv = batch.dsdv.data();
   b.dtdu = batch.dtdu.data(), b.dtdv = batch.dtdv.data();
@@ -328,11 +333,11 @@ void displace(const Displacement& disp, const TriangleFrame& frame, Vertices& vs
     glm::vec3 p = batch.Pout.get(i);
     if (finite(p)) {
       vs.displaced[first + i] = p;
-      const glm::vec3 d = p - vs.P[first + i];
+      const glm::vec3 d = p - vs.P.get(first + i);
       const float move2 = glm::dot(d, d);
       if (move2 > bound2) ++outOfBound, maxMove2 = std::max(maxMove2, move2);
     } else {
-      vs.displaced[first + i] = vs.P[first + i];
+      vs.displaced[first + i] = vs.P.get(first + i);
       ++replaced;
     }
   }
@@ -367,12 +372,12 @@ void displace(const Displacement& disp, const TriangleFrame& frame, Vertices& vs
 // exactly, so both triangles sharing the edge get the same bits whichever way round they see it.
 uint32_t addMidpoint(Vertices& vs, uint32_t a, uint32_t b) {
   const uint32_t m = vs.append();
-  vs.P[m] = 0.5f * (vs.P[a] + vs.P[b]);
-  glm::vec3 n = vs.N[a] + vs.N[b];
+  vs.P.set(m, 0.5f * (vs.P.get(a) + vs.P.get(b)));
+  glm::vec3 n = vs.N.get(a) + vs.N.get(b);
   float len = glm::length(n);
-  vs.N[m] = len > 0.0f && std::isfinite(len) ? n / len : vs.N[std::min(a, b)];
-  vs.uv[m] = 0.5f * (vs.uv[a] + vs.uv[b]);
-  vs.st[m] = 0.5f * (vs.st[a] + vs.st[b]);
+  vs.N.set(m, len > 0.0f && std::isfinite(len) ? n / len : vs.N.get(std::min(a, b)));
+  vs.setUv(m, 0.5f * (vs.uv(a) + vs.uv(b)));
+  vs.setSt(m, 0.5f * (vs.st(a) + vs.st(b)));
   vs.bary[m] = 0.5f * (vs.bary[a] + vs.bary[b]);
   vs.level[m] = uint8_t(std::max(vs.level[a], vs.level[b]) + 1);
   vs.decided[m] = kUndecided;
@@ -397,12 +402,12 @@ constexpr int kMaxInteriorDepth = 5;
 uint32_t addInteriorPoint(Vertices& vs, uint32_t a, uint32_t b, uint32_t c, float wa, float wb,
                           float wc, int level) {
   const uint32_t m = vs.append();
-  vs.P[m] = wa * vs.P[a] + wb * vs.P[b] + wc * vs.P[c];
-  const glm::vec3 n = wa * vs.N[a] + wb * vs.N[b] + wc * vs.N[c];
+  vs.P.set(m, wa * vs.P.get(a) + wb * vs.P.get(b) + wc * vs.P.get(c));
+  const glm::vec3 n = wa * vs.N.get(a) + wb * vs.N.get(b) + wc * vs.N.get(c);
   const float len = glm::length(n);
-  vs.N[m] = len > 0.0f && std::isfinite(len) ? n / len : vs.N[a];
-  vs.uv[m] = wa * vs.uv[a] + wb * vs.uv[b] + wc * vs.uv[c];
-  vs.st[m] = wa * vs.st[a] + wb * vs.st[b] + wc * vs.st[c];
+  vs.N.set(m, len > 0.0f && std::isfinite(len) ? n / len : vs.N.get(a));
+  vs.setUv(m, wa * vs.uv(a) + wb * vs.uv(b) + wc * vs.uv(c));
+  vs.setSt(m, wa * vs.st(a) + wb * vs.st(b) + wc * vs.st(c));
   vs.bary[m] = wa * vs.bary[a] + wb * vs.bary[b] + wc * vs.bary[c];
   vs.level[m] = uint8_t(level);
   vs.decided[m] = kUndecided;
@@ -450,8 +455,9 @@ bool boxesOverlap(const CullBox& a, const CullBox& b) {
 // Whether the displaced descendants of triangle (a, b, c) may reach `box`: they lie within
 // `bound` of the undisplaced triangle (the displacement bound the contributor grid relies on too).
 bool mayReach(const Vertices& vs, uint32_t a, uint32_t b, uint32_t c, float bound, const CullBox& box) {
-  glm::vec3 lo = glm::min(vs.P[a], glm::min(vs.P[b], vs.P[c])) - glm::vec3(bound);
-  glm::vec3 hi = glm::max(vs.P[a], glm::max(vs.P[b], vs.P[c])) + glm::vec3(bound);
+  const glm::vec3 pa = vs.P.get(a), pb = vs.P.get(b), pc = vs.P.get(c);
+  glm::vec3 lo = glm::min(pa, glm::min(pb, pc)) - glm::vec3(bound);
+  glm::vec3 hi = glm::max(pa, glm::max(pb, pc)) + glm::vec3(bound);
   lo = glm::min(lo, glm::min(vs.displaced[a], glm::min(vs.displaced[b], vs.displaced[c])));
   hi = glm::max(hi, glm::max(vs.displaced[a], glm::max(vs.displaced[b], vs.displaced[c])));
   return boxesOverlap({lo, hi}, box);
@@ -578,7 +584,7 @@ void pushCorners(Vertices& vs, const glm::vec3 p[3], const glm::vec3 n[3], const
   const glm::vec2 cornerBary[3] = {{0, 0}, {1, 0}, {0, 1}};
   for (int c = 0; c < 3; ++c) {
     const uint32_t k = vs.append();
-    vs.P[k] = p[c], vs.N[k] = n[c], vs.uv[k] = uv[c], vs.st[k] = st[c];
+    vs.P.set(k, p[c]), vs.N.set(k, n[c]), vs.setUv(k, uv[c]), vs.setSt(k, st[c]);
     vs.bary[k] = cornerBary[c], vs.level[k] = 0, vs.displaced[k] = p[c];
     vs.decided[k] = kUndecided;
   }
