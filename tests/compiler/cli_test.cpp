@@ -278,6 +278,7 @@ TEST(CliTest, StandardInputAndTheEndOfOptions) {
 // leaves an earlier file as it was, and an unwritable path is an I/O error (exit 2) naming it.
 TEST(CliTest, OutputFileIsWrittenOnlyWhenEveryInputCompiles) {
   const fs::path dir = fs::path(::testing::TempDir()) / ("reliefc_o_" + std::to_string(getpid()));
+  fs::remove_all(dir);  // a process id is reused in time: no earlier run's files
   fs::create_directories(dir);
   std::ofstream(dir / "lift.disp") << "displacement lift(float Km = 0.05)\n{\n    P += Km * normalize(N);\n}\n";
   std::ofstream(dir / "broken.disp") << "displacement d() { P += N * Kn; }\n";
@@ -309,6 +310,7 @@ TEST(CliTest, OutputFileIsWrittenOnlyWhenEveryInputCompiles) {
   size_t files = 0;
   for (const auto& e : fs::directory_iterator(dir)) files += e.is_regular_file();
   EXPECT_EQ(files, 4u);
+  fs::remove_all(dir);
 }
 
 // §7: the loop limit is a run-time error: said as one, with exit code 1.

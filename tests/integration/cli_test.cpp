@@ -37,9 +37,15 @@ std::string readFile(const fs::path& p) {
 }
 
 fs::path scratchDir() {
-  const fs::path dir = fs::temp_directory_path() /
-                       ("relief-it-" + std::to_string(::getpid()) + "-" +
-                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+  const std::string test = ::testing::UnitTest::GetInstance()->current_test_info()->name();
+  const fs::path dir = fs::temp_directory_path() / ("relief-it-" + std::to_string(::getpid()) + "-" + test);
+  // Emptied on the test's first use: a process id is reused in time, and a directory left by an
+  // earlier run with the same one would hold files the test asserts are not written.
+  static std::string emptied;
+  if (emptied != test) {
+    fs::remove_all(dir);
+    emptied = test;
+  }
   fs::create_directories(dir);
   return dir;
 }

@@ -25,9 +25,14 @@ const std::string kRelief = RELIEF_BIN;
 const std::string kSphereScene = kSource + "/examples/scenes/sphere.rib";
 
 fs::path scratchDir() {
-  const fs::path dir = fs::temp_directory_path() /
-                       ("relief-stats-" + std::to_string(::getpid()) + "-" +
-                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+  const std::string test = ::testing::UnitTest::GetInstance()->current_test_info()->name();
+  const fs::path dir = fs::temp_directory_path() / ("relief-stats-" + std::to_string(::getpid()) + "-" + test);
+  // Emptied on the test's first use: a process id is reused in time (see cli_test.cpp).
+  static std::string emptied;
+  if (emptied != test) {
+    fs::remove_all(dir);
+    emptied = test;
+  }
   fs::create_directories(dir);
   return dir;
 }
