@@ -18,6 +18,7 @@
 #include <gtest/gtest.h>
 
 #include "image_compare.h"
+#include "scratch_dir.h"
 
 namespace fs = std::filesystem;
 
@@ -36,19 +37,7 @@ std::string readFile(const fs::path& p) {
   return ss.str();
 }
 
-fs::path scratchDir() {
-  const std::string test = ::testing::UnitTest::GetInstance()->current_test_info()->name();
-  const fs::path dir = fs::temp_directory_path() / ("relief-it-" + std::to_string(::getpid()) + "-" + test);
-  // Emptied on the test's first use: a process id is reused in time, and a directory left by an
-  // earlier run with the same one would hold files the test asserts are not written.
-  static std::string emptied;
-  if (emptied != test) {
-    fs::remove_all(dir);
-    emptied = test;
-  }
-  fs::create_directories(dir);
-  return dir;
-}
+fs::path scratchDir() { return relief::test::scratchDir("relief-it"); }
 
 // Runs a shell command line with stdout and stderr captured separately.
 RunResult run(const std::string& command) {

@@ -15,6 +15,7 @@
 #include <gtest/gtest.h>
 
 #include "image_compare.h"
+#include "scratch_dir.h"
 
 namespace fs = std::filesystem;
 
@@ -24,18 +25,7 @@ const std::string kSource = RELIEF_SOURCE_DIR;
 const std::string kRelief = RELIEF_BIN;
 const std::string kSphereScene = kSource + "/examples/scenes/sphere.rib";
 
-fs::path scratchDir() {
-  const std::string test = ::testing::UnitTest::GetInstance()->current_test_info()->name();
-  const fs::path dir = fs::temp_directory_path() / ("relief-stats-" + std::to_string(::getpid()) + "-" + test);
-  // Emptied on the test's first use: a process id is reused in time (see cli_test.cpp).
-  static std::string emptied;
-  if (emptied != test) {
-    fs::remove_all(dir);
-    emptied = test;
-  }
-  fs::create_directories(dir);
-  return dir;
-}
+fs::path scratchDir() { return relief::test::scratchDir("relief-stats"); }
 
 int runCommand(const std::string& command, const fs::path& log) {
   const std::string line = command + " >" + log.string() + " 2>&1 </dev/null";
