@@ -14,6 +14,7 @@
 #include <thread>
 #include <vector>
 
+#include "renderer/atomic_max.h"
 #include "renderer/subdivide.h"
 #include "renderer/ticks.h"
 
@@ -83,8 +84,7 @@ void EmbreeAccelerator::onError(void* self, RTCError code, const char* message) 
 bool EmbreeAccelerator::onMemory(void* self, ssize_t bytes, bool) {
   auto* a = static_cast<EmbreeAccelerator*>(self);
   const int64_t now = a->embreeBytes_.fetch_add(bytes, std::memory_order_relaxed) + bytes;
-  int64_t peak = a->embreePeak_.load(std::memory_order_relaxed);
-  while (now > peak && !a->embreePeak_.compare_exchange_weak(peak, now)) {}
+  atomicMax(a->embreePeak_, now);
   return true;  // never refuse: the limit under test is the process's, not ours
 }
 

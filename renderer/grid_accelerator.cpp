@@ -11,6 +11,7 @@
 #include <string_view>
 #include <unordered_map>
 
+#include "renderer/atomic_max.h"
 #include "renderer/intersect.h"
 #include "renderer/ticks.h"
 
@@ -780,8 +781,7 @@ std::unique_ptr<VoxelGeometry> GridAccelerator::buildVoxel(uint32_t voxel) {
   // Contributors whose displaced geometry misses the voxel: later rays skip it without a lookup.
   // Safe to skip at any time, since a refill would be empty again (rule 1).
   if (n == 0) knownEmpty_[voxel].store(1, std::memory_order_relaxed);
-  uint64_t seen = maxVoxelTriangles_.load(std::memory_order_relaxed);
-  while (n > seen && !maxVoxelTriangles_.compare_exchange_weak(seen, n)) {}
+  atomicMax(maxVoxelTriangles_, n);
   fillNanos_.fetch_add(uint64_t(std::chrono::duration_cast<std::chrono::nanoseconds>(
                                     std::chrono::steady_clock::now() - start)
                                     .count()),

@@ -9,6 +9,7 @@
 #include <cstdlib>
 #include <thread>
 
+#include "renderer/atomic_max.h"
 #include "renderer/camera.h"
 
 namespace relief {
@@ -115,24 +116,17 @@ class TileSamples {
       Sample* fresh = new Sample[size_t(kTile) * kTile * size_t(spp_)]();
       if (t.samples.compare_exchange_strong(p, fresh, std::memory_order_acq_rel)) {
         p = fresh;
-        const uint64_t bytes = bytesPerTile() + live_.fetch_add(bytesPerTile(), std::memory_order_relaxed);
-        uint64_t peak = peak_.load(std::memory_order_relaxed);
-        while (bytes > peak && !peak_.compare_exchange_weak(peak, bytes, std::memory_order_relaxed)) {
-        }
+        atomicMax(peak_, bytesPerTile() + live_.fetch_add(bytesPerTile(), std::memory_order_relaxed));
       } else {
         delete[] fresh;  // another thread's allocation won
       }
     }
     return p + offset(x, y);
   }
-  // The samples of pixel (x, y) for filtering; zeros where it was never traced (a stopped render).
+  // The samples of pixel (x, y) for filtering: its tile is live (traced, or given zeros by
+  // filterRest) until every tile within reach of it is filtered.
   const Sample* samplesOf(int x, int y) const {
-    const Sample* p = tiles_[index(x / kTile, y / kTile)].samples.load(std::memory_order_relaxed);
-    if (!p) {
-      if (zeros_.size() < size_t(spp_)) zeros_.assign(size_t(spp_), Sample{glm::vec3(0.0f), 0.0f});
-      return zeros_.data();
-    }
-    return p + offset(x, y);
+    return tiles_[index(x / kTile, y / kTile)].samples.load(std::memory_order_relaxed) + offset(x, y);
   }
 
   // Pixel (x, y) is traced; calls filter(x0, y0, x1, y1) for each output tile this makes ready.
@@ -145,12 +139,17 @@ class TileSamples {
       if (tiles_[index(nx, ny)].untraced.fetch_sub(1, std::memory_order_acq_rel) == 1) filterTile(nx, ny, filter);
     });
   }
-  // Filters the tiles never made ready (a stopped render), with zeros for what was not traced.
+  // Filters the tiles never made ready (a stopped render), with zeros for what was not traced:
+  // their untraced neighbours get zeroed storage first (none of those has been freed, since a
+  // tile is freed only once every tile within its reach is filtered).
   template <class Filter>
   void filterRest(Filter&& filter) {
     for (int ty = 0; ty < tilesY_; ++ty)
       for (int tx = 0; tx < tilesX_; ++tx)
-        if (!tiles_[index(tx, ty)].filtered) filterTile(tx, ty, filter);
+        if (!tiles_[index(tx, ty)].filtered) {
+          forNeighbours(tx, ty, [&](int nx, int ny) { samplesFor(nx * kTile, ny * kTile); });
+          filterTile(tx, ty, filter);
+        }
   }
   uint64_t peakBytes() const { return peak_.load(std::memory_order_relaxed); }
 
@@ -189,7 +188,6 @@ class TileSamples {
 
   int width_, height_, spp_, tilesX_, tilesY_, radius_;
   std::vector<Tile> tiles_;
-  mutable std::vector<Sample> zeros_;  // only for filterRest, on one thread
   std::atomic<uint64_t> live_{0}, peak_{0};
 };
 

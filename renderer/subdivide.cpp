@@ -9,6 +9,7 @@
 #include <limits>
 #include <tuple>
 
+#include "renderer/atomic_max.h"
 #include "renderer/ticks.h"
 
 namespace relief {
@@ -347,10 +348,7 @@ void displace(const Displacement& disp, const TriangleFrame& frame, Vertices& vs
       const float excess = std::sqrt(maxMove2) - disp.boundWorld;
       uint32_t bits;
       std::memcpy(&bits, &excess, 4);
-      uint32_t seen = pc->maxExcessBits.load(std::memory_order_relaxed);
-      while (bits > seen &&
-             !pc->maxExcessBits.compare_exchange_weak(seen, bits, std::memory_order_relaxed)) {
-      }
+      atomicMax(pc->maxExcessBits, bits);
     }
   }
   // The shader may count the points it knows are non-finite and the host counts what it had to
@@ -935,8 +933,8 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
         activeCodes.resize(kept);
       }
       const uint32_t firstNew = vs.size();
-      // Each triangle's three answers are kept: without simplification they are final, which
-      // spares a second hash lookup per edge below.
+      // Each triangle's three answers are kept: final but for the flatness decisions, which
+      // `settled` reads from the midpoints, so no edge is looked up twice a round.
       std::vector<int64_t>& mids = scratch.mids;
       mids.resize(active.size());
       constexpr size_t kPrefetchAhead = 3 * 4;  // triangles ahead, in indices
