@@ -548,10 +548,11 @@ void Preprocessor::expand(std::vector<Token> input, std::vector<Token>& out, con
       fatal_ = true;
       return;
     }
-    const std::string name = t.is(Tok::Identifier) ? tokenText(t) : std::string();
-    auto it = name.empty() || disabled.count(name) ? macros_.end() : macros_.find(name);
-    if (it == macros_.end()) {
+    const std::string name = t.is(Tok::Identifier) && !t.noExpand ? tokenText(t) : std::string();
+    auto it = name.empty() ? macros_.end() : macros_.find(name);
+    if (it == macros_.end() || disabled.count(name)) {
       out.push_back(t);
+      if (it != macros_.end()) out.back().noExpand = true;
       continue;
     }
     const Macro m = it->second;  // a copy: expansion never redefines, but keep it simple and safe
@@ -626,7 +627,7 @@ void Preprocessor::expand(std::vector<Token> input, std::vector<Token>& out, con
     // (`#define G F` then `G(1, 2)`): move that parenthesized group behind it before rescanning.
     if (!replacement.empty() && replacement.back().is(Tok::Identifier)) {
       auto last = macros_.find(tokenText(replacement.back()));
-      if (last != macros_.end() && last->second.functionLike && !disabled.count(last->first) &&
+      if (!replacement.back().noExpand && last != macros_.end() && last->second.functionLike && !disabled.count(last->first) &&
           last->first != name) {
         std::vector<Token> group;
         int depth = 0;

@@ -59,6 +59,9 @@ struct Token {
   // Already reported by the lexer (an unterminated string swallowed the rest of its line): what
   // the parser expected after it is not reported again.
   bool malformed = false;
+  // A macro name met while that macro was being expanded: it is never expanded again, wherever
+  // rescanning takes it (C's "painted blue" tokens; `#define w w + 1` then `ID(w)` is `w + 1`).
+  bool noExpand = false;
 
   bool is(Tok k) const { return kind == k; }
   SourceRange range() const { return {loc, loc.advanced(length)}; }

@@ -42,6 +42,11 @@ TEST(PreprocessorTest, ObjectAndFunctionLikeMacros) {
 TEST(PreprocessorTest, ExpansionIsNotRecursiveAndSitsAtTheUse) {
   auto r = preprocess("#define X X + 1\nfloat a = X;\n");
   EXPECT_EQ(r->text, "float a = X + 1 ;");
+  // A name left unexpanded inside its own expansion stays so when an argument carries it on.
+  auto arg = preprocess("#define w w + 1\n#define ID(x) x\n#define ID2(x) ID(x)\nw ID(w) ID2(w)\n");
+  EXPECT_EQ(arg->text, "w + 1 w + 1 w + 1");
+  auto fn = preprocess("#define f(x) g(x) + f(x)\n#define g(x) f(x)\n#define ID(x) x\nID(f(1))\n");
+  EXPECT_EQ(fn->text, "f ( 1 ) + f ( 1 )");
   auto loc = preprocess("#define K 42\n  K\n");
   EXPECT_EQ(loc->text, "42");
 }
