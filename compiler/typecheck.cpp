@@ -1341,11 +1341,13 @@ class Checker {
       if (baseType.kind == TypeKind::String && !baseType.isArray()) {
         ExprPtr base = std::move(index.operands[0]);
         ExprPtr channel = std::move(index.operands[1]);
-        // A channel index is an index like any other: an int (§6.3).
+        // A channel index is an index like any other (§6.3): an int, or a float that truncates
+        // with -Wnarrowing (RSL has only floats, so `texture(name[ch], ...)` with a float
+        // parameter is how RSL shaders select channels). checkTexture warns for the option.
         ++suppress_;
         const Type channelType = checkExpr(*channel, kError);
         --suppress_;
-        if (!channelType.isError() && channelType.kind != TypeKind::Int) {
+        if (!channelType.isError() && channelType.kind != TypeKind::Int && channelType.kind != TypeKind::Float) {
           report(DiagId::ErrIndexNotInt, channel->range.begin).arg(typeName(channelType)).range(channel->range);
           return set(e, kError);
         }
@@ -1472,7 +1474,7 @@ class Checker {
       const char conv = f[j];
       i = j;
       ++conversions;
-      if (std::string("difges").find(conv) == std::string::npos) {
+      if (std::string("difgespcm").find(conv) == std::string::npos) {
         // The run time prints such a conversion verbatim (and skips its argument).
         const SourceRange r = literalCharRange(format, start, j + 1 - start);
         report(DiagId::WarnFormatInvalid, r.begin).arg(f.substr(j, 1)).range(r);
@@ -1490,6 +1492,15 @@ class Checker {
       } else if (conv == 'f' || conv == 'g' || conv == 'e') {
         want = "a number";
         ok = a.type.isNumeric() || a.type.kind == TypeKind::Matrix;
+      } else if (conv == 'p') {  // RSL's point, color and matrix conversions
+        want = "a point, vector or normal";
+        ok = a.type.isSpatial();
+      } else if (conv == 'c') {
+        want = "a color";
+        ok = a.type.isTriple();
+      } else if (conv == 'm') {
+        want = "a matrix";
+        ok = a.type.kind == TypeKind::Matrix && !a.type.isArray();
       } else {
         continue;
       }

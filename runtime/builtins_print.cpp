@@ -1,5 +1,6 @@
-// printf()/format()/concat() for shaders (see builtins_print.h). Supports %d %i %f %g %e %s %% with
-// optional flags/width/precision; triples and matrices print all components separated by spaces.
+// printf()/format()/concat() for shaders (see builtins_print.h). Supports %d %i %f %g %e %s %% and
+// RSL's %p %c %m, with optional flags/width/precision; triples and matrices print all components
+// separated by spaces.
 #include "runtime/builtins_print.h"
 
 #include <cstdio>
@@ -42,8 +43,10 @@ std::string formatText(const char* format, const int32_t* kinds, int32_t count, 
     } else if ((conv == 'd' || conv == 'i') && kind == kRlfPrintInt) {
       std::snprintf(buf, sizeof buf, (spec + 'd').c_str(), ints[ii++]);
       out += buf;
-    } else if (conv == 'f' || conv == 'g' || conv == 'e' || conv == 'd' || conv == 'i') {
-      const char c = (conv == 'd' || conv == 'i') ? 'g' : conv;
+    } else if (conv == 'f' || conv == 'g' || conv == 'e' || conv == 'd' || conv == 'i' || conv == 'p' ||
+               conv == 'c' || conv == 'm') {
+      // RSL's %p (point), %c (color) and %m (matrix) print every component as %f does.
+      const char c = (conv == 'd' || conv == 'i') ? 'g' : (conv == 'p' || conv == 'c' || conv == 'm') ? 'f' : conv;
       const int n = kind == kRlfPrintTriple ? 3 : kind == kRlfPrintMatrix ? 16 : 1;
       for (int k = 0; k < n; ++k) {
         double v = kind == kRlfPrintInt ? double(ints[ii]) : double(floats[fi + k]);

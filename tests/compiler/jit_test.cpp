@@ -825,6 +825,34 @@ displacement pf(string name = "bumps"; int n = 3)
   EXPECT_FLOAT_EQ(b.Pout[2][0], 1.01f);
 }
 
+TEST(JitTest, PrintfTakesRslPointColorAndMatrixConversions) {
+  CompileResult r = compileSource("pf.disp", R"(
+displacement pf()
+{
+    printf("%p|%.1c|%m|%p\n", point(1, 2, 3), color(0.25, 0.5, 1), matrix(2), 1.5);
+})");
+  ASSERT_TRUE(r.success()) << renderDiagnostics(r);
+  // %p of a float warns (wants a point, vector or normal); %p, %c and %m of their types do not.
+  EXPECT_EQ(r.diagnostics->numShownWarnings(*r.sources), 1u) << renderDiagnostics(r);
+  EXPECT_NE(renderDiagnostics(r).find("format '%p' expects a point, vector or normal"), std::string::npos)
+      << renderDiagnostics(r);
+  runtime::ShaderInstance instance(r.shaders.front());
+  TestBatch b(1);
+  fillSphere(b, 0, 0.5, 0.0);
+  std::string printed;
+  RlfHostServices services{};
+  services.context = &printed;
+  services.print = [](void* context, const char* text) { *static_cast<std::string*>(context) += text; };
+  RlfShadingBatch view = b.all();
+  view.services = &services;
+  RlfStatus status{};
+  instance.evaluate(view, status);
+  EXPECT_EQ(printed,
+            "1.000000 2.000000 3.000000|0.2 0.5 1.0|2.000000 0.000000 0.000000 0.000000 0.000000 2.000000 "
+            "0.000000 0.000000 0.000000 0.000000 2.000000 0.000000 0.000000 0.000000 0.000000 2.000000|"
+            "1.500000\n");
+}
+
 TEST(JitTest, EveryExampleShaderCompilesAndEvaluatesFinite) {
   int numFiles = 0;
   for (const auto& entry : std::filesystem::directory_iterator(RELIEF_SOURCE_DIR "/examples/shaders")) {
@@ -903,14 +931,15 @@ TEST(JitTest, TextureLookupsReadFilesAndReportMissingOnes) {
   const std::string gray = writeConstantImage("relief_gray.exr", {0.75f});
   const std::string rgb = writeConstantImage("relief_rgb.exr", {0.1f, 0.2f, 0.3f});
   CompileResult r = compileSource("tex.disp", R"(
-displacement tex(string a = ""; string b = ""; string missing = "/no/such/texture.exr")
+displacement tex(string a = ""; string b = ""; string missing = "/no/such/texture.exr"; float ch = 1.5)
 {
     float h = texture(a, s, t, "blur", 0.01, "wrap", "periodic");
     color c = texture(b, "wrap", "clamp");
     color m = texture(missing, 0.5, 0.5, "missingcolor", color(7, 8, 9));
     float f = texture(missing, "fill", 0.25);
     float g = texture(b[2], s, t, "wrap", "clamp");  // RSL channel selection
-    P = point(h, f, m[2]);
+    float gf = texture(b[ch], s, t, "wrap", "clamp");  // ... by a float, as RSL shaders write it
+    P = point(h, f, m[2]) + point(0, 1000 * gf, 0);
     N = normal(c) + normal(0, 0, 100 * g);
 })");
   ASSERT_TRUE(r.success()) << renderDiagnostics(r);
@@ -926,7 +955,7 @@ displacement tex(string a = ""; string b = ""; string missing = "/no/such/textur
   instance.evaluate(view, status);
   for (size_t i = 0; i < 2; ++i) {
     EXPECT_NEAR(b.Pout[0][i], 0.75f, 1e-4);
-    EXPECT_FLOAT_EQ(b.Pout[1][i], 0.25f);  // fill of the missing file
+    EXPECT_NEAR(b.Pout[1][i], 0.25f + 1000 * 0.2f, 0.1f);  // fill of the missing file + channel int(1.5)
     EXPECT_FLOAT_EQ(b.Pout[2][i], 9);      // missingcolor
     EXPECT_NEAR(b.Nout[0][i], 0.1f, 1e-4);
     EXPECT_NEAR(b.Nout[1][i], 0.2f, 1e-4);
