@@ -180,7 +180,7 @@ std::vector<Token> Preprocessor::run(SourceManager::FileId file) {
     }
     if (!active()) continue;
     const size_t before = out.size();
-    if (t.is(Tok::Identifier) && macros_.count(tokenText(t)))
+    if (t.is(Tok::Identifier) && (macros_.count(tokenText(t)) || t.text == "__LINE__" || t.text == "__FILE__"))
       expand({t}, out, {}, true);
     else
       out.push_back(t);
@@ -550,6 +550,18 @@ void Preprocessor::expand(std::vector<Token> input, std::vector<Token>& out, con
     }
     const std::string name = t.is(Tok::Identifier) && !t.noExpand ? tokenText(t) : std::string();
     auto it = name.empty() ? macros_.end() : macros_.find(name);
+    if ((name == "__LINE__" || name == "__FILE__") && it == macros_.end()) {
+      // C's predefined pair, at the use (a macro's tokens sit at its use, so inside one too).
+      const PresumedLoc at = sm_.presumed(t.loc);
+      std::string text = std::to_string(at.line);
+      if (name == "__FILE__") {
+        text = "\"";
+        for (char c : at.file) text += c == '"' || c == '\\' ? std::string("\\") + c : std::string(1, c);
+        text += '"';
+      }
+      out.push_back(synthesize(text, t));
+      continue;
+    }
     if (it == macros_.end() || disabled.count(name)) {
       out.push_back(t);
       if (it != macros_.end()) out.back().noExpand = true;

@@ -51,6 +51,12 @@ TEST(PreprocessorTest, ExpansionIsNotRecursiveAndSitsAtTheUse) {
   EXPECT_EQ(loc->text, "42");
 }
 
+TEST(PreprocessorTest, LineAndFileAreTheUsesOwn) {
+  auto r = preprocess("#define WHERE __FILE__ __LINE__\nfloat a;\n__LINE__ WHERE\n", {}, "dir/my \"pp\".disp");
+  EXPECT_EQ(r->errors, "");
+  EXPECT_EQ(r->text, "float a ; 3 \"dir/my \\\"pp\\\".disp\" 3");
+}
+
 TEST(PreprocessorTest, Conditionals) {
   auto r = preprocess(
       "#define TWO 2\n#if TWO * 2 == 4 && defined(TWO) && !defined NONE\na\n#elif 1\nb\n#else\nc\n#endif\n"
