@@ -906,6 +906,7 @@ class RibParser {
     d.boundWorld = attr_.boundRadius * scale;
     d.edgeLength = attr_.edgeLength;
     d.flatness = attr_.flatness;
+    d.reverseOrientation = attr_.orientationInside != attr_.reversed;
     toRlfMatrix(worldFromObject, d.spaces.currentFromObject);
     toRlfMatrix(glm::inverse(worldFromObject), d.spaces.objectFromCurrent);
     toRlfMatrix(attr_.worldFromShader, d.spaces.currentFromShader);
@@ -922,6 +923,7 @@ class RibParser {
       const Displacement& last = scene_.displacements.back();
       if (last.shader == d.shader && last.boundWorld == d.boundWorld &&
           last.edgeLength == d.edgeLength && last.flatness == d.flatness &&
+          last.reverseOrientation == d.reverseOrientation &&
           std::memcmp(&last.spaces, &d.spaces, sizeof d.spaces) == 0) {
         *index = uint32_t(scene_.displacements.size() - 1);
         return true;
@@ -2383,6 +2385,7 @@ bool RibParser::buildPolygonMesh(const Call& call, const std::vector<int>& nloop
                    " points that is not convex is fanned from its first corner, its holes ignored; "
                    "split it into smaller polygons");
   }
+  mesh.givenNormals = N != nullptr;
   return addMesh(std::move(mesh), call.line);  // which keeps the winding under a mirroring transform
 }
 
@@ -2647,6 +2650,7 @@ bool RibParser::buildPatchMesh(const Call& call, bool bicubic, int nu, bool uPer
       }
   }
   if (!normalsOk) mesh.N.clear();
+  mesh.givenNormals = N != nullptr && !mesh.N.empty();
   return addMesh(std::move(mesh), call.line);
 }
 
@@ -2683,6 +2687,7 @@ bool RibParser::doGeometry(const Call& call) {
   for (const glm::vec3& p : object.P) object.uv.emplace_back(p.x, p.y);
   for (glm::vec3& p : object.P) p = glm::vec3(m * glm::vec4(p, 1.0f));
   for (glm::vec3& n : object.N) n = glm::normalize(normalFromObject * n);
+  object.givenNormals = !object.N.empty();
   return addMesh(std::move(object), call.line);
 }
 

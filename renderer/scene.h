@@ -106,6 +106,10 @@ struct Displacement {
   float edgeLength = 0.05f;    // target world-space edge length of displaced micro-triangles
   float flatness = 0.0f;       // simplification tolerance in world units (0: off)
   int maxDepth = 12;           // subdivision depth guard
+  // The surface's orientation is reversed (Orientation "inside", ReverseOrientation): the shader's
+  // Ng, and N unless the scene gave it (Mesh::givenNormals), point to the other side of the
+  // winding, as the RI spec has them.
+  bool reverseOrientation = false;
   RlfSpaces spaces{};          // object/shader/camera transforms for the shader
   // What the shader may call back into (its printf output); null: nothing (printf is dropped).
   const RlfHostServices* services = nullptr;
@@ -119,6 +123,10 @@ struct Displacement {
 struct Mesh {
   std::vector<glm::vec3> P;
   std::vector<glm::vec3> N;   // unit shading normals; empty: use the face normal
+  // N came from the scene ("N" of a polygon or patch, an OBJ file's normals) rather than from the
+  // surface (quadrics, patches): the RI spec flips the surface's normals on a reversed orientation,
+  // never the ones the user gave.
+  bool givenNormals = false;
   std::vector<glm::vec2> uv;  // surface parameters (u, v); empty: barycentric-derived per face
   std::vector<glm::vec2> st;  // texture coordinates; empty: equal to uv
   std::vector<glm::vec3> Cs;  // per-vertex colour (RIB "Cs"); empty: the material's colour

@@ -160,12 +160,15 @@ bool Integrator::resolve(const Ray& ray, const Hit& hit, Surface* s) const {
   // (language.md §5), evaluated at the hit: it is not stored with the cached geometry.
   const bool displaced = options_.displaced && mesh.displacementIndex < scene_.displacements.size() &&
                          scene_.displacements[mesh.displacementIndex].shader != nullptr;
+  bool oriented = false;  // N and Ng already face the side the surface's orientation gives
   if (displaced) {
     const Displacement& disp = scene_.displacements[mesh.displacementIndex];
     glm::vec3 n;
     if (disp.shader->shader().ownNormal() &&
         displacedShadingNormal(mesh, hit.triangleIndex, disp, hit.bary, &n)) {
+      // A shader given normals on the orientation's side (cornerData) puts its N there too.
       s->N = n;
+      oriented = shaderNormalsReversed(mesh, disp);
       // The shader's N faces as the input normal does; where given normals oppose the winding,
       // they define the outside, as for undisplaced surfaces below.
       if (glm::dot(s->N, s->Ng) < 0.0f) s->Ng = -s->Ng;
@@ -182,7 +185,7 @@ bool Integrator::resolve(const Ray& ray, const Hit& hit, Surface* s) const {
       if (glm::dot(s->N, s->Ng) < 0.0f) s->Ng = -s->Ng;
     }
   }
-  if (material.reverseOrientation) s->N = -s->N, s->Ng = -s->Ng;
+  if (material.reverseOrientation && !oriented) s->N = -s->N, s->Ng = -s->Ng;
   const glm::vec3 d = glm::normalize(ray.direction);
   s->V = -d;
   s->front = glm::dot(d, s->Ng) < 0.0f;

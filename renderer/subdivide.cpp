@@ -205,8 +205,10 @@ bool regularMap(const glm::vec2 q[3]) {
   return det != 0.0f && std::fabs(det) > 1e-6f * glm::length(d1) * glm::length(d2) && std::isfinite(det);
 }
 
+// `reversed`: the surface's orientation is inside out (Orientation, ReverseOrientation), so its
+// geometric normal opposes the winding's, as the corners' normals (cornerData) do.
 TriangleFrame makeFrame(const glm::vec3 p[3], const glm::vec3 n[3], const glm::vec2 uvIn[3],
-                        const glm::vec2 st[3], bool smoothNormals) {
+                        const glm::vec2 st[3], bool smoothNormals, bool reversed) {
   // The derivatives (dPdu, dPdv, the s, t and N seeds, du and dv) need a regular map from the
   // triangle. Where (u, v) is degenerate (a polygon seen edge-on from the z axis takes its
   // object-space (x, y) as (u, v), RI spec) they come from st when that is regular, else from
@@ -218,7 +220,7 @@ TriangleFrame makeFrame(const glm::vec3 p[3], const glm::vec3 n[3], const glm::v
   glm::vec3 ng = glm::cross(e1, e2);
   float len = glm::length(ng);
   if (len > 0.0f && std::isfinite(len)) {
-    f.Ng = ng / len;
+    f.Ng = (reversed ? -ng : ng) / len;
   } else {
     // Zero-area triangles (sphere poles): fall back to the shading normals so no NaN reaches the
     // shader.
@@ -557,8 +559,12 @@ void SubtreeMemo::learn(uint32_t code, const CullBox* box, uint64_t decisions) {
 namespace {
 
 // The corners of input triangle `triangle` as the shader sees them at level 0.
-void cornerData(const Mesh& mesh, uint32_t triangle, glm::vec3 p[3], glm::vec3 n[3], glm::vec2 uv[3],
-                glm::vec2 st[3]) {
+// The corners' positions, normals and parameters. A shader displaces along the normals the RI spec
+// gives the surface: on a surface whose orientation is reversed (`Displacement::reverseOrientation`)
+// its own normals point inward, so `P += Km * N` dents what it raises on the outside-facing twin;
+// normals the scene gave (Mesh::givenNormals) stay as given.
+void cornerData(const Mesh& mesh, uint32_t triangle, const Displacement* disp, glm::vec3 p[3], glm::vec3 n[3],
+                glm::vec2 uv[3], glm::vec2 st[3]) {
   const glm::vec2 cornerBary[3] = {{0, 0}, {1, 0}, {0, 1}};
   for (int c = 0; c < 3; ++c) {
     const uint32_t i = mesh.indices[3 * size_t(triangle) + c];
@@ -571,8 +577,11 @@ void cornerData(const Mesh& mesh, uint32_t triangle, glm::vec3 p[3], glm::vec3 n
   glm::vec3 faceN = glm::cross(p[1] - p[0], p[2] - p[0]);
   float faceLen = glm::length(faceN);
   faceN = faceLen > 0.0f && std::isfinite(faceLen) ? faceN / faceLen : glm::vec3(0, 0, 1);
-  for (int c = 0; c < 3; ++c)
+  const bool reversed = disp && shaderNormalsReversed(mesh, *disp);
+  for (int c = 0; c < 3; ++c) {
     n[c] = mesh.N.size() != mesh.P.size() ? faceN : mesh.N[mesh.indices[3 * size_t(triangle) + c]];
+    if (reversed) n[c] = -n[c];
+  }
 }
 
 // The three corners as the first vertices of a subdivision (level 0, displaced = undisplaced until
@@ -595,7 +604,7 @@ bool displacedShadingNormal(const Mesh& mesh, uint32_t triangle, const Displacem
   if (!disp.shader || triangle >= mesh.numTriangles()) return false;
   glm::vec3 p[3], n[3];
   glm::vec2 uv[3], st[3];
-  cornerData(mesh, triangle, p, n, uv, st);
+  cornerData(mesh, triangle, &disp, p, n, uv, st);
   // One vertex where the hit is, made from the corners as subdivision makes its interior points,
   // at the level the subdivision of the undisplaced triangle reaches; only it is evaluated.
   thread_local Vertices vs;
@@ -605,7 +614,7 @@ bool displacedShadingNormal(const Mesh& mesh, uint32_t triangle, const Displacem
   pushCorners(vs, p, n, uv, st);
   addInteriorPoint(vs, 0, 1, 2, 1.0f - bary.x - bary.y, bary.x, bary.y,
                    undisplacedLevels(p, disp.edgeLength, std::clamp(disp.maxDepth, 0, kMaxSubdivisionDepth)));
-  const TriangleFrame frame = makeFrame(p, n, uv, st, mesh.N.size() == mesh.P.size());
+  const TriangleFrame frame = makeFrame(p, n, uv, st, mesh.N.size() == mesh.P.size(), disp.reverseOrientation);
   SubdivideCounters counters;  // shading-time evaluations stay out of the fill statistics
   RlfStatus status{};
   displace(disp, frame, vs, 3, batch, counters, &status);
@@ -628,7 +637,7 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
   vs.clear();
   glm::vec3 p[3], n[3];
   glm::vec2 uv[3], st[3];
-  cornerData(mesh, triangle, p, n, uv, st);
+  cornerData(mesh, triangle, displacement, p, n, uv, st);
   pushCorners(vs, p, n, uv, st);
 
   const bool displaced = displacement != nullptr && displacement->shader != nullptr;
@@ -647,7 +656,7 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
   }
   if (displaced) {
     const Displacement& disp = *displacement;
-    const TriangleFrame frame = makeFrame(p, n, uv, st, mesh.N.size() == mesh.P.size());
+    const TriangleFrame frame = makeFrame(p, n, uv, st, mesh.N.size() == mesh.P.size(), disp.reverseOrientation);
     const int maxDepth = std::clamp(disp.maxDepth, 0, kMaxSubdivisionDepth);
     const float edgeLength2 = disp.edgeLength * disp.edgeLength;
     const uint64_t pointsBefore = counters.shaderPoints;

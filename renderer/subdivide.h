@@ -170,6 +170,12 @@ constexpr uint64_t kRunawaySubdivisions = 8;
 // The k above: halvings of the longest edge of triangle p to reach edgeLength, at most maxDepth.
 int undisplacedLevels(const glm::vec3 p[3], float edgeLength, int maxDepth);
 
+// Whether the shader is given the mesh's normals turned inward: its orientation is reversed and
+// the normals are the surface's own, not ones the scene gave (RI spec; Mesh::givenNormals).
+inline bool shaderNormalsReversed(const Mesh& mesh, const Displacement& disp) {
+  return disp.reverseOrientation && !(mesh.givenNormals && mesh.N.size() == mesh.P.size());
+}
+
 // The displacement shader's output N at barycentric `bary` (weights of corners 1 and 2) of input
 // triangle `triangle`, evaluated there as subdivision evaluates its vertices (language.md §5: the
 // output N is the shading normal). False when it is not a finite, nonzero vector. Thread-safe.

@@ -500,6 +500,22 @@ TEST(RibSurfaces, OlderDisplacementBoundSpelling) {
   EXPECT_FLOAT_EQ(r.scene->displacements[0].boundWorld, 0.5f);
 }
 
+TEST(RibSurfaces, DisplacementKnowsTheOrientation) {
+  test::TestShaderProvider shaders;
+  ReadResult r = read(world("Attribute \"displacementbound\" \"sphere\" [0.1]\nDisplacement \"push\"\n" +
+                            std::string(kTriangle) + "Orientation \"inside\"\n" + kTriangle +
+                            "ReverseOrientation\n" + kTriangle),
+                      &shaders);
+  ASSERT_TRUE(r.scene) << r.error.format();
+  ASSERT_EQ(r.scene->meshes.size(), 3u);
+  const auto reversed = [&](size_t m) {
+    return r.scene->displacements[r.scene->meshes[m].displacementIndex].reverseOrientation;
+  };
+  EXPECT_FALSE(reversed(0));
+  EXPECT_TRUE(reversed(1));
+  EXPECT_FALSE(reversed(2));  // inside, then reversed
+}
+
 TEST(RibSurfaces, DisplacementParametersTypedInlineOrByDeclare) {
   test::TestShaderProvider shaders;
   ReadResult r = read(world("Declare \"tint\" \"color\"\n"

@@ -57,6 +57,51 @@ TEST(Subdivide, WithoutShaderReturnsTheInputTriangle) {
   EXPECT_EQ(counters.shaderPoints, 0u);
 }
 
+// P += Km * N, and Nout = Ng: what a shader sees as the surface's normals.
+void liftEntry(const RlfShadingBatch* b, const void* params, RlfStatus*) {
+  float km;
+  std::memcpy(&km, params, 4);
+  for (uint32_t i = 0; i < b->count; ++i) {
+    b->Pout.x[i] = b->P.x[i] + km * b->N.x[i];
+    b->Pout.y[i] = b->P.y[i] + km * b->N.y[i];
+    b->Pout.z[i] = b->P.z[i] + km * b->N.z[i];
+    b->Nout.x[i] = b->Ng.x[i], b->Nout.y[i] = b->Ng.y[i], b->Nout.z[i] = b->Ng.z[i];
+  }
+}
+
+TEST(Subdivide, AReversedOrientationTurnsTheShadersNormalsInward) {
+  const Mesh quad = makeQuad();
+  for (bool reversed : {false, true}) {
+    Displacement d = makeDisplacement(liftEntry, 0.25f, 1.0f, 0.5f, 12);
+    d.reverseOrientation = reversed;
+    MicroMesh mm;
+    SubdivideCounters counters;
+    subdivideTriangle(quad, 0, &d, mm, counters);
+    ASSERT_GT(mm.numTriangles(), 0u);
+    for (const glm::vec3& p : mm.P) EXPECT_FLOAT_EQ(p.z, reversed ? -0.25f : 0.25f);
+    // The winding stays the input's: only the side the shader displaces towards changes.
+    const glm::vec3 n = glm::cross(mm.P[mm.indices[1]] - mm.P[mm.indices[0]], mm.P[mm.indices[2]] - mm.P[mm.indices[0]]);
+    EXPECT_GT(n.z, 0.0f);
+  }
+  // Normals the scene gave stay as given (the RI spec flips only the surface's own).
+  Mesh given = makeQuad();
+  given.givenNormals = true;
+  Displacement reversed = makeDisplacement(liftEntry, 0.25f, 1.0f, 0.5f, 12);
+  reversed.reverseOrientation = true;
+  MicroMesh mm;
+  SubdivideCounters counters;
+  subdivideTriangle(given, 0, &reversed, mm, counters);
+  for (const glm::vec3& p : mm.P) EXPECT_FLOAT_EQ(p.z, 0.25f);
+  // Ng is the surface's own: it turns, also without normals (the face normal stands in for N).
+  Mesh bare = makeQuad();
+  bare.N.clear();
+  Displacement d = makeDisplacement(liftEntry, 0.25f, 1.0f, 0.5f, 12);
+  d.reverseOrientation = true;
+  glm::vec3 shadingN;
+  ASSERT_TRUE(displacedShadingNormal(bare, 0, d, glm::vec2(0.25f, 0.25f), &shadingN));
+  EXPECT_LT(shadingN.z, -0.99f);
+}
+
 TEST(Subdivide, FlatShaderMeetsEdgeLengthAndKeepsArea) {
   const Mesh quad = makeQuad();
   const Displacement d = makeDisplacement(testing::bumpyEntry, 0.0f, 1.0f, 0.1f, 12);
