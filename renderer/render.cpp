@@ -7,6 +7,7 @@
 #include <mutex>
 #include <cmath>
 #include <cstdlib>
+#include <exception>
 #include <thread>
 
 #include "renderer/atomic_max.h"
@@ -357,6 +358,9 @@ RenderStats render(const Scene& scene, Accelerator& accel, const RenderOptions& 
     }
   };
   std::vector<RenderStats> perThread(static_cast<size_t>(numThreads));
+  std::atomic<bool> failed{false};
+  std::mutex failureMutex;
+  std::exception_ptr failure;
   auto tracer = [&](int id) {
     RenderStats stats;  // local: neighbouring entries of perThread would share cache lines
     struct Deferred {
@@ -425,7 +429,7 @@ RenderStats render(const Scene& scene, Accelerator& accel, const RenderOptions& 
     };
     threadDefersBusyVoxels() = sharedWalk;
     size_t begin = 0, end = 0;
-    while (!subdivisionRanAway(scene) && claimAny(id, begin, end)) {
+    while (!subdivisionRanAway(scene) && !failed.load(std::memory_order_relaxed) && claimAny(id, begin, end)) {
       size_t traced = 0;
       for (size_t i = begin; i < end; ++i) {
         uint32_t busy = 0;
@@ -450,16 +454,29 @@ RenderStats render(const Scene& scene, Accelerator& accel, const RenderOptions& 
       reportDone(traced);
     }
     threadDefersBusyVoxels() = false;
-    if (!subdivisionRanAway(scene)) reportDone(retryDeferred(true));
+    if (!subdivisionRanAway(scene) && !failed.load(std::memory_order_relaxed)) reportDone(retryDeferred(true));
     perThread[size_t(id)] = stats;
   };
 
   if (numThreads == 1) {
     tracer(0);
   } else {
+    // An exception on a tracing thread (bad_alloc in a fill: its voxel is abandoned, see
+    // GeometryCache) stops the others at their next chunk and is rethrown here, where a
+    // one-thread render would have thrown it, instead of terminating the process.
+    auto guarded = [&](int id) {
+      try {
+        tracer(id);
+      } catch (...) {
+        std::lock_guard lock(failureMutex);
+        if (!failure) failure = std::current_exception();
+        failed.store(true, std::memory_order_relaxed);
+      }
+    };
     std::vector<std::thread> threads;
-    for (int t = 0; t < numThreads; ++t) threads.emplace_back(tracer, t);
+    for (int t = 0; t < numThreads; ++t) threads.emplace_back(guarded, t);
     for (std::thread& t : threads) t.join();
+    if (failure) std::rethrow_exception(failure);
   }
   // Only a stopped render leaves tiles unfiltered; its film is not written, but is kept whole.
   samples.filterRest(filterPixels);

@@ -16,6 +16,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <new>
 #include <mutex>
 #include <optional>
 #include <set>
@@ -546,6 +547,24 @@ void reportRunaway(const relief::Scene& scene, const std::vector<double>& estima
   }
 }
 
+// Filling the cache ran out of memory: say so at the scene, and name the Displacement that asks
+// for the most micro-triangles (the likeliest cause: a scene in large units at the default
+// world-space edge length) with what would lower it.
+void reportOutOfMemory(const std::string& sceneFile, const relief::Scene& scene, const std::vector<double>& estimates,
+                       bool edgeFromCli, bool budgeted, std::ostream& out) {
+  out << sceneFile << ": error: out of memory while rendering\n";
+  size_t heaviest = estimates.size();
+  for (size_t i = 0; i < estimates.size() && i < scene.displacements.size(); ++i)
+    if (scene.displacements[i].shader && (heaviest == estimates.size() || estimates[i] > estimates[heaviest]))
+      heaviest = i;
+  if (heaviest == estimates.size()) return;
+  const relief::Displacement& d = scene.displacements[heaviest];
+  out << d.sourceFile << ":" << d.sourceLine << ": note: displacement shader '" << d.shader->name()
+      << "' asks for about " << formatCount(estimates[heaviest]) << " micro-triangles at an edge length of "
+      << d.edgeLength << " (world units): raise " << edgeLengthSetting(edgeFromCli)
+      << (budgeted ? ", or lower --cache-triangles\n" : ", or give --cache-triangles a budget\n");
+}
+
 // A budget that holds only a few of the largest voxels makes voxels evict each other in turn
 // (sphere_box at 50K triangles: its largest voxel holds 38K, and 79K refills took 475 s against
 // 0.7 s unlimited). Said once, after the render, when refills outnumbered first fills.
@@ -927,9 +946,13 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
       const relief::Displacement& d = scene.displacements[i];
       // Far below the guard but slow and large: the default edge length is in world units, so a
       // scene modelled in large units (a sphere of radius 100) asks for this without saying so.
-      constexpr double kManyMicroTriangles = 5e7;
-      if (estimates[i] > kManyMicroTriangles && estimates[i] <= relief::kMaxEstimatedMicroTriangles &&
-          warnings)
+      // So does a smaller scene asking for far more micro-triangles than the image has pixels
+      // (a 400-unit ground plane at 0.05 for a thumbnail: 33M, and gigabytes of subdivision).
+      constexpr double kManyMicroTriangles = 5e7, kManyForTheImage = 1e7, kPerPixel = 1000;
+      const double pixels = double(scene.width) * double(scene.height);
+      const bool many = estimates[i] > kManyMicroTriangles ||
+                        (estimates[i] > kManyForTheImage && estimates[i] > kPerPixel * pixels);
+      if (many && estimates[i] <= relief::kMaxEstimatedMicroTriangles && warnings)
         *warnings << d.sourceFile << ":" << d.sourceLine << ": warning: displacement shader '"
                   << d.shader->name() << "': an edge length of " << d.edgeLength << " (world units) asks for about "
                   << formatCount(estimates[i]) << " micro-triangles on the whole undisplaced surface; "
@@ -1014,7 +1037,15 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
         break;
     }
   }
-  const relief::RenderStats renderStats = relief::render(scene, *accel, renderOptions, &film, aovs);
+  relief::RenderStats renderStats;
+  try {
+    renderStats = relief::render(scene, *accel, renderOptions, &film, aovs);
+  } catch (const std::bad_alloc&) {
+    if (!cl.quiet) progress.finish();
+    reportOutOfMemory(cl.scene, scene, estimates, cl.edgeLength > 0.0f,
+                      accelOptions.cacheBudgetTriangles != UINT64_MAX, std::cerr);
+    return 1;
+  }
   if (!cl.quiet) progress.finish();
   std::fflush(stdout);  // shader printf output before what follows
   if (const uint64_t dropped = shaderPrinter().dropped() - droppedBefore; dropped > 0 && warnings)

@@ -244,6 +244,38 @@ TEST(Relief, ManyMicroTrianglesAreAWarningNamingTheEdgeLength) {
   EXPECT_EQ(r.err.find("micro-triangles"), std::string::npos) << r.err;
 }
 
+// A scene smaller than the warning's absolute threshold still warns when it asks for far more
+// micro-triangles than its image has pixels; and running out of memory in the fills is an error at
+// the scene naming the Displacement that asks for the most, on any thread (it terminated the
+// process from a second thread, and was an unlocated 'std::bad_alloc' from the first).
+TEST(Relief, RunningOutOfMemoryNamesTheDisplacement) {
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+  GTEST_SKIP() << "the sanitizers reserve more address space than the limit this test sets";
+#else
+  const fs::path dir = scratchDir();
+  const fs::path scene = writeFile(dir / "plane.rib",
+                                   "Format 16 12 1\nProjection \"perspective\" \"fov\" [40]\n"
+                                   "Translate 0 0 240\nRotate -30 1 0 0\nWorldBegin\n"
+                                   "LightSource \"distantlight\" 1 \"from\" [0 1 0] \"to\" [0 0 0]\n"
+                                   "Attribute \"displacementbound\" \"sphere\" [5]\n"
+                                   "Displacement \"bumps\" \"Km\" 5 \"freq\" 10\n"
+                                   "Patch \"bilinear\" \"P\" [-200 0 -200  200 0 -200  -200 0 200  200 0 200]\n"
+                                   "WorldEnd\n");
+  const RunResult r = run("ulimit -v 2000000; " + kRelief + " " + scene.string() + " -I " + kSource +
+                          "/examples/shaders --threads 2 -o " + (dir / "plane.png").string());
+  EXPECT_EQ(r.exitCode, 1) << r.err;
+  EXPECT_NE(r.err.find(scene.string() + ":8: warning: displacement shader 'bumps': an edge length of 0.05 "
+                                         "(world units) asks for about 3.4e+07"),
+            std::string::npos)
+      << r.err;
+  EXPECT_NE(r.err.find(scene.string() + ": error: out of memory while rendering\n" + scene.string() +
+                       ":8: note: displacement shader 'bumps' asks for about 3.4e+07 micro-triangles"),
+            std::string::npos)
+      << r.err;
+  EXPECT_FALSE(fs::exists(dir / "plane.png"));
+#endif
+}
+
 TEST(Relief, MissingSceneIsAnErrorNamingTheFile) {
   const fs::path image = scratchDir() / "none.png";
   RunResult r = run(kRelief + " /nonexistent/scene.rib --quiet -o " + image.string());
