@@ -825,34 +825,6 @@ displacement pf(string name = "bumps"; int n = 3)
   EXPECT_FLOAT_EQ(b.Pout[2][0], 1.01f);
 }
 
-TEST(JitTest, PrintfTakesRslPointColorAndMatrixConversions) {
-  CompileResult r = compileSource("pf.disp", R"(
-displacement pf()
-{
-    printf("%p|%.1c|%m|%p\n", point(1, 2, 3), color(0.25, 0.5, 1), matrix(2), 1.5);
-})");
-  ASSERT_TRUE(r.success()) << renderDiagnostics(r);
-  // %p of a float warns (wants a point, vector or normal); %p, %c and %m of their types do not.
-  EXPECT_EQ(r.diagnostics->numShownWarnings(*r.sources), 1u) << renderDiagnostics(r);
-  EXPECT_NE(renderDiagnostics(r).find("format '%p' expects a point, vector or normal"), std::string::npos)
-      << renderDiagnostics(r);
-  runtime::ShaderInstance instance(r.shaders.front());
-  TestBatch b(1);
-  fillSphere(b, 0, 0.5, 0.0);
-  std::string printed;
-  RlfHostServices services{};
-  services.context = &printed;
-  services.print = [](void* context, const char* text) { *static_cast<std::string*>(context) += text; };
-  RlfShadingBatch view = b.all();
-  view.services = &services;
-  RlfStatus status{};
-  instance.evaluate(view, status);
-  EXPECT_EQ(printed,
-            "1.000000 2.000000 3.000000|0.2 0.5 1.0|2.000000 0.000000 0.000000 0.000000 0.000000 2.000000 "
-            "0.000000 0.000000 0.000000 0.000000 2.000000 0.000000 0.000000 0.000000 0.000000 2.000000|"
-            "1.500000\n");
-}
-
 TEST(JitTest, EveryExampleShaderCompilesAndEvaluatesFinite) {
   int numFiles = 0;
   for (const auto& entry : std::filesystem::directory_iterator(RELIEF_SOURCE_DIR "/examples/shaders")) {

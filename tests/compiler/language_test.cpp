@@ -183,6 +183,24 @@ displacement f()
 }
 
 // RSL has no int type and indexes arrays, triples and matrices with floats: they truncate.
+TEST(PrintfTest, TakesRslPointColorAndMatrixConversions) {
+  const std::string source = R"(
+displacement pf()
+{
+    printf("%p|%.1c|%m|%p\n", point(1, 2, 3), color(0.25, 0.5, 1), matrix(2), 1.5);
+})";
+  // %p of a float warns (it wants a point, vector or normal); %p, %c and %m of their types do not.
+  CompileResult r = compileSource("pf.disp", source);
+  EXPECT_EQ(r.diagnostics->numShownWarnings(*r.sources), 1u) << renderDiagnostics(r);
+  EXPECT_NE(renderDiagnostics(r).find("format '%p' expects a point, vector or normal"), std::string::npos)
+      << renderDiagnostics(r);
+  TestBatch b(1);
+  EXPECT_EQ(evaluate(source, b),
+            "1.000000 2.000000 3.000000|0.2 0.5 1.0|2.000000 0.000000 0.000000 0.000000 0.000000 2.000000 "
+            "0.000000 0.000000 0.000000 0.000000 2.000000 0.000000 0.000000 0.000000 0.000000 2.000000|"
+            "1.500000\n");
+}
+
 TEST(IndexTest, FloatIndicesTruncateAsRslLoopsNeed) {
   TestBatch b(1);
   const std::string printed = evaluate(R"(
