@@ -558,9 +558,8 @@ void SubtreeMemo::learn(uint32_t code, const CullBox* box, uint64_t decisions) {
 
 namespace {
 
-// The corners of input triangle `triangle` as the shader sees them at level 0.
-// The corners' positions, normals and parameters. A shader displaces along the normals the RI spec
-// gives the surface: on a surface whose orientation is reversed (`Displacement::reverseOrientation`)
+// The corners of input triangle `triangle` as the shader sees them at level 0. A shader displaces
+// along the normals the RI spec gives the surface: on a surface whose orientation is reversed (`Displacement::reverseOrientation`)
 // its own normals point inward, so `P += Km * N` dents what it raises on the outside-facing twin;
 // normals the scene gave (Mesh::givenNormals) stay as given.
 void cornerData(const Mesh& mesh, uint32_t triangle, const Displacement* disp, glm::vec3 p[3], glm::vec3 n[3],
