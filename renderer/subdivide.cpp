@@ -263,13 +263,18 @@ TriangleFrame makeFrame(const glm::vec3 p[3], const glm::vec3 n[3], const glm::v
 // Deepest vertex level: the depth limit plus the interior samples below it.
 constexpr int kMaxLevel = 40;
 
-// Displaces vertices [first, end) in one batch; falls back to the undisplaced P where the shader
-// returns a non-finite position.
+// Points per shader call. A round of a fine subdivision makes hundreds of thousands of vertices,
+// and a batch for all of them held ~110 bytes a point per thread (9 MB of a 10%-budget render's
+// peak on the 5M-triangle facade); the call's own cost is negligible at this size.
+constexpr uint32_t kShaderBatchPoints = 4096;
+
+// Displaces vertices [first, end) in one shader call; falls back to the undisplaced P where the
+// shader returns a non-finite position.
 // `shading`: an evaluation for the shading normal at a hit (displacedShadingNormal), kept out of
 // the shader's problem counts (they count displaced vertices); its status goes to *shadingStatus.
-void displace(const Displacement& disp, const TriangleFrame& frame, Vertices& vs, uint32_t first,
-              Batch& batch, SubdivideCounters& counters, RlfStatus* shadingStatus = nullptr) {
-  const uint32_t n = vs.size() - first;
+void displaceBatch(const Displacement& disp, const TriangleFrame& frame, Vertices& vs, uint32_t first,
+                   uint32_t end, Batch& batch, SubdivideCounters& counters, RlfStatus* shadingStatus) {
+  const uint32_t n = end - first;
   if (n == 0) return;
   batch.grow(n);
   for (uint32_t i = batch.constCount; i < n; ++i) {
@@ -319,8 +324,8 @@ void displace(const Displacement& disp, const TriangleFrame& frame, Vertices& vs
     *shadingStatus = status;
     return;
   }
-  const uint64_t end = readTicks();
-  if (end > start) counters.displaceTicks += end - start;  // cores' counters may disagree by a little
+  const uint64_t stop = readTicks();
+  if (stop > start) counters.displaceTicks += stop - start;  // cores' counters may disagree by a little
   counters.shaderPoints += n;
   counters.status.loopLimit += status.loopLimit;
   counters.status.indexClamped += status.indexClamped;
@@ -366,6 +371,15 @@ void displace(const Displacement& disp, const TriangleFrame& frame, Vertices& vs
     add(pc->unknownSpace, status.unknownSpace), add(pc->textureErrors, status.textureErrors);
     add(pc->splineBasis, status.splineBasis);
   }
+}
+
+// Displaces vertices [first, vs.size()) in calls of at most kShaderBatchPoints.
+void displace(const Displacement& disp, const TriangleFrame& frame, Vertices& vs, uint32_t first,
+              Batch& batch, SubdivideCounters& counters, RlfStatus* shadingStatus = nullptr) {
+  const uint32_t end = vs.size();
+  for (uint32_t from = first; from < end; from += std::min(end - from, kShaderBatchPoints))
+    displaceBatch(disp, frame, vs, from, from + std::min(end - from, kShaderBatchPoints), batch, counters,
+                  shadingStatus);
 }
 
 // Appends the midpoint of edge (a, b). Every attribute is 0.5 * (x_a + x_b): addition commutes
@@ -1056,20 +1070,23 @@ int undisplacedLevels(const glm::vec3 p[3], float edgeLength, int maxDepth) {
   return k;
 }
 
+double estimatedMicroTriangles(const Mesh& mesh, const Displacement& disp) {
+  const int maxDepth = std::clamp(disp.maxDepth, 0, kMaxSubdivisionDepth);
+  double sum = 0.0;
+  for (uint32_t t = 0; t < mesh.numTriangles(); ++t) {
+    const glm::vec3 p[3] = {mesh.P[mesh.indices[3 * size_t(t)]], mesh.P[mesh.indices[3 * size_t(t) + 1]],
+                            mesh.P[mesh.indices[3 * size_t(t) + 2]]};
+    sum += std::ldexp(1.0, 2 * undisplacedLevels(p, disp.edgeLength, maxDepth));
+  }
+  return sum;
+}
+
 std::vector<double> setSubdivisionLimits(Scene& scene) {
   std::vector<double> estimate(scene.displacements.size(), 0.0);
   for (const Mesh& mesh : scene.meshes) {
     if (mesh.displacementIndex >= scene.displacements.size()) continue;
     const Displacement& d = scene.displacements[mesh.displacementIndex];
-    if (!d.shader) continue;
-    const int maxDepth = std::clamp(d.maxDepth, 0, kMaxSubdivisionDepth);
-    double sum = 0.0;
-    for (uint32_t t = 0; t < mesh.numTriangles(); ++t) {
-      const glm::vec3 p[3] = {mesh.P[mesh.indices[3 * size_t(t)]], mesh.P[mesh.indices[3 * size_t(t) + 1]],
-                              mesh.P[mesh.indices[3 * size_t(t) + 2]]};
-      sum += std::ldexp(1.0, 2 * undisplacedLevels(p, d.edgeLength, maxDepth));
-    }
-    estimate[mesh.displacementIndex] += sum;
+    if (d.shader) estimate[mesh.displacementIndex] += estimatedMicroTriangles(mesh, d);
   }
   for (Displacement& d : scene.displacements)
     if (d.problems) d.problems->pointLimit = kRunawayPoints;
