@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "renderer/subdivide.h"
+
 namespace relief {
 namespace {
 
@@ -111,7 +113,15 @@ ContributorGrid::ContributorGrid(const Scene& scene, const AccelOptions& options
       if (d) maxBound = std::max(maxBound, d->boundWorld);
     if (maxBound > 0.0f && std::isfinite(maxBound))
       n = std::min(n, int(longest / (kVoxelsPerBound * maxBound)));
-    n = std::clamp(n, 1, kMaxAutoGridResolution);
+    // Fine displacement: as many voxels again as keep a voxel's share of the micro-triangles
+    // small, however few input triangles carry them (header).
+    double micro = 0.0;
+    for (uint32_t m = 0; m < scene.meshes.size(); ++m)
+      if (displacements_[m]) micro += estimatedMicroTriangles(scene.meshes[m], *displacements_[m]);
+    int byMicro = int(std::lround(std::cbrt(micro / kMicroTrianglesPerCell)));
+    if (maxBound > 0.0f && std::isfinite(maxBound))
+      byMicro = std::min(byMicro, int(longest / (kMinVoxelBounds * maxBound)));
+    n = std::clamp(std::max(n, byMicro), 1, kMaxAutoGridResolution);
   }
   n = std::clamp(n, 1, kMaxGridResolution);
   voxelSize_ = (longest + 4 * padding_) / float(n);

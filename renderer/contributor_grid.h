@@ -44,8 +44,21 @@ Bounds3 triangleReach(const Mesh& mesh, uint32_t triangle, float grow);
 // the bound of the voxel, so the repeated work grows like ((size + 2 * bound) / size)^2. Measured
 // on a bumpy sphere (4096 input triangles, bound 0.05, 600K micro-triangles, 160K rays): 32^3
 // voxels evaluated 5.2M shader points in 1.37 s, 8^3 voxels 1.0M points in 0.54 s.
+//
+// Finely displaced scenes need more voxels than their input triangles say: a voxel's fill costs
+// subdivision scratch and time in proportion to the micro-triangles it holds, so few large input
+// triangles at a fine edge length made voxels of 50-60K micro-triangles, fills that held tens of
+// megabytes of scratch, and budgets that thrashed. So the resolution is also at least
+// cbrt(E / kMicroTrianglesPerCell), E the micro-triangles the undisplaced surfaces ask for
+// (estimatedMicroTriangles, before simplification), which may take voxels down to kMinVoxelBounds
+// displacement bounds: with subtree memos the margin a fill repeats is small. The constant puts
+// the facade example at its measured best (18 voxels); at a 4x finer edge length (E 57M, 5M
+// micro-triangles made) the rule gives 36 where 18 took 12.4 s and 115 MB at a 10% budget, 36
+// 10.3 s and 93 MB (docs/cache.md).
 constexpr float kAutoGridFactor = 2.0f;
 constexpr float kVoxelsPerBound = 4.0f;
+constexpr double kMicroTrianglesPerCell = 800.0;
+constexpr float kMinVoxelBounds = 2.0f;
 constexpr int kMaxAutoGridResolution = 128;
 // Explicit resolutions are clamped too: beyond this the per-voxel arrays alone exceed memory.
 constexpr int kMaxGridResolution = 1024;

@@ -182,6 +182,10 @@ inline bool shaderNormalsReversed(const Mesh& mesh, const Displacement& disp) {
 bool displacedShadingNormal(const Mesh& mesh, uint32_t triangle, const Displacement& disp, glm::vec2 bary,
                             glm::vec3* normal);
 
+// The sum of 4^k over the triangles of `mesh`: micro-triangles its undisplaced surface asks for at
+// disp's edge length, before simplification (an upper bound of what subdivision keeps).
+double estimatedMicroTriangles(const Mesh& mesh, const Displacement& disp);
+
 // Returns the estimate (the sum of 4^k) for each of scene.displacements, meshes without a shader
 // counting nothing, and arms the runaway guard of every Displacement (ShaderProblemCounts).
 std::vector<double> setSubdivisionLimits(Scene& scene);

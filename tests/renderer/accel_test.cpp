@@ -265,6 +265,38 @@ TEST(ContributorGrid, ListsTrianglesInEveryVoxelTheirShapeMayReach) {
   EXPECT_GE(automatic.voxelSize(), 4.0f * bound * 0.99f);
 }
 
+// A few input triangles displaced finely get voxels by their micro-triangles (a voxel's fill
+// holds scratch and time in proportion to them), never narrower than kMinVoxelBounds bounds.
+TEST(ContributorGrid, FineDisplacementGetsVoxelsForItsMicroTriangles) {
+  auto longestResolution = [](const ContributorGrid& g) {
+    return std::max({g.resolution().x, g.resolution().y, g.resolution().z});
+  };
+  SphereOptions o;
+  o.nu = 8, o.nv = 4;
+  o.km = 0.01f;
+  o.edgeLength = 0.05f;
+  const Scene coarse = makeSphereScene(o);
+  const int byInput = longestResolution(ContributorGrid(coarse, AccelOptions{}));
+  EXPECT_EQ(byInput, int(std::lround(kAutoGridFactor * std::cbrt(double(coarse.meshes[0].numTriangles())))));
+
+  o.edgeLength = 0.005f;  // 4^8 micro-triangles per input triangle at the depth limit
+  const Scene fine = makeSphereScene(o);
+  const double micro = estimatedMicroTriangles(fine.meshes[0], fine.displacements[0]);
+  EXPECT_EQ(micro, 65536.0 * fine.meshes[0].numTriangles());
+  const ContributorGrid fineGrid(fine, AccelOptions{});
+  EXPECT_EQ(longestResolution(fineGrid), int(std::lround(std::cbrt(micro / kMicroTrianglesPerCell))));
+  EXPECT_GT(longestResolution(fineGrid), byInput);
+  AccelOptions undisplaced;
+  undisplaced.displace = false;  // no micro-triangles: the input rule alone
+  EXPECT_EQ(longestResolution(ContributorGrid(fine, undisplaced)), byInput);
+
+  o.km = 0.1f;  // a large bound caps it: 2 bounds a voxel, not 4
+  const Scene bumpy = makeSphereScene(o);
+  const ContributorGrid capped(bumpy, AccelOptions{});
+  EXPECT_GE(capped.voxelSize(), kMinVoxelBounds * o.km * 0.99f);
+  EXPECT_LT(capped.voxelSize(), kVoxelsPerBound * o.km);
+}
+
 TEST(GridAccelerator, EmptySceneNeverHits) {
   Scene scene;
   auto accel = makeGridAccelerator(scene, AccelOptions{});
