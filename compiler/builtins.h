@@ -1,5 +1,5 @@
 // The built-in function library (language.md §6) as seen by the type checker and codegen: names,
-// ids and the runtime symbols generated code may call. No LLVM here.
+// ids. (The runtime symbols generated code may call are runtime/symbols.h.) No LLVM here.
 #pragma once
 
 #include <cstdint>
@@ -57,12 +57,5 @@ struct BuiltinInfo {
 };
 
 const BuiltinInfo* findBuiltin(std::string_view name);
-
-// Extern "C" functions generated code may call, registered with the JIT explicitly.
-struct RuntimeSymbol {
-  const char* name;
-  void* address;
-};
-std::span<const RuntimeSymbol> runtimeSymbols();
 
 }  // namespace relief::compiler

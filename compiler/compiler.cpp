@@ -19,6 +19,7 @@
 #include "compiler/prelude.h"
 #include "compiler/preprocessor.h"
 #include "compiler/typecheck.h"
+#include "runtime/shader_object.h"
 
 namespace relief::compiler {
 
@@ -64,6 +65,12 @@ void compileBuffer(CompileResult& result, SourceManager::FileId file, const Comp
   if (flags.keepAst) result.ast = std::move(unit);
   if (!optimizeModule(*module, options.optLevel, &result.internalError)) return;
   if (flags.emitLlvm) result.llvmIr = moduleText(*module);
+  if (flags.emitObject) {
+    if (!emitObject(*module, &result.object, &result.internalError)) return;
+    for (ShaderLayout& layout : layouts)
+      result.layouts.push_back({layout.name, layout.entrySymbol, layout.defaultsSymbol, layout.params,
+                                layout.blockSize, layout.ownNormal});
+  }
   if (!flags.jit) return;
 
   std::unique_ptr<ShaderJit> jit = ShaderJit::create(&result.internalError);
@@ -74,33 +81,7 @@ void compileBuffer(CompileResult& result, SourceManager::FileId file, const Comp
     void* entry = keepAlive->lookup(layout.entrySymbol, &result.internalError);
     void* defaults = keepAlive->lookup(layout.defaultsSymbol, &result.internalError);
     if (!entry || !defaults) return;
-    // Run the defaults function once to learn the default values (reflection).
-    std::vector<uint64_t> block((layout.blockSize + 7) / 8 + 1, 0);
-    reinterpret_cast<void (*)(void*)>(defaults)(block.data());
-    const auto* bytes = reinterpret_cast<const unsigned char*>(block.data());
-    for (runtime::ParamInfo& p : layout.params) {
-      const int elements = std::max(p.arrayLength, 1);
-      if (p.type == runtime::ParamType::String) {
-        for (int i = 0; i < elements; ++i) {
-          const char* s = nullptr;
-          std::memcpy(&s, bytes + p.offset + 8 * size_t(i), sizeof s);
-          p.defaultStrings.push_back(s ? s : "");
-        }
-        continue;
-      }
-      const int n = runtime::paramComponents(p.type) * elements;
-      for (int k = 0; k < n; ++k) {
-        if (p.type == runtime::ParamType::Int) {
-          int32_t v;
-          std::memcpy(&v, bytes + p.offset + 4 * k, 4);
-          p.defaultNumbers.push_back(float(v));
-        } else {
-          float v;
-          std::memcpy(&v, bytes + p.offset + 4 * k, 4);
-          p.defaultNumbers.push_back(v);
-        }
-      }
-    }
+    runtime::reflectDefaults(layout.params, layout.blockSize, reinterpret_cast<void (*)(void*)>(defaults));
     result.shaders.push_back(std::make_shared<runtime::CompiledShader>(
         layout.name, reinterpret_cast<RlfShaderEntry>(entry), std::move(layout.params), layout.blockSize,
         keepAlive, layout.ownNormal));

@@ -12,6 +12,7 @@
 #include "compiler/shader_library.h"
 #include "compiler/source_manager.h"
 #include "runtime/shader.h"
+#include "runtime/shader_object.h"
 
 namespace relief::compiler {
 
@@ -20,6 +21,9 @@ struct Prelude;
 struct CompileFlags {
   bool jit = true;         // false: stop after the optimized IR (reliefc --emit-llvm without --eval)
   bool emitLlvm = false;   // keep the optimized IR text in CompileResult::llvmIr
+  // Keep the code as an ELF relocatable object in CompileResult::object, with the shaders' layouts
+  // (reliefc --emit-bundle; runtime/shader_object.h loads it without LLVM).
+  bool emitObject = false;
   bool keepAst = false;    // keep the checked AST in CompileResult::ast
   unsigned errorLimit = 20;
   // Give every variable derivative storage (no LanePlan pruning, codegen.h): for tests that check
@@ -38,6 +42,8 @@ struct CompileResult {
   std::unique_ptr<TranslationUnit> ast;
   std::shared_ptr<const Prelude> prelude;  // the stdlib functions `ast` may call
   std::string llvmIr;
+  std::string object;                                // CompileFlags::emitObject
+  std::vector<runtime::ShaderLayoutInfo> layouts;    // CompileFlags::emitObject
   // Every shader of the file, in source order; empty unless compilation succeeded.
   std::vector<std::shared_ptr<const runtime::CompiledShader>> shaders;
   bool ioError = false;       // the input or the stdlib could not be read (diagnostic recorded)

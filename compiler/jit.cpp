@@ -6,6 +6,7 @@
 #include <llvm/ExecutionEngine/Orc/LLJIT.h>
 #include <llvm/ExecutionEngine/Orc/ThreadSafeModule.h>
 #include <llvm/IR/LLVMContext.h>
+#include <llvm/IR/LegacyPassManager.h>
 #include <llvm/IR/Module.h>
 #include <llvm/IR/Verifier.h>
 #include <llvm/Passes/PassBuilder.h>
@@ -21,7 +22,7 @@
 #include <llvm/Support/raw_ostream.h>
 #include <llvm/Target/TargetMachine.h>
 
-#include "compiler/builtins.h"
+#include "runtime/symbols.h"
 
 namespace relief::compiler {
 
@@ -110,6 +111,33 @@ std::string moduleText(const llvm::Module& module) {
   return os.str();
 }
 
+bool emitObject(llvm::Module& module, std::string* object, std::string* error) {
+  initializeLlvm();
+  auto jtmb = llvm::orc::JITTargetMachineBuilder::detectHost();
+  if (!jtmb) {
+    *error = errorText(jtmb.takeError());
+    return false;
+  }
+  // As LLJIT sets up its target machine for x86-64 ELF.
+  jtmb->setRelocationModel(llvm::Reloc::PIC_);
+  jtmb->setCodeModel(llvm::CodeModel::Small);
+  auto tm = jtmb->createTargetMachine();
+  if (!tm) {
+    *error = errorText(tm.takeError());
+    return false;
+  }
+  llvm::SmallVector<char, 0> buffer;
+  llvm::raw_svector_ostream os(buffer);
+  llvm::legacy::PassManager pm;
+  if ((*tm)->addPassesToEmitFile(pm, os, nullptr, llvm::CodeGenFileType::ObjectFile)) {
+    *error = "the target cannot emit an object file";
+    return false;
+  }
+  pm.run(module);
+  object->assign(buffer.data(), buffer.size());
+  return true;
+}
+
 struct ShaderJit::Impl {
   std::unique_ptr<llvm::orc::LLJIT> jit;
 };
@@ -135,7 +163,7 @@ std::unique_ptr<ShaderJit> ShaderJit::create(std::string* error) {
     return nullptr;
   }
   llvm::orc::SymbolMap symbols;
-  for (const RuntimeSymbol& s : runtimeSymbols())
+  for (const runtime::RuntimeSymbol& s : runtime::runtimeSymbols())
     symbols[(*jit)->mangleAndIntern(s.name)] = {llvm::orc::ExecutorAddr::fromPtr(s.address),
                                                 llvm::JITSymbolFlags::Exported | llvm::JITSymbolFlags::Callable};
   if (llvm::Error e = (*jit)->getMainJITDylib().define(llvm::orc::absoluteSymbols(std::move(symbols)))) {

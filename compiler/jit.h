@@ -16,6 +16,9 @@ namespace relief::compiler {
 // Returns false (with *error) if the module is invalid: an internal compiler error.
 bool optimizeModule(llvm::Module& module, int optLevel, std::string* error);
 std::string moduleText(const llvm::Module& module);
+// The optimized module as an ELF relocatable object for the host, made with the target machine
+// the JIT uses (PIC, small code model), so its code is the JIT's.
+bool emitObject(llvm::Module& module, std::string* object, std::string* error);
 
 class ShaderJit {
  public:

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <filesystem>
 
 namespace relief::runtime {
 
@@ -146,6 +147,35 @@ bool ShaderInstance::bindValue(const ParamInfo& info, const ParamValue& value, s
     return mismatch();
   storeNumbers(info, numbers);
   return true;
+}
+
+bool locateShaderFile(std::string_view name, std::span<const std::string> searchPath, std::string* path,
+                      std::string* shaderName, std::string* error) {
+  const std::filesystem::path given{std::string(name)};
+  std::filesystem::path file = given;
+  if (given.extension() != ".disp") file += ".disp";
+  *shaderName = given.has_parent_path() || given.extension() == ".disp" ? given.stem().string() : std::string(name);
+  path->clear();
+  std::error_code ec;
+  if (file.is_absolute()) {
+    if (std::filesystem::is_regular_file(file, ec)) *path = file.string();
+  } else {
+    for (const std::string& dir : searchPath) {
+      std::filesystem::path candidate = std::filesystem::path(dir.empty() ? "." : dir) / file;
+      if (std::filesystem::is_regular_file(candidate, ec)) {
+        *path = candidate.string();
+        break;
+      }
+    }
+  }
+  if (!path->empty()) return true;
+  std::string dirs;
+  for (const std::string& dir : searchPath) dirs += (dirs.empty() ? "" : ", ") + ("'" + dir + "'");
+  if (error)
+    *error = file.is_absolute() ? "shader '" + std::string(name) + "' not found: no file '" + file.string() + "'"
+                                : "shader '" + std::string(name) + "' not found: no '" + file.string() +
+                                      "' in the search path" + (dirs.empty() ? " (empty)" : " (" + dirs + ")");
+  return false;
 }
 
 }  // namespace relief::runtime

@@ -111,7 +111,8 @@ class ShaderInstance {
 };
 
 // Where the renderer gets shaders from by name (implemented in compiler/ by ShaderLibrary, which
-// compiles `<name>.disp` found on the search path, and by hand-written shaders in tests). Errors come
+// compiles `<name>.disp` found on the search path in process, in tools/ by relief's
+// ShaderCompilerProcess, which has reliefc compile it, and by hand-written shaders in tests). Errors come
 // back as text for the scene loader to locate; compiler diagnostics are printed by the provider.
 class ShaderProvider {
  public:
@@ -120,5 +121,12 @@ class ShaderProvider {
                                                      std::span<const std::string> searchPath,
                                                      std::string* error) = 0;
 };
+
+// The file of shader `name` on `searchPath` and the shader's name in it. RenderMan accepts a path
+// for a shader name ("lib/stone", "/abs/stone.disp"): the file is that path (with .disp added if
+// it has no extension), absolute or under each search directory, and the shader is the one named
+// by the file's stem. False with *error when no such file exists.
+bool locateShaderFile(std::string_view name, std::span<const std::string> searchPath, std::string* path,
+                      std::string* shaderName, std::string* error);
 
 }  // namespace relief::runtime

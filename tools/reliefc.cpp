@@ -20,6 +20,7 @@
 #include "runtime/abi.h"
 #include "runtime/builtins_texture.h"
 #include "runtime/shader.h"
+#include "runtime/shader_object.h"
 
 namespace {
 
@@ -42,6 +43,7 @@ constexpr const char* kUsage =
     "  -o file                    write what is printed (IR, syntax tree, --eval) to file, and\n"
     "                             only if every input compiled; alone it means --emit-llvm\n"
     "  --emit-ast                 print the syntax tree\n"
+    "  --emit-bundle              write the shaders' native code and layouts, as relief loads them\n"
     "  --color=auto|always|never  colored diagnostics\n"
     "  --diagnostics-format=text|json\n"
     "  --eval                     evaluate the (first or --shader) shader at one point:\n"
@@ -55,6 +57,7 @@ struct Args {
   std::vector<std::string> files;
   bool emitLlvm = false;
   bool emitAst = false;
+  bool emitBundle = false;  // the shaders' code and layouts for relief (runtime/shader_object.h)
   bool json = false;
   bool eval = false;
   std::string color = "auto";
@@ -335,6 +338,8 @@ int main(int argc, char** argv) {
       if (args.output.empty()) return usageError("empty file name after '-o'");
     } else if (a == "--emit-llvm") {
       args.emitLlvm = true;
+    } else if (a == "--emit-bundle") {
+      args.emitBundle = true;
     } else if (a == "--emit-ast") {
       args.emitAst = true;
     } else if (a.rfind("--color=", 0) == 0) {
@@ -373,7 +378,9 @@ int main(int argc, char** argv) {
     return usageError("standard input ('-') named more than once: it can be read only once");
   if (args.eval && args.files.size() != 1) return usageError("--eval takes exactly one file");
   // `reliefc shader.disp -o shader.ll` asks for the IR, as clang's -S -emit-llvm would give it.
-  if (!args.output.empty() && !args.emitAst && !args.eval) args.emitLlvm = true;
+  if (!args.output.empty() && !args.emitAst && !args.eval && !args.emitBundle) args.emitLlvm = true;
+  if (args.emitBundle && (args.files.size() != 1 || args.eval || args.emitAst || args.emitLlvm))
+    return usageError("--emit-bundle takes exactly one file and no other output");
   // What would go to standard output is collected and written to the -o file at the end, so a
   // failed compile leaves no file (and an earlier one intact) rather than a partial one.
   std::ostringstream collected;
@@ -394,6 +401,7 @@ int main(int argc, char** argv) {
     CompileFlags flags;
     flags.emitLlvm = args.emitLlvm;
     flags.keepAst = args.emitAst;
+    flags.emitObject = args.emitBundle;
     flags.jit = args.eval;
     flags.errorLimit = args.errorLimit;
     flags.disabledWarnings = args.disabledWarnings;
@@ -432,6 +440,7 @@ int main(int argc, char** argv) {
     }
     if (args.emitAst && result.ast) relief::compiler::dump(std::cout, *result.ast);
     if (args.emitLlvm) std::cout << result.llvmIr;
+    if (args.emitBundle) std::cout << relief::runtime::encodeShaderBundle(result.layouts, result.object);
     if (args.eval) {
       const int rc = evaluate(args, result);
       if (rc) exitCode = std::max(exitCode, rc);
