@@ -9,6 +9,7 @@
 #include <string_view>
 #include <vector>
 
+#include "compiler/json_text.h"
 #include "compiler/source_manager.h"
 
 namespace relief::compiler {
@@ -41,8 +42,6 @@ struct DiagnosticOptions {
   std::vector<std::string> notErrorWarnings;  // -Wno-error=<name>: a warning even under -Werror
 };
 
-// `text` as a JSON string literal (quotes included); invalid UTF-8 bytes become U+FFFD.
-std::string jsonQuoted(std::string_view text);
 
 // The -W names of all warnings, for validating command-line flags.
 std::vector<std::string> warningFlags();

@@ -1,5 +1,5 @@
-// relief: renders a RIB scene with displacement shaders compiled on the fly. The only place where
-// the compiler (ShaderLibrary, the ShaderProvider) meets the renderer (reader, accelerator, render
+// relief: renders a RIB scene with displacement shaders compiled on the fly, by a reliefc child
+// process (shader_process.h: relief links no LLVM), for the renderer (reader, accelerator, render
 // loop, film). Exit codes: 0 images written, 1 scene/shader/render error, 2 usage error.
 #include <fcntl.h>
 #include <sys/resource.h>
@@ -25,8 +25,7 @@
 #include <utility>
 #include <vector>
 
-#include "compiler/diagnostics.h"
-#include "compiler/shader_library.h"
+#include "compiler/json_text.h"
 #include "renderer/accel.h"
 #include "renderer/embree_accelerator.h"
 #include "renderer/film.h"
@@ -36,6 +35,7 @@
 #include "renderer/subdivide.h"
 #include "runtime/abi.h"
 #include "runtime/builtins_texture.h"
+#include "tools/shader_process.h"
 
 namespace {
 
@@ -347,9 +347,11 @@ std::vector<const relief::Displacement*> distinctShaderProblems(const relief::Sc
 // Process start, for time.total_s.
 const auto gProcessStart = std::chrono::steady_clock::now();
 
-uint64_t peakRssBytes() {
+// RUSAGE_SELF: relief alone; RUSAGE_CHILDREN: the largest of the reliefc processes that compiled
+// its shaders (shader_process.h), which exited before the render.
+uint64_t peakRssBytes(int who = RUSAGE_SELF) {
   struct rusage usage {};
-  if (::getrusage(RUSAGE_SELF, &usage) != 0) return 0;
+  if (::getrusage(who, &usage) != 0) return 0;
   return uint64_t(usage.ru_maxrss) * 1024;  // kilobytes on Linux
 }
 
@@ -463,6 +465,7 @@ StatList collectStats(const CommandLine& cl, const relief::Scene& scene,
       {"time.shade_s", f(shade)},
       {"time.total_s", f(secondsSince(gProcessStart))},
       {"memory.peak_rss_bytes", u(peakRssBytes())},
+      {"memory.compiler_peak_rss_bytes", u(peakRssBytes(RUSAGE_CHILDREN))},
   };
   return s;
 }
@@ -763,10 +766,10 @@ int run(const CommandLine& cl) {
   std::ostream* warnings = cl.quiet ? nullptr : &warningStream;
   // The shader directories double as #include directories, so shaders can share headers. One
   // library serves every frame: it compiles each shader file once.
-  relief::compiler::CompileOptions compileOptions;
+  relief::tools::ShaderCompilerOptions compileOptions;
   compileOptions.includeDirs = cl.shaderDirs;
   compileOptions.noWarnings = cl.quiet;  // errors are still printed
-  relief::compiler::ShaderLibrary shaders(compileOptions, &std::cerr);
+  relief::tools::ShaderCompilerProcess shaders(compileOptions);
 
   relief::RibReadOptions readOptions;
   readOptions.shaders = &shaders;

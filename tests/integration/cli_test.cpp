@@ -307,6 +307,28 @@ TEST(Relief, BrokenShaderStopsTheRenderWithoutAnImage) {
   EXPECT_FALSE(fs::exists(image));
 }
 
+// relief compiles shaders with a reliefc child process (tools/shader_process.h): one it cannot
+// run, or one that returns something else than a shader bundle, is an error at the Displacement.
+TEST(Relief, AShaderCompilerThatCannotRunIsAnErrorAtTheDisplacement) {
+  const fs::path dir = scratchDir();
+  const std::string scene = kSource + "/examples/scenes/sphere.rib";
+  RunResult r = run("RELIEF_COMPILER=/nonexistent/reliefc " + kRelief + " " + scene + " --quiet -o " +
+                    (dir / "a.png").string());
+  EXPECT_EQ(r.exitCode, 1);
+  EXPECT_NE(r.err.find("sphere.rib:19: error: cannot load displacement shader 'bumps': cannot run the shader "
+                       "compiler '/nonexistent/reliefc': No such file or directory"),
+            std::string::npos)
+      << r.err;
+  EXPECT_FALSE(fs::exists(dir / "a.png"));
+  r = run("RELIEF_COMPILER=/bin/echo " + kRelief + " " + scene + " --quiet -o " + (dir / "b.png").string());
+  EXPECT_EQ(r.exitCode, 1);
+  EXPECT_NE(r.err.find("sphere.rib:19: error: cannot load displacement shader 'bumps': cannot load the code "
+                       "reliefc compiled from"),
+            std::string::npos)
+      << r.err;
+  EXPECT_FALSE(fs::exists(dir / "b.png"));
+}
+
 TEST(Relief, MalformedSceneReportsFileAndLine) {
   const fs::path dir = scratchDir();
   writeFile(dir / "bad.rib", "Format 32 24 1\nWorldBegin\nSphere 1 -1 \"x\" 360\nWorldEnd\n");

@@ -131,7 +131,7 @@ const char* const kRequiredKeys[] = {
     "time.total_s",                  "time.subdivide_s",
     "time.displace_s",               "time.intersect_s",
     "time.shade_s",                  "time.render_s",
-    "memory.peak_rss_bytes",
+    "memory.peak_rss_bytes",         "memory.compiler_peak_rss_bytes",
 };
 
 void expectInvariants(const StatsRun& r) {
@@ -157,6 +157,7 @@ void expectInvariants(const StatsRun& r) {
   EXPECT_GT(r.num("time.displace_s"), 0);
   EXPECT_GE(r.num("time.total_s"), r.num("time.render_s"));
   EXPECT_GT(r.num("memory.peak_rss_bytes"), r.num("cache.peak_resident_bytes"));
+  EXPECT_GT(r.num("memory.compiler_peak_rss_bytes"), 0);  // reliefc compiled the shaders
 }
 
 TEST(Stats, JsonHasTheDocumentedKeysAndInvariants) {
