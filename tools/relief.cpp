@@ -104,6 +104,8 @@ constexpr const char* kUsage =
     "                            cache budget, stretches otherwise): for measurements; the image\n"
     "                            is the same\n"
     "  RELIEF_CHECK_BUDGET=1     check the cache budget after every fill (debug)\n"
+    "  RELIEF_COMPILER=FILE      the reliefc that compiles the shaders, in a child process\n"
+    "                            (default: the reliefc beside relief, else on PATH)\n"
     "  RELIEF_IMAGE_LIBRARY=FILE the OpenImageIO plugin (textures, formats other than\n"
     "                            png/ppm/pgm), loaded on first use (default: <libdir>/relief/)\n"
     "\n"

@@ -380,7 +380,7 @@ TEST(Relief, HelpListsEveryOptionAndTheEnvironment) {
        {"-I", "-o ", "--resolution", "--spp", "--threads", "--order", "--max-depth", "--filter",
         "blackman-harris", "--cache-triangles", "--no-displacement", "--stats", "--stats-json",
         "--quiet", "--help", "--version", "RELIEF_SHADER_PATH", "cachemiss", "exit status",
-        "--frame", "out.0001.png", "--print-limit"})
+        "--frame", "out.0001.png", "--print-limit", "RELIEF_COMPILER"})
     EXPECT_NE(r.out.find(option), std::string::npos) << option;
 }
 
