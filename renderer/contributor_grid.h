@@ -51,10 +51,10 @@ Bounds3 triangleReach(const Mesh& mesh, uint32_t triangle, float grow);
 // megabytes of scratch, and budgets that thrashed. So the resolution is also at least
 // cbrt(E / kMicroTrianglesPerCell), E the micro-triangles the undisplaced surfaces ask for
 // (estimatedMicroTriangles, before simplification), which may take voxels down to kMinVoxelBounds
-// displacement bounds: with subtree memos the margin a fill repeats is small. The constant puts
-// the facade example at its measured best (18 voxels); at a 4x finer edge length (E 57M, 5M
-// micro-triangles made) the rule gives 36 where 18 took 12.4 s and 115 MB at a 10% budget, 36
-// 10.3 s and 93 MB (docs/cache.md).
+// displacement bounds: with subtree memos the margin a fill repeats is small. The constant keeps
+// the example scenes at or near their measured best (the facade at 18 voxels); at a 4x finer edge
+// length (E 57M, 4.5-5M micro-triangles made) the rule gives 37, where 18 took 12.4 s and 115 MB
+// at a 10% budget and 36 took 10.3 s and 93 MB (docs/cache.md).
 constexpr float kAutoGridFactor = 2.0f;
 constexpr float kVoxelsPerBound = 4.0f;
 constexpr double kMicroTrianglesPerCell = 800.0;
