@@ -21,6 +21,7 @@
 #include <llvm/Support/TargetSelect.h>
 #include <llvm/Support/raw_ostream.h>
 #include <llvm/Target/TargetMachine.h>
+#include <llvm/Transforms/Utils/Cloning.h>
 
 #include "runtime/symbols.h"
 
@@ -111,7 +112,7 @@ std::string moduleText(const llvm::Module& module) {
   return os.str();
 }
 
-bool emitObject(llvm::Module& module, std::string* object, std::string* error) {
+bool emitObject(const llvm::Module& module, std::string* object, std::string* error) {
   initializeLlvm();
   auto jtmb = llvm::orc::JITTargetMachineBuilder::detectHost();
   if (!jtmb) {
@@ -133,7 +134,10 @@ bool emitObject(llvm::Module& module, std::string* object, std::string* error) {
     *error = "the target cannot emit an object file";
     return false;
   }
-  pm.run(module);
+  // Code generation rewrites the IR it is given (CodeGenPrepare and others); the module may still
+  // go to the JIT.
+  std::unique_ptr<llvm::Module> copy = llvm::CloneModule(module);
+  pm.run(*copy);
   object->assign(buffer.data(), buffer.size());
   return true;
 }

@@ -17,8 +17,8 @@ namespace relief::compiler {
 bool optimizeModule(llvm::Module& module, int optLevel, std::string* error);
 std::string moduleText(const llvm::Module& module);
 // The optimized module as an ELF relocatable object for the host, made with the target machine
-// the JIT uses (PIC, small code model), so its code is the JIT's.
-bool emitObject(llvm::Module& module, std::string* object, std::string* error);
+// the JIT uses (PIC, small code model), so its code is the JIT's. `module` is left as it was.
+bool emitObject(const llvm::Module& module, std::string* object, std::string* error);
 
 class ShaderJit {
  public:

@@ -10,12 +10,13 @@
 #include <limits>
 #include <unordered_map>
 
+#include "runtime/abi.h"
 #include "runtime/symbols.h"
 
 namespace relief::runtime {
 
 void reflectDefaults(std::vector<ParamInfo>& params, uint32_t blockSize, void (*defaults)(void*)) {
-  std::vector<uint64_t> block((blockSize + 7) / 8 + 1, 0);
+  std::vector<uint64_t> block((size_t(blockSize) + 7) / 8 + 1, 0);
   defaults(block.data());
   const auto* bytes = reinterpret_cast<const unsigned char*>(block.data());
   for (ParamInfo& p : params) {
@@ -47,6 +48,9 @@ void reflectDefaults(std::vector<ParamInfo>& params, uint32_t blockSize, void (*
 namespace {
 
 constexpr char kMagic[8] = {'R', 'L', 'F', 'B', 'N', 'D', 'L', '1'};
+// Limits a well-formed bundle stays far below; a larger value is a malformed one.
+constexpr uint32_t kMaxShaders = 4096, kMaxBlockBytes = 1u << 24;
+constexpr uint64_t kMaxSectionBytes = uint64_t(1) << 28;
 
 class Writer {
  public:
@@ -67,6 +71,7 @@ class Reader {
  public:
   explicit Reader(std::string_view in) : in_(in) {}
   bool ok() const { return ok_; }
+  bool atEnd() const { return pos_ == in_.size(); }
   bool bytes(void* p, size_t n) {
     if (!ok_ || in_.size() - pos_ < n) return ok_ = false;
     std::memcpy(p, in_.data() + pos_, n);
@@ -133,9 +138,12 @@ bool LoadedObject::load(std::string_view object, std::string* error) {
     return fail("bad section header table");
   std::vector<Elf64_Shdr> sh(eh.e_shnum);
   std::memcpy(sh.data(), data + eh.e_shoff, sh.size() * sizeof(Elf64_Shdr));
-  for (const Elf64_Shdr& s : sh)
+  for (const Elf64_Shdr& s : sh) {
     if (s.sh_type != SHT_NOBITS && (s.sh_offset > size || s.sh_size > size - s.sh_offset))
       return fail("section outside the file");
+    if (s.sh_size > kMaxSectionBytes) return fail("section too large");
+  }
+  if (sh[eh.e_shstrndx].sh_type != SHT_STRTAB) return fail("bad section name table");
   auto sectionName = [&](const Elf64_Shdr& s) -> std::string_view {
     const Elf64_Shdr& names = sh[eh.e_shstrndx];
     if (s.sh_name >= names.sh_size) return {};
@@ -151,11 +159,12 @@ bool LoadedObject::load(std::string_view object, std::string* error) {
   std::vector<size_t> offset(sh.size(), 0);
   for (size_t i = 0; i < sh.size(); ++i) {
     const Elf64_Shdr& s = sh[i];
-    if (!(s.sh_flags & SHF_ALLOC) || sectionName(s) == ".eh_frame") continue;
-    if (s.sh_type != SHT_PROGBITS && s.sh_type != SHT_NOBITS && s.sh_type != SHT_INIT_ARRAY &&
-        s.sh_type != SHT_FINI_ARRAY && s.sh_type != SHT_X86_64_UNWIND)
-      continue;
-    if (s.sh_type == SHT_INIT_ARRAY && s.sh_size) return fail("static initialisers are not supported");
+    if (!(s.sh_flags & SHF_ALLOC) || s.sh_type == SHT_X86_64_UNWIND || sectionName(s) == ".eh_frame") continue;
+    const std::string_view name = sectionName(s);
+    if ((s.sh_type == SHT_INIT_ARRAY || s.sh_type == SHT_PREINIT_ARRAY || name.starts_with(".ctors") ||
+         name.starts_with(".init_array")) && s.sh_size)
+      return fail("static initialisers are not supported");
+    if (s.sh_type != SHT_PROGBITS && s.sh_type != SHT_NOBITS) continue;
     if (s.sh_flags & SHF_TLS) return fail("thread-local data is not supported");
     group[i] = s.sh_flags & SHF_EXECINSTR ? kCode : s.sh_flags & SHF_WRITE ? kWritable : kReadOnly;
   }
@@ -165,7 +174,8 @@ bool LoadedObject::load(std::string_view object, std::string* error) {
   size_t symtabIndex = 0;
   for (size_t i = 0; i < sh.size(); ++i)
     if (sh[i].sh_type == SHT_SYMTAB) symtab = &sh[i], symtabIndex = i;
-  if (!symtab || symtab->sh_entsize != sizeof(Elf64_Sym) || symtab->sh_link >= sh.size())
+  if (!symtab || symtab->sh_entsize != sizeof(Elf64_Sym) || symtab->sh_link >= sh.size() ||
+      sh[symtab->sh_link].sh_type != SHT_STRTAB)
     return fail("no symbol table");
   const size_t numSymbols = symtab->sh_size / sizeof(Elf64_Sym);
   std::vector<Elf64_Sym> syms(numSymbols);
@@ -185,8 +195,10 @@ bool LoadedObject::load(std::string_view object, std::string* error) {
   for (size_t i = 0; i < sh.size(); ++i) {
     const Elf64_Shdr& r = sh[i];
     if (r.sh_type == SHT_REL) return fail("REL relocations are not supported");
-    if (r.sh_type != SHT_RELA || r.sh_link != symtabIndex || r.sh_info >= sh.size() || group[r.sh_info] < 0) continue;
-    if (r.sh_entsize != sizeof(Elf64_Rela)) return fail("bad relocation section");
+    if (r.sh_type != SHT_RELA) continue;
+    if (r.sh_info >= sh.size()) return fail("relocations for no section");
+    if (group[r.sh_info] < 0) continue;  // relocations of a section not loaded (unwind tables)
+    if (r.sh_link != symtabIndex || r.sh_entsize != sizeof(Elf64_Rela)) return fail("bad relocation section");
     for (size_t k = 0; k < r.sh_size / sizeof(Elf64_Rela); ++k) {
       Elf64_Rela rel;
       std::memcpy(&rel, data + r.sh_offset + k * sizeof rel, sizeof rel);
@@ -220,6 +232,7 @@ bool LoadedObject::load(std::string_view object, std::string* error) {
     }
     groupEnd[g] = cursor;
   }
+  if (cursor > kMaxSectionBytes) return fail("sections too large");
   size_ = std::max<size_t>(page, (cursor + page - 1) / page * page);
   void* mem = mmap(nullptr, size_, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
   if (mem == MAP_FAILED) return fail("cannot map memory for the code");
@@ -230,6 +243,8 @@ bool LoadedObject::load(std::string_view object, std::string* error) {
 
   // Symbol addresses.
   std::vector<uint64_t> address(numSymbols, 0);
+  std::vector<uint8_t> known(numSymbols, 0);  // has an address relocations may use
+  if (numSymbols) known[0] = 1;                 // the null symbol: 0
   for (size_t k = 1; k < numSymbols; ++k) {
     const Elf64_Sym& s = syms[k];
     const unsigned type = ELF64_ST_TYPE(s.st_info), bind = ELF64_ST_BIND(s.st_info);
@@ -239,11 +254,16 @@ bool LoadedObject::load(std::string_view object, std::string* error) {
       void* host = findRuntimeSymbol(name);
       if (!host && bind != STB_WEAK) return fail("calls '" + name + "', which shader code may not call");
       address[k] = reinterpret_cast<uint64_t>(host);
+      known[k] = 1;
     } else if (s.st_shndx == SHN_ABS) {
       address[k] = s.st_value;
-    } else if (s.st_shndx < sh.size() && group[s.st_shndx] >= 0) {
+      known[k] = 1;
+    } else if (s.st_shndx < sh.size() && s.st_shndx < SHN_LORESERVE && group[s.st_shndx] >= 0) {
+      if (s.st_value > sh[s.st_shndx].sh_size) return fail("symbol outside its section");
       address[k] = reinterpret_cast<uint64_t>(base + offset[s.st_shndx]) + s.st_value;
-      if ((type == STT_FUNC || type == STT_OBJECT) && bind != STB_LOCAL)
+      known[k] = 1;
+      // Entry points: functions in the code, starting inside their section.
+      if (type == STT_FUNC && bind != STB_LOCAL && group[s.st_shndx] == kCode && s.st_value < sh[s.st_shndx].sh_size)
         symbols_[symbolName(s)] = reinterpret_cast<void*>(address[k]);
     } else if (s.st_shndx == SHN_COMMON) {
       return fail("common symbols are not supported");
@@ -260,12 +280,13 @@ bool LoadedObject::load(std::string_view object, std::string* error) {
   // Relocations.
   for (size_t i = 0; i < sh.size(); ++i) {
     const Elf64_Shdr& r = sh[i];
-    if (r.sh_type != SHT_RELA || r.sh_link != symtabIndex || r.sh_info >= sh.size() || group[r.sh_info] < 0) continue;
+    if (r.sh_type != SHT_RELA || group[r.sh_info] < 0) continue;
     const Elf64_Shdr& target = sh[r.sh_info];
     for (size_t k = 0; k < r.sh_size / sizeof(Elf64_Rela); ++k) {
       Elf64_Rela rel;
       std::memcpy(&rel, data + r.sh_offset + k * sizeof rel, sizeof rel);
       const uint32_t type = ELF64_R_TYPE(rel.r_info), sym = ELF64_R_SYM(rel.r_info);
+      if (sym >= numSymbols || !known[sym]) return fail("relocation against a symbol with no address");
       if (rel.r_offset > target.sh_size || target.sh_size - rel.r_offset < (type == R_X86_64_64 || type == R_X86_64_PC64 ? 8u : 4u))
         return fail("relocation outside its section");
       unsigned char* where = base + offset[r.sh_info] + rel.r_offset;
@@ -324,6 +345,7 @@ bool LoadedObject::load(std::string_view object, std::string* error) {
 std::string encodeShaderBundle(const std::vector<ShaderLayoutInfo>& shaders, std::string_view object) {
   Writer w;
   w.bytes(kMagic, sizeof kMagic);
+  w.u32(kRlfAbiVersion);
   w.u32(uint32_t(shaders.size()));
   for (const ShaderLayoutInfo& s : shaders) {
     w.str(s.name), w.str(s.entrySymbol), w.str(s.defaultsSymbol);
@@ -347,10 +369,23 @@ bool loadShaderBundle(std::string_view bundle, std::vector<std::shared_ptr<const
     *error = "not a shader bundle of this version of relief";
     return false;
   }
-  std::vector<ShaderLayoutInfo> layouts(r.u32() & 0xFFFF);
+  if (r.u32() != kRlfAbiVersion) {
+    *error = "shader bundle made for another shader ABI (reliefc and relief of different versions)";
+    return false;
+  }
+  const uint32_t numShaders = r.u32();
+  if (!r.ok() || numShaders > kMaxShaders) {
+    *error = "shader bundle: bad shader count";
+    return false;
+  }
+  std::vector<ShaderLayoutInfo> layouts(numShaders);
   for (ShaderLayoutInfo& s : layouts) {
     s.name = r.str(), s.entrySymbol = r.str(), s.defaultsSymbol = r.str();
     s.blockSize = r.u32(), s.ownNormal = r.u8() != 0;
+    if (s.blockSize > kMaxBlockBytes) {
+      *error = "shader bundle: parameter block too large";
+      return false;
+    }
     const uint32_t numParams = r.u32();
     for (uint32_t k = 0; k < numParams && r.ok(); ++k) {
       ParamInfo p;
@@ -364,7 +399,7 @@ bool loadShaderBundle(std::string_view bundle, std::vector<std::shared_ptr<const
       p.arrayLength = r.i32(), p.isOutput = r.u8() != 0, p.offset = r.u32(), p.boundFlagOffset = r.i32();
       const uint64_t bytes = uint64_t(std::max(p.arrayLength, 1)) * (p.type == ParamType::String ? 8 : 4 * paramComponents(p.type));
       if (p.arrayLength < 0 || p.offset + bytes > s.blockSize ||
-          (p.boundFlagOffset != -1 && (p.boundFlagOffset < 0 || p.boundFlagOffset + 4 > int64_t(s.blockSize)))) {
+          (p.boundFlagOffset != -1 && (p.boundFlagOffset < 0 || int64_t(p.boundFlagOffset) + 4 > int64_t(s.blockSize)))) {
         *error = "shader bundle: parameter '" + p.name + "' outside its block";
         return false;
       }
@@ -372,7 +407,7 @@ bool loadShaderBundle(std::string_view bundle, std::vector<std::shared_ptr<const
     }
   }
   const std::string_view object = r.view(r.u64());
-  if (!r.ok()) {
+  if (!r.ok() || !r.atEnd()) {
     *error = "shader bundle: truncated";
     return false;
   }

@@ -446,6 +446,11 @@ int main(int argc, char** argv) {
       if (rc) exitCode = std::max(exitCode, rc);
     }
   }
+  // A bundle cut short (a full disk, a reader gone) must not look like success.
+  if (!stdoutBuffer && !std::cout.flush()) {
+    std::cerr << "reliefc: error: cannot write to standard output\n";
+    exitCode = std::max(exitCode, 2);
+  }
   if (stdoutBuffer) {
     std::cout.rdbuf(stdoutBuffer);
     if (exitCode == 0) {

@@ -2,6 +2,7 @@
 #include "tools/shader_process.h"
 
 #include <fcntl.h>
+#include <signal.h>
 #include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -37,16 +38,27 @@ int runCapturingOutput(const std::vector<std::string>& args, bool searchPath, st
     *error = std::string("cannot create a pipe: ") + std::strerror(errno);
     return -1;
   }
+  // The child reads nothing (stdin from /dev/null) and starts with default signal handling and an
+  // empty mask, whatever relief inherited.
   posix_spawn_file_actions_t actions;
   posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addopen(&actions, STDIN_FILENO, "/dev/null", O_RDONLY, 0);
   posix_spawn_file_actions_adddup2(&actions, fds[1], STDOUT_FILENO);
+  posix_spawnattr_t attr;
+  posix_spawnattr_init(&attr);
+  sigset_t all, none;
+  sigfillset(&all), sigemptyset(&none);
+  posix_spawnattr_setsigdefault(&attr, &all);
+  posix_spawnattr_setsigmask(&attr, &none);
+  posix_spawnattr_setflags(&attr, POSIX_SPAWN_SETSIGDEF | POSIX_SPAWN_SETSIGMASK);
   std::vector<char*> argv;
   for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
   argv.push_back(nullptr);
   pid_t pid = 0;
-  const int rc = searchPath ? posix_spawnp(&pid, argv[0], &actions, nullptr, argv.data(), environ)
-                            : posix_spawn(&pid, argv[0], &actions, nullptr, argv.data(), environ);
+  const int rc = searchPath ? posix_spawnp(&pid, argv[0], &actions, &attr, argv.data(), environ)
+                            : posix_spawn(&pid, argv[0], &actions, &attr, argv.data(), environ);
   posix_spawn_file_actions_destroy(&actions);
+  posix_spawnattr_destroy(&attr);
   close(fds[1]);
   if (rc != 0) {
     close(fds[0]);
@@ -54,17 +66,30 @@ int runCapturingOutput(const std::vector<std::string>& args, bool searchPath, st
     return -1;
   }
   char buffer[1 << 16];
+  int readError = 0;
   for (;;) {
     const ssize_t n = read(fds[0], buffer, sizeof buffer);
     if (n > 0) {
       output->append(buffer, size_t(n));
-    } else if (n == 0 || errno != EINTR) {
+    } else if (n == 0) {
+      break;
+    } else if (errno != EINTR) {
+      readError = errno;
       break;
     }
   }
-  close(fds[0]);
+  close(fds[0]);  // the child, if still writing, stops on a broken pipe
   int status = 0;
-  while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+  pid_t waited;
+  while ((waited = waitpid(pid, &status, 0)) < 0 && errno == EINTR) {
+  }
+  if (waited != pid) {
+    *error = "cannot wait for the shader compiler '" + args[0] + "': " + std::strerror(errno);
+    return -1;
+  }
+  if (readError) {
+    *error = "cannot read the output of the shader compiler '" + args[0] + "': " + std::strerror(readError);
+    return -1;
   }
   if (WIFEXITED(status)) return WEXITSTATUS(status);
   *error = "the shader compiler '" + args[0] + "' was killed by signal " +
@@ -81,8 +106,9 @@ ShaderCompilerProcess::CachedFile ShaderCompilerProcess::compile(const std::stri
   std::string compiler = options_.compiler;
   if (compiler.empty())
     if (const char* env = std::getenv("RELIEF_COMPILER"); env && *env) compiler = env;
-  const bool searchPath = compiler.empty() && (compiler = siblingCompiler()).empty();
-  if (searchPath) compiler = "reliefc";
+  if (compiler.empty()) compiler = siblingCompiler();
+  if (compiler.empty()) compiler = "reliefc";
+  const bool searchPath = compiler.find('/') == std::string::npos;  // a bare name is looked up on PATH
   std::vector<std::string> args = {compiler, "--emit-bundle", "--color=never"};
   for (const std::string& dir : options_.includeDirs) args.push_back("-I"), args.push_back(dir);
   if (options_.noWarnings) args.push_back("-w");

@@ -23,7 +23,7 @@ struct ShaderCompilerOptions {
   std::vector<std::string> includeDirs;  // -I
   bool noWarnings = false;               // -w
   // reliefc to run; empty: RELIEF_COMPILER from the environment, else `reliefc` beside this
-  // executable, else on PATH.
+  // executable, else on PATH. A name without a '/' is looked up on PATH.
   std::string compiler;
 };
 

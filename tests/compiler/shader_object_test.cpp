@@ -1,6 +1,8 @@
 // Shader bundles (runtime/shader_object.h): the code relief loads from reliefc --emit-bundle must
 // be the JIT's, bit for bit, with the same parameter layouts and defaults; a malformed bundle or
 // an object calling what shader code may not call is an error, never a crash.
+#include <elf.h>
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -135,6 +137,59 @@ TEST(ShaderBundle, MalformedBundlesAndForbiddenCallsAreErrors) {
   loaded.clear();
   EXPECT_FALSE(runtime::loadShaderBundle(forbidden, &loaded, &error));
   EXPECT_NE(error.find("'_" + called.substr(1) + "', which shader code may not call"), std::string::npos) << error;
+  EXPECT_TRUE(loaded.empty());
+}
+
+// The loader on corrupt objects: bundles without layouts, so that no loaded code runs and any
+// crash (or, under ASan, any stray read or write) is the loader's own.
+TEST(ShaderBundle, CorruptObjectsAreRefusedWithoutCrashing) {
+  CompileFlags flags;
+  flags.emitObject = true;
+  flags.jit = false;
+  const CompileResult r = compileSource(
+      "t.disp", "displacement t(float Km = 0.1; string name = \"x\") { P += Km * noise(P * 3) * N; }", {}, flags);
+  ASSERT_TRUE(r.success()) << renderDiagnostics(r) << r.internalError;
+  const std::string& object = r.object;
+  std::vector<std::shared_ptr<const runtime::CompiledShader>> loaded;
+  std::string error;
+  ASSERT_TRUE(runtime::loadShaderBundle(runtime::encodeShaderBundle({}, object), &loaded, &error)) << error;
+
+  // The section headers come last: every truncation cuts them.
+  for (size_t n = 0; n < object.size(); n += std::max<size_t>(1, object.size() / 211))
+    EXPECT_FALSE(runtime::loadShaderBundle(runtime::encodeShaderBundle({}, object.substr(0, n)), &loaded, &error)) << n;
+
+  // Each section header with one field made absurd: refused or loaded, never a crash.
+  Elf64_Ehdr eh;
+  std::memcpy(&eh, object.data(), sizeof eh);
+  int refused = 0, tried = 0;
+  for (size_t i = 0; i < eh.e_shnum; ++i) {
+    const size_t at = eh.e_shoff + i * sizeof(Elf64_Shdr);
+    auto patched = [&](auto&& edit) {
+      std::string copy = object;
+      Elf64_Shdr h;
+      std::memcpy(&h, copy.data() + at, sizeof h);
+      edit(h);
+      std::memcpy(copy.data() + at, &h, sizeof h);
+      ++tried;
+      refused += !runtime::loadShaderBundle(runtime::encodeShaderBundle({}, copy), &loaded, &error);
+    };
+    patched([](Elf64_Shdr& h) { h.sh_type = SHT_NOBITS; });
+    patched([](Elf64_Shdr& h) { h.sh_size = ~uint64_t(0); });
+    patched([](Elf64_Shdr& h) { h.sh_offset = ~uint64_t(0); });
+    patched([](Elf64_Shdr& h) { h.sh_link = 0xffff; });
+    patched([](Elf64_Shdr& h) { h.sh_info = 0xffff; });
+    patched([](Elf64_Shdr& h) { h.sh_addralign = 3; });
+  }
+  EXPECT_GT(refused, tried / 4);
+
+  // A layout whose parameter block is absurd, and a bundle of another ABI, are refused.
+  std::vector<runtime::ShaderLayoutInfo> layouts = r.layouts;
+  layouts[0].blockSize = 0xFFFFFFFFu;
+  EXPECT_FALSE(runtime::loadShaderBundle(runtime::encodeShaderBundle(layouts, object), &loaded, &error));
+  std::string otherAbi = runtime::encodeShaderBundle(r.layouts, object);
+  otherAbi[8] ^= 0x40;  // the ABI version follows the 8-byte magic
+  EXPECT_FALSE(runtime::loadShaderBundle(otherAbi, &loaded, &error));
+  EXPECT_NE(error.find("another shader ABI"), std::string::npos) << error;
   EXPECT_TRUE(loaded.empty());
 }
 
