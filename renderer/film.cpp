@@ -137,13 +137,29 @@ bool commitStagedImage(const std::string& stagedPath, const std::string& path, s
   return false;
 }
 
+void Film::applyExposure(float gain, float gamma) {
+  if (gain == 1.0f && gamma == 1.0f) return;
+  const float power = 1.0f / gamma;
+  for (size_t i = 0; i < alpha_.size(); ++i) {
+    const float a = alpha_[i];
+    for (int c = 0; c < 3; ++c) {
+      float& v = rgb_[3 * i + size_t(c)];
+      const float straight = a > 0.0f && a < 1.0f ? v / a : v;
+      const float exposed = straight > 0.0f ? std::pow(straight * gain, power) : straight * gain;
+      v = a > 0.0f && a < 1.0f ? exposed * a : exposed;
+    }
+  }
+}
+
 bool Film::writeStaged(const std::string& path, std::string* stagedPath, std::string* error,
                        const ImageWriteOptions& options) const {
   const bool withAlpha = options.alpha;
   if (!canWriteFormat(path, withAlpha, error)) return false;
   const std::string extension = lowerExtension(path);
   const bool floatOutput = isFloatFormat(path);
-  const int colourChannels = options.channels == 1 ? 1 : 3;
+  // A PGM holds grey: colour becomes its luminance (Rec. 709 weights, on linear values).
+  const bool grey = options.channels != 1 && extension == ".pgm";
+  const int colourChannels = options.channels == 1 || grey ? 1 : 3;
   const int channels = colourChannels + (withAlpha ? 1 : 0);
   const size_t numPixels = size_t(width_) * size_t(height_);
   std::vector<float> floats;
@@ -165,7 +181,8 @@ bool Film::writeStaged(const std::string& path, std::string* stagedPath, std::st
         // Colour is premultiplied; PNG wants it straight, and encoded after the division.
         const float scale = withAlpha && a > 0.0f ? 1.0f / a : 1.0f;
         for (int c = 0; c < colourChannels; ++c) {
-          const float v = rgb_[3 * i + size_t(c)] * scale;
+          const float* p = &rgb_[3 * i];
+          const float v = (grey ? 0.2126f * p[0] + 0.7152f * p[1] + 0.0722f * p[2] : p[c]) * scale;
           const float encoded = options.srgb ? linearToSrgb(v) : (v > 0.0f ? std::min(v, 1.0f) : 0.0f);
           bytes[i * size_t(channels) + size_t(c)] = uint8_t(std::lround(encoded * 255.0f));
         }

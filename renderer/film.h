@@ -50,6 +50,8 @@ class Film {
     return {p[0], p[1], p[2]};
   }
   const std::vector<float>& data() const { return rgb_; }
+  // RI Exposure: each colour becomes (colour * gain)^(1 / gamma), on the unpremultiplied colour.
+  void applyExposure(float gain, float gamma);
 
   // Writes the image; the format follows the extension (png, exr, tif, jpg, ...). Float formats
   // (exr, hdr) keep linear values; the others are sRGB-encoded 8-bit. The file appears atomically:

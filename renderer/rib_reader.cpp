@@ -1160,6 +1160,12 @@ bool RibParser::executeCamera(const Call& call, bool* handled) {
       v[2] = 1.0f;
     }
     scene_.camera.pixelAspect = v[2];
+  } else if (n == "Exposure") {
+    if (!positionalNumbers(call, 2, &v, &next)) return false;
+    if (!std::isfinite(v[0]) || v[0] < 0.0f || !std::isfinite(v[1]) || !(v[1] > 0.0f))
+      return fail(call.line, "'Exposure' expects a gain of 0 or more and a gamma above 0");
+    scene_.exposureGain = v[0];
+    scene_.exposureGamma = v[1];
   } else if (n == "PixelSamples") {
     if (!positionalNumbers(call, 2, &v, &next)) return false;
     // Clamped before rounding so that absurd counts reach the check below without overflowing.

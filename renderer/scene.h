@@ -146,6 +146,9 @@ struct Mesh {
 struct Scene {
   int width = 640, height = 480;
   int pixelSamples = 1;
+  // RI Exposure: colour outputs are (colour * gain)^(1 / gamma). A gamma other than 1 is the
+  // display transfer the scene asks for, so 8-bit outputs then take it instead of sRGB.
+  float exposureGain = 1.0f, exposureGamma = 1.0f;
   Camera camera;
   std::vector<Light> lights;
   std::vector<DistantLight> distantLights;  // older view of `lights` (see Light)

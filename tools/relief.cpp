@@ -1080,6 +1080,7 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
 
   // Every image is staged under a temporary name first and renamed into place only when all were
   // written: a failed display must not leave the others behind, looking like a finished render.
+  film.applyExposure(scene.exposureGain, scene.exposureGamma);  // RI Exposure: colour outputs only
   std::vector<std::string> staged;
   auto discardStaged = [&staged](size_t from) {
     std::error_code ignored;
@@ -1096,6 +1097,7 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
     switch (outputKind(modes[i])) {
       case OutputKind::Colour:
         writeOptions.alpha = modes[i] == "rgba";
+        writeOptions.srgb = scene.exposureGamma == 1.0f;  // Exposure's gamma is the display transfer
         break;
       case OutputKind::Depth:
         writeOptions.metadata.emplace_back("relief:aov", "z");

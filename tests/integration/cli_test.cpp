@@ -329,6 +329,39 @@ TEST(Relief, AShaderCompilerThatCannotRunIsAnErrorAtTheDisplacement) {
   EXPECT_FALSE(fs::exists(dir / "b.png"));
 }
 
+// RI Exposure: colour becomes (colour * gain)^(1/gamma), and a gamma other than 1 replaces the
+// sRGB encoding of 8-bit outputs; a PGM holds the luminance, not the red channel.
+TEST(Relief, ExposureAndGreyPgm) {
+  const fs::path dir = scratchDir();
+  auto scene = [&](const std::string& name, const std::string& exposure) {
+    return writeFile(dir / name, "Format 4 4 1\n" + exposure +
+                                     "Projection \"orthographic\"\nWorldBegin\nSurface \"constant\"\n"
+                                     "Color [1 0 0]\nPolygon \"P\" [-5 -5 2  5 -5 2  5 5 2  -5 5 2]\nWorldEnd\n");
+  };
+  auto firstPixel = [&](const fs::path& rib, const std::string& out, std::string* header) {
+    const RunResult r = run(kRelief + " " + rib.string() + " --quiet -o " + (dir / out).string());
+    EXPECT_EQ(r.exitCode, 0) << r.err;
+    std::ifstream in(dir / out, std::ios::binary);
+    std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    *header = bytes.substr(0, 11);
+    return bytes.size() > 11 ? int(static_cast<unsigned char>(bytes[11])) : -1;
+  };
+  std::string header;
+  // Luminance of linear red, 0.2126, sRGB-encoded: 127.
+  EXPECT_EQ(firstPixel(scene("plain.rib", ""), "plain.pgm", &header), 127);
+  EXPECT_EQ(header, "P5\n4 4\n255\n");
+  // Red 1 * 2 = 2, to the power 1/2.2 = 1.370, then luminance 0.291 without sRGB: 74.
+  EXPECT_EQ(firstPixel(scene("exposed.rib", "Exposure 2 2.2\n"), "exposed.pgm", &header), 74);
+  EXPECT_EQ(firstPixel(scene("exposed.rib", "Exposure 2 2.2\n"), "exposed.ppm", &header), 255);
+  EXPECT_EQ(header, "P6\n4 4\n255\n");
+  const RunResult bad = run(kRelief + " " + scene("bad.rib", "Exposure 1 0\n").string() + " --quiet -o " +
+                            (dir / "bad.png").string());
+  EXPECT_EQ(bad.exitCode, 1);
+  EXPECT_NE(bad.err.find("bad.rib:2: error: 'Exposure' expects a gain of 0 or more and a gamma above 0"),
+            std::string::npos)
+      << bad.err;
+}
+
 TEST(Relief, MalformedSceneReportsFileAndLine) {
   const fs::path dir = scratchDir();
   writeFile(dir / "bad.rib", "Format 32 24 1\nWorldBegin\nSphere 1 -1 \"x\" 360\nWorldEnd\n");
