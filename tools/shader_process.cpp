@@ -107,6 +107,11 @@ ShaderCompilerProcess::CachedFile ShaderCompilerProcess::compile(const std::stri
   if (compiler.empty())
     if (const char* env = std::getenv("RELIEF_COMPILER"); env && *env) compiler = env;
   if (compiler.empty()) compiler = siblingCompiler();
+#ifdef RELIEF_COMPILER_BUILD_PATH
+  std::error_code ec;
+  if (compiler.empty() && std::filesystem::is_regular_file(RELIEF_COMPILER_BUILD_PATH, ec))
+    compiler = RELIEF_COMPILER_BUILD_PATH;
+#endif
   if (compiler.empty()) compiler = "reliefc";
   const bool searchPath = compiler.find('/') == std::string::npos;  // a bare name is looked up on PATH
   std::vector<std::string> args = {compiler, "--emit-bundle", "--color=never"};

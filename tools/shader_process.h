@@ -23,7 +23,8 @@ struct ShaderCompilerOptions {
   std::vector<std::string> includeDirs;  // -I
   bool noWarnings = false;               // -w
   // reliefc to run; empty: RELIEF_COMPILER from the environment, else `reliefc` beside this
-  // executable, else on PATH. A name without a '/' is looked up on PATH.
+  // executable, else the one of the build tree relief was built in, else on PATH. A name without
+  // a '/' is looked up on PATH.
   std::string compiler;
 };
 
