@@ -377,9 +377,11 @@ void displaceBatch(const Displacement& disp, const TriangleFrame& frame, Vertice
 void displace(const Displacement& disp, const TriangleFrame& frame, Vertices& vs, uint32_t first,
               Batch& batch, SubdivideCounters& counters, RlfStatus* shadingStatus = nullptr) {
   const uint32_t end = vs.size();
-  for (uint32_t from = first; from < end; from += std::min(end - from, kShaderBatchPoints))
-    displaceBatch(disp, frame, vs, from, from + std::min(end - from, kShaderBatchPoints), batch, counters,
-                  shadingStatus);
+  for (uint32_t from = first; from < end;) {
+    const uint32_t to = from + std::min(end - from, kShaderBatchPoints);
+    displaceBatch(disp, frame, vs, from, to, batch, counters, shadingStatus);
+    from = to;
+  }
 }
 
 // Appends the midpoint of edge (a, b). Every attribute is 0.5 * (x_a + x_b): addition commutes
