@@ -44,6 +44,9 @@ class GridAccelerator final : public Accelerator {
   RlfStatus shaderStatus() const;
   // The step of the lattice displaced vertices are snapped to (snapToLattice; 0: none).
   float positionStep() const { return positionStep_; }
+  // Builds voxel `voxel`'s geometry exactly as a fill does, without caching it (bench/fill_rate.cpp
+  // measures the whole fill: subdivision, shader, culling, the voxel's BVH).
+  std::unique_ptr<VoxelGeometry> buildVoxelUncached(uint32_t voxel) { return buildVoxel(voxel); }
 
   struct SlabRay;  // a ray's slab-test set-up, shared by the voxel BVHs and their proxies
 
