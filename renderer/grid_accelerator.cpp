@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
+#include <cstring>
 #include <limits>
 #include <list>
 #include <mutex>
@@ -129,6 +130,27 @@ void buildSubGrid(VoxelGeometry& g, const Bounds3& box, float padding) {
   else g.subTriangles32.assign(refs.begin(), refs.end());
 }
 
+// Four floats at a time for the BVH build's bounds: SSE where there is SSE, plain loops elsewhere.
+#if defined(__SSE2__)
+using Lane4 = __m128;
+inline Lane4 load4(const float* p) { return _mm_loadu_ps(p); }
+inline void store4(float* p, Lane4 a) { _mm_storeu_ps(p, a); }
+inline Lane4 splat4(float x) { return _mm_set1_ps(x); }
+inline Lane4 min4(Lane4 a, Lane4 b) { return _mm_min_ps(a, b); }
+inline Lane4 max4(Lane4 a, Lane4 b) { return _mm_max_ps(a, b); }
+inline Lane4 sub4(Lane4 a, Lane4 b) { return _mm_sub_ps(a, b); }
+#else
+struct Lane4 {
+  float v[4];
+};
+inline Lane4 load4(const float* p) { return {{p[0], p[1], p[2], p[3]}}; }
+inline void store4(float* p, Lane4 a) { std::memcpy(p, a.v, sizeof a.v); }
+inline Lane4 splat4(float x) { return {{x, x, x, x}}; }
+inline Lane4 min4(Lane4 a, Lane4 b) { return {{std::min(a.v[0], b.v[0]), std::min(a.v[1], b.v[1]), std::min(a.v[2], b.v[2]), std::min(a.v[3], b.v[3])}}; }
+inline Lane4 max4(Lane4 a, Lane4 b) { return {{std::max(a.v[0], b.v[0]), std::max(a.v[1], b.v[1]), std::max(a.v[2], b.v[2]), std::max(a.v[3], b.v[3])}}; }
+inline Lane4 sub4(Lane4 a, Lane4 b) { return {{a.v[0] - b.v[0], a.v[1] - b.v[1], a.v[2] - b.v[2], a.v[3] - b.v[3]}}; }
+#endif
+
 // SAH bins per split, and the depth below which splits turn to medians: a median split halves the
 // count, so the binary tree's depth stays below kBvhSahDepth + 24 for fewer than 2^24 triangles.
 // The 4-wide tree is no deeper, and a visit adds at most three entries to the traversal stack.
@@ -148,8 +170,9 @@ constexpr float kBvhTraverseCost = 10.0f;
 // where the centres do not spread over the bins or below kBvhSahDepth; leaves as said above. Boxes are the triangles'
 // grown by `padding` (as the sub-grid's) and then rounded outward by one lattice step, so a
 // decoded box always holds its triangles whatever the float rounding of the decode.
-// Deterministic: the same triangles in the same order give the same tree.
-void buildBvh(VoxelGeometry& g, float padding) {
+// Deterministic: the same triangles in the same order give the same tree. keyOf[i] is triangle i's
+// key (input triangle, micro id), as g holds them before the build puts them in leaf order.
+void buildBvh(VoxelGeometry& g, float padding, const std::vector<std::pair<uint32_t, uint32_t>>& keyOf) {
   const uint32_t n = g.numTriangles();
   if (n == 0 || n >= (1u << 24)) return;
   // The split works on (centre, index) records in place, so nth_element compares local data.
@@ -197,20 +220,28 @@ void buildBvh(VoxelGeometry& g, float padding) {
   bin.clear();
   bin.reserve(2 * ((n + kBvhLeafSize - 1) / kBvhLeafSize));
   bin.emplace_back();
+  // A node's bounds (of its triangles' boxes and of their centres) come with its task when the
+  // parent's SAH bins already hold them (min and max are exact, so they are the same bits as a
+  // pass over the triangles would give); otherwise the node takes that pass itself.
   struct Task {
     uint32_t node, begin, end, depth;
+    bool bounded;
+    glm::vec3 blo, bhi, clo, chi;
   };
   thread_local std::vector<Task> tasks;
-  tasks.assign(1, {0, 0, n, 0});
+  tasks.assign(1, Task{0, 0, n, 0, false, {}, {}, {}, {}});
   while (!tasks.empty()) {
     const Task task = tasks.back();
     tasks.pop_back();
-    glm::vec3 blo(std::numeric_limits<float>::infinity()), bhi(-std::numeric_limits<float>::infinity());
-    glm::vec3 clo = blo, chi = bhi;
-    for (uint32_t k = task.begin; k < task.end; ++k) {
-      const Box& b = boxes[refs[k].index];
-      blo = glm::min(blo, b.lo), bhi = glm::max(bhi, b.hi);
-      clo = glm::min(clo, refs[k].centre), chi = glm::max(chi, refs[k].centre);
+    glm::vec3 blo = task.blo, bhi = task.bhi, clo = task.clo, chi = task.chi;
+    if (!task.bounded) {
+      blo = clo = glm::vec3(std::numeric_limits<float>::infinity());
+      bhi = chi = glm::vec3(-std::numeric_limits<float>::infinity());
+      for (uint32_t k = task.begin; k < task.end; ++k) {
+        const Box& b = boxes[refs[k].index];
+        blo = glm::min(blo, b.lo), bhi = glm::max(bhi, b.hi);
+        clo = glm::min(clo, refs[k].centre), chi = glm::max(chi, refs[k].centre);
+      }
     }
     quantize(bin[task.node], blo, bhi);
     const uint32_t count = task.end - task.begin;
@@ -225,69 +256,61 @@ void buildBvh(VoxelGeometry& g, float padding) {
     // centres do not spread over the bins, or deep down (keeps the depth within the stack).
     uint32_t mid = task.begin + count / 2;
     bool binned = false;
+    std::pair<Bounds3, Bounds3> childBounds[2];  // (boxes, centres) of a binned split's sides
     if (extent[axis] > 0.0f && task.depth < kBvhSahDepth) {
-      struct Bin {
-        Bounds3 box{glm::vec3(std::numeric_limits<float>::infinity()), glm::vec3(-std::numeric_limits<float>::infinity())};
-        uint32_t count = 0;
-      };
-      Bin bins[kBvhBins];
       const float toBin = float(kBvhBins) / extent[axis];
       auto binOf = [&](const Ref& r) {
         return std::min(int((r.centre[axis] - clo[axis]) * toBin), kBvhBins - 1);
       };
-#if defined(__SSE2__)
-      // Two sets of bin boxes, for even and odd triangles: neighbouring triangles mostly fall in
-      // one bin, and with one set each update would wait for the previous one's store. Only the
-      // boxes' areas are used, so how the two are merged cannot change the tree.
-      __m128 binLo[2][kBvhBins], binHi[2][kBvhBins];
+      // Per bin, the bounds of its boxes and of its centres. Two sets of bins, for even and odd
+      // triangles: neighbouring triangles mostly fall in one bin, and with one set each update
+      // would wait for the previous one's store. Min and max are exact, so how the sets are
+      // merged cannot change the tree. A centre is loaded with its Ref's index as the fourth
+      // lane, which is never read back.
+      Lane4 lo[2][kBvhBins], hi[2][kBvhBins], cLo[2][kBvhBins], cHi[2][kBvhBins];
+      uint32_t binCount[kBvhBins] = {};
       for (int i = 0; i < kBvhBins; ++i)
         for (int set = 0; set < 2; ++set)
-          binLo[set][i] = _mm_set1_ps(std::numeric_limits<float>::infinity()),
-          binHi[set][i] = _mm_set1_ps(-std::numeric_limits<float>::infinity());
+          lo[set][i] = cLo[set][i] = splat4(std::numeric_limits<float>::infinity()),
+          hi[set][i] = cHi[set][i] = splat4(-std::numeric_limits<float>::infinity());
       for (uint32_t k = task.begin; k < task.end; ++k) {
         const int i = binOf(refs[k]);
         const Box& t = boxes[refs[k].index];
-        binLo[k & 1][i] = _mm_min_ps(binLo[k & 1][i], _mm_load_ps(&t.lo.x));
-        binHi[k & 1][i] = _mm_max_ps(binHi[k & 1][i], _mm_load_ps(&t.hi.x));
-        ++bins[i].count;
+        const Lane4 c = load4(&refs[k].centre.x);
+        lo[k & 1][i] = min4(lo[k & 1][i], load4(&t.lo.x));
+        hi[k & 1][i] = max4(hi[k & 1][i], load4(&t.hi.x));
+        cLo[k & 1][i] = min4(cLo[k & 1][i], c);
+        cHi[k & 1][i] = max4(cHi[k & 1][i], c);
+        ++binCount[i];
       }
       for (int i = 0; i < kBvhBins; ++i) {
-        alignas(16) float lo[4], hi[4];
-        _mm_store_ps(lo, _mm_min_ps(binLo[0][i], binLo[1][i]));
-        _mm_store_ps(hi, _mm_max_ps(binHi[0][i], binHi[1][i]));
-        bins[i].box = {glm::vec3(lo[0], lo[1], lo[2]), glm::vec3(hi[0], hi[1], hi[2])};
+        lo[0][i] = min4(lo[0][i], lo[1][i]), hi[0][i] = max4(hi[0][i], hi[1][i]);
+        cLo[0][i] = min4(cLo[0][i], cLo[1][i]), cHi[0][i] = max4(cHi[0][i], cHi[1][i]);
       }
-#else
-      for (uint32_t k = task.begin; k < task.end; ++k) {
-        Bin& b = bins[binOf(refs[k])];
-        const Box& t = boxes[refs[k].index];
-        b.box.lo = glm::min(b.box.lo, t.lo), b.box.hi = glm::max(b.box.hi, t.hi);
-        ++b.count;
-      }
-#endif
-      auto area = [](const Bounds3& b) {
-        const glm::vec3 d = b.hi - b.lo;
-        return d.x * d.y + d.y * d.z + d.z * d.x;
+      auto area = [](Lane4 a, Lane4 b) {
+        alignas(16) float d[4];
+        store4(d, sub4(b, a));
+        return d[0] * d[1] + d[1] * d[2] + d[2] * d[0];
       };
       // Sweep from the right, then from the left, keeping the cheapest boundary.
       float rightArea[kBvhBins];
       uint32_t rightCount[kBvhBins];
-      Bounds3 acc = bins[kBvhBins - 1].box;
+      Lane4 accLo = lo[0][kBvhBins - 1], accHi = hi[0][kBvhBins - 1];
       uint32_t accCount = 0;
       for (int i = kBvhBins - 1; i > 0; --i) {
-        acc.lo = glm::min(acc.lo, bins[i].box.lo), acc.hi = glm::max(acc.hi, bins[i].box.hi);
-        accCount += bins[i].count;
-        rightArea[i] = accCount ? area(acc) : 0.0f, rightCount[i] = accCount;
+        accLo = min4(accLo, lo[0][i]), accHi = max4(accHi, hi[0][i]);
+        accCount += binCount[i];
+        rightArea[i] = accCount ? area(accLo, accHi) : 0.0f, rightCount[i] = accCount;
       }
-      acc = bins[0].box;
+      accLo = lo[0][0], accHi = hi[0][0];
       accCount = 0;
       float bestCost = std::numeric_limits<float>::infinity();
       int bestSplit = -1;
       for (int i = 1; i < kBvhBins; ++i) {
-        acc.lo = glm::min(acc.lo, bins[i - 1].box.lo), acc.hi = glm::max(acc.hi, bins[i - 1].box.hi);
-        accCount += bins[i - 1].count;
+        accLo = min4(accLo, lo[0][i - 1]), accHi = max4(accHi, hi[0][i - 1]);
+        accCount += binCount[i - 1];
         if (accCount == 0 || rightCount[i] == 0) continue;
-        const float cost = area(acc) * float(accCount) + rightArea[i] * float(rightCount[i]);
+        const float cost = area(accLo, accHi) * float(accCount) + rightArea[i] * float(rightCount[i]);
         if (cost < bestCost) bestCost = cost, bestSplit = i;
       }
       const glm::vec3 d = bhi - blo;
@@ -297,10 +320,30 @@ void buildBvh(VoxelGeometry& g, float padding) {
         continue;
       }
       if (bestSplit > 0) {
-        const auto split = std::partition(refs.begin() + task.begin, refs.begin() + task.end,
-                                          [&](const Ref& r) { return binOf(r) < bestSplit; });
-        mid = uint32_t(split - refs.begin());
+        // std::partition's own algorithm (so the same order), with the bin test inlined.
+        Ref* first = refs.data() + task.begin;
+        Ref* last = refs.data() + task.end;
+        for (;;) {
+          while (first != last && binOf(*first) < bestSplit) ++first;
+          if (first == last) break;
+          --last;
+          while (first != last && !(binOf(*last) < bestSplit)) --last;
+          if (first == last) break;
+          std::iter_swap(first, last);
+          ++first;
+        }
+        mid = uint32_t(first - refs.data());
         binned = mid > task.begin && mid < task.end;
+        for (int side = 0; side < 2; ++side) {
+          const int from = side ? bestSplit : 0, to = side ? kBvhBins : bestSplit;
+          Lane4 bl = lo[0][from], bh = hi[0][from], cl = cLo[0][from], ch = cHi[0][from];
+          for (int i = from + 1; i < to; ++i)
+            bl = min4(bl, lo[0][i]), bh = max4(bh, hi[0][i]), cl = min4(cl, cLo[0][i]), ch = max4(ch, cHi[0][i]);
+          alignas(16) float f[4][4];
+          store4(f[0], bl), store4(f[1], bh), store4(f[2], cl), store4(f[3], ch);
+          childBounds[side] = {Bounds3{glm::vec3(f[0][0], f[0][1], f[0][2]), glm::vec3(f[1][0], f[1][1], f[1][2])},
+                               Bounds3{glm::vec3(f[2][0], f[2][1], f[2][2]), glm::vec3(f[3][0], f[3][1], f[3][2])}};
+        }
       }
     }
     if (!binned && count <= kBvhLeafSize) {
@@ -318,8 +361,11 @@ void buildBvh(VoxelGeometry& g, float padding) {
     const uint32_t child = uint32_t(bin.size());
     bin.emplace_back(), bin.emplace_back();
     bin[task.node].data = child;
-    tasks.push_back({child + 1, mid, task.end, task.depth + 1});
-    tasks.push_back({child, task.begin, mid, task.depth + 1});
+    for (int side = 1; side >= 0; --side) {
+      const auto& [box, centres] = childBounds[side];
+      tasks.push_back(Task{child + uint32_t(side), side ? mid : task.begin, side ? task.end : mid, task.depth + 1,
+                           binned, box.lo, box.hi, centres.lo, centres.hi});
+    }
   }
   // Collapse: each wide node takes its binary node's two children, then keeps opening the inner
   // child of largest surface area until it holds four (or only leaves). Leaves sit in their
@@ -389,10 +435,8 @@ void buildBvh(VoxelGeometry& g, float padding) {
   // are rewritten in that order (keys as runs again: neighbours in a leaf mostly share a
   // contributor). Vertices stay where they are.
   thread_local std::vector<uint32_t> order;
-  thread_local std::vector<std::pair<uint32_t, uint32_t>> keys;
   order.resize(n);
-  keys.resize(n);
-  for (uint32_t k = 0; k < n; ++k) order[k] = refs[k].index, keys[k] = g.key(order[k]);
+  for (uint32_t k = 0; k < n; ++k) order[k] = refs[k].index;
   if (!g.indices16.empty()) {
     std::vector<uint16_t> indices(3 * size_t(n));
     for (uint32_t k = 0; k < n; ++k)
@@ -406,7 +450,7 @@ void buildBvh(VoxelGeometry& g, float padding) {
   }
   g.microLow.clear();
   g.segments.clear();
-  for (uint32_t k = 0; k < n; ++k) g.appendKey(keys[k].first, keys[k].second);
+  for (uint32_t k = 0; k < n; ++k) g.appendKey(keyOf[order[k]].first, keyOf[order[k]].second);
   g.microLow.shrink_to_fit();
   g.segments.shrink_to_fit();
 }
@@ -688,8 +732,11 @@ std::unique_ptr<VoxelGeometry> GridAccelerator::buildVoxel(uint32_t voxel) {
   thread_local std::vector<uint8_t> reached;  // per contributor: some micro-triangle kept here
   thread_local std::vector<glm::vec2> bary;
   thread_local std::vector<LearntSubtree> learnt;
-  bary.clear();
-  std::vector<uint32_t> indices;
+  // The voxel is gathered in per-thread arrays and copied into its own once, at its final size.
+  thread_local std::vector<glm::vec3> points;
+  thread_local std::vector<uint32_t> indices;
+  thread_local std::vector<std::pair<uint32_t, uint32_t>> keys;  // (input triangle, micro id)
+  bary.clear(), points.clear(), indices.clear(), keys.clear();
   SubdivideCounters counters;
   const std::span<const uint32_t> contributors = grid_.contributors(voxel);
   reached.assign(contributors.size(), 0);
@@ -726,13 +773,13 @@ std::unique_ptr<VoxelGeometry> GridAccelerator::buildVoxel(uint32_t voxel) {
       for (int c = 0; c < 3; ++c) {
         uint32_t& slot = remap[tri[c]];
         if (slot == UINT32_MAX) {
-          slot = uint32_t(g->P.size());
-          g->P.push_back(snapToLattice(mm.P[tri[c]], positionStep_));
+          slot = uint32_t(points.size());
+          points.push_back(snapToLattice(mm.P[tri[c]], positionStep_));
           bary.push_back(mm.bary[tri[c]]);
         }
         indices.push_back(slot);
       }
-      g->appendKey(id, mm.ids[i]);
+      keys.emplace_back(id, mm.ids[i]);
       if (countUnique) {
         const glm::vec3 centroid = (mm.P[tri[0]] + mm.P[tri[1]] + mm.P[tri[2]]) / 3.0f;
         const glm::ivec3 cell = glm::clamp(
@@ -749,14 +796,16 @@ std::unique_ptr<VoxelGeometry> GridAccelerator::buildVoxel(uint32_t voxel) {
       droppedContributors_.fetch_add(dropped, std::memory_order_relaxed);
   }
   if (unique) uniqueTriangles_.fetch_add(unique, std::memory_order_relaxed);
-  if (g->P.size() <= 65536) g->indices16.assign(indices.begin(), indices.end());
-  else g->indices32 = std::move(indices);
+  g->P.assign(points.begin(), points.end());
+  if (points.size() <= 65536) g->indices16.assign(indices.begin(), indices.end());
+  else g->indices32.assign(indices.begin(), indices.end());
+  g->microLow.reserve(keys.size());
+  for (const auto& [triangleId, microId] : keys) g->appendKey(triangleId, microId);
   // Resident memory is what the budget and the byte statistics describe: no growth slack.
   g->setBary(bary);
-  g->P.shrink_to_fit(), g->indices32.shrink_to_fit();
-  g->microLow.shrink_to_fit(), g->segments.shrink_to_fit();
+  g->segments.shrink_to_fit();
   if (options_.subVoxelGrid) buildSubGrid(*g, box, grid_.padding());
-  else buildBvh(*g, grid_.padding());
+  else buildBvh(*g, grid_.padding(), keys);
   g->packPositions(positionStep_, 0.5f * (box.lo + box.hi));
   g->packIndices();
   if (!proxies_.empty() && !g->bvhNodes.empty() && !proxies_[voxel].load(std::memory_order_acquire)) {

@@ -152,6 +152,7 @@ struct Scratch {
   Vertices vertices;
   Batch batch;
   std::vector<uint32_t> active, next;  // 3 indices per triangle
+  std::vector<uint32_t> outIndices, outIds;  // the finished triangles (MicroMesh::indices, ids)
   std::vector<uint32_t> activeCodes, nextCodes;  // path code (or ancestor code) per triangle
   std::vector<uint32_t> ranks;                   // finished triangles per ancestor code
   std::vector<int64_t> mids;                     // per active triangle edge: midpoint or < 0
@@ -658,6 +659,8 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
   const bool displaced = displacement != nullptr && displacement->shader != nullptr;
   out.indices.clear();
   out.ids.clear();
+  scratch.outIndices.clear();
+  scratch.outIds.clear();
   if (learnt) learnt->clear();
   scratch.culledCodes.clear();
   scratch.edgeCalls.clear();
@@ -896,7 +899,7 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
     // A finished triangle's id: its own path code while rounds < kCullRounds, else its ancestor's
     // code and its rank among that ancestor's finished descendants.
     auto finish = [&](uint32_t a, uint32_t b, uint32_t c, uint32_t code, int round) {
-      push(out.indices, a, b, c);
+      push(scratch.outIndices, a, b, c);
       if (round < kCullRounds && !learnable && learnt) {
         CullBox ignored;
         learnable = !known->box(code, ignored);
@@ -905,7 +908,7 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
       // ancestor (only near kMaxSubdivisionDepth) ids may repeat, which only weakens tie-breaks.
       const uint32_t rank =
           round > kCullRounds ? std::min(scratch.ranks[code]++, (1u << kMicroRankBits) - 1) : 0;
-      out.ids.push_back((code << kMicroRankBits) | rank);
+      scratch.outIds.push_back((code << kMicroRankBits) | rank);
     };
     // The work guard (setSubdivisionLimits): points beyond kRunawayAllowance times what the
     // undisplaced triangle asks for are this subdivision's excess, checked a round at a time (one
@@ -1033,6 +1036,10 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
       std::swap(active, next);
       std::swap(activeCodes, nextCodes);
     }
+    // Built in scratch and copied once: the side cache's micro-meshes are new each time, and
+    // growing their arrays triangle by triangle cost several allocations per contributor.
+    out.indices.assign(scratch.outIndices.begin(), scratch.outIndices.end());
+    out.ids.assign(scratch.outIds.begin(), scratch.outIds.end());
     const uint64_t after = out.indices.size() / 3;
     uint64_t before = after;
     if (simplify) {
