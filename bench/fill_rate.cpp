@@ -90,6 +90,10 @@ const LoadedScene* loadScene(const std::string& name) {
   }
   loaded->identityScene = loaded->scene;
   loaded->identityScene.displacements = loaded->trivial;
+  // Without simplification: an identity shader leaves every surface flat, and simplification
+  // would merge it back to the input triangles; this measures what the host spends on each
+  // displaced triangle.
+  for (Displacement& d : loaded->identityScene.displacements) d.flatness = 0.0f;
   setSubdivisionLimits(loaded->scene);
   setSubdivisionLimits(loaded->identityScene);
   std::vector<Work> all, allTrivial;
