@@ -676,25 +676,15 @@ void GridAccelerator::addCounters(const SubdivideCounters& counters) {
 // eviction cost O(1) even with the 100K+ contributors of a finely tessellated scene. Entries are
 // immutable once in, and held by shared_ptr, so a fill may go on reading one that is evicted
 // meanwhile. Per-thread caches (the first version) subdivided a contributor once per thread.
-// Contributors are spread over kShards shards (by id), each with its own lock, recency list and
-// share of the capacity: with one lock, two threads filling voxels at once met on it at nearly
-// every contributor and spent a seventh of their time switching contexts (bench_fill,
-// Voxels/sphere/identity on 2 threads). The recency order is per shard, which only makes the
-// eviction order approximate: the side cache never changes the image.
 struct GridAccelerator::SideCache {
   struct Entry {
     uint32_t id = 0;
     std::shared_ptr<const MicroMesh> mesh;
   };
-  static constexpr uint32_t kShards = 16;
-  struct alignas(64) Shard {
-    std::mutex mutex;
-    uint64_t triangles = 0;
-    std::list<Entry> entries;
-    std::unordered_map<uint32_t, std::list<Entry>::iterator> index;
-  };
-  Shard shards[kShards];
-  std::atomic<uint64_t> triangles{0};  // over all shards
+  std::mutex mutex;
+  uint64_t triangles = 0;
+  std::list<Entry> entries;
+  std::unordered_map<uint32_t, std::list<Entry>::iterator> index;
 };
 
 GridAccelerator::~GridAccelerator() {
@@ -733,7 +723,7 @@ SubtreeMemo* GridAccelerator::subtreeMemo(uint32_t id, int rounds) {
 }
 
 std::shared_ptr<const MicroMesh> GridAccelerator::sideCached(uint32_t id, SubdivideCounters& counters) {
-  SideCache::Shard& side = side_->shards[id % SideCache::kShards];
+  SideCache& side = *side_;
   {
     std::lock_guard<std::mutex> lock(side.mutex);
     if (const auto found = side.index.find(id); found != side.index.end()) {
@@ -755,19 +745,16 @@ std::shared_ptr<const MicroMesh> GridAccelerator::sideCached(uint32_t id, Subdiv
     side.entries.splice(side.entries.begin(), side.entries, found->second);
     return found->second->mesh;
   }
-  // Evict least recently used entries until the new one fits in the shard's share (it is kept
-  // even if it alone is larger: it is needed now, and goes at the next miss).
-  const uint64_t capacity = std::max<uint64_t>(1, options_.sideCacheTriangles / SideCache::kShards);
-  uint64_t evicted = 0;
-  while (!side.entries.empty() && side.triangles + n > capacity) {
+  // Evict least recently used entries until the new one fits (it is kept even if it alone is
+  // larger than the capacity: it is needed now, and goes at the next miss).
+  while (!side.entries.empty() && side.triangles + n > options_.sideCacheTriangles) {
     side.triangles -= side.entries.back().mesh->numTriangles();
-    evicted += side.entries.back().mesh->numTriangles();
     side.index.erase(side.entries.back().id);
     victims.splice(victims.begin(), side.entries, std::prev(side.entries.end()));
   }
   side.triangles += n;
-  const uint64_t total = side_->triangles.fetch_add(n - evicted, std::memory_order_relaxed) + n - evicted;
-  atomicMax(sidePeak_, total);
+  if (side.triangles > sidePeak_.load(std::memory_order_relaxed))
+    sidePeak_.store(side.triangles, std::memory_order_relaxed);  // written under the mutex only
   side.entries.push_front({id, std::move(mesh)});
   side.index[id] = side.entries.begin();
   return side.entries.front().mesh;

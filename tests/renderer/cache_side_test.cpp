@@ -59,7 +59,7 @@ TEST(CacheSide, SameHitsWithTheSideCacheAtAnyBudgetAndOnTwoThreads) {
     EXPECT_GT(s.sideCacheHits, 0u);
     EXPECT_GT(s.sideCacheMisses, 0u);
     EXPECT_EQ(s.uniqueDisplacedTriangles, plain.uniqueDisplacedTriangles);
-    // One thread: the capacity plus at most one entry per shard that did not fit (an input triangle of
+    // One thread: the capacity plus at most the one entry that did not fit (an input triangle of
     // this sphere subdivides into far fewer micro-triangles than the capacity).
     EXPECT_LE(s.sideCachePeakTriangles, 2 * o2.sideCacheTriangles);
     EXPECT_GT(s.sideCachePeakTriangles, o2.sideCacheTriangles / 2);
