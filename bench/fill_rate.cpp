@@ -93,7 +93,12 @@ const LoadedScene* loadScene(const std::string& name) {
   // Without simplification: an identity shader leaves every surface flat, and simplification
   // would merge it back to the input triangles; this measures what the host spends on each
   // displaced triangle.
-  for (Displacement& d : loaded->identityScene.displacements) d.flatness = 0.0f;
+  // Its own problem counts too: the shared ones would carry one benchmark's runaway guard state
+  // into the others.
+  for (Displacement& d : loaded->identityScene.displacements) {
+    d.flatness = 0.0f;
+    if (d.problems) d.problems = std::make_shared<ShaderProblemCounts>();
+  }
   setSubdivisionLimits(loaded->scene);
   setSubdivisionLimits(loaded->identityScene);
   std::vector<Work> all, allTrivial;

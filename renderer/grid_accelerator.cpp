@@ -143,7 +143,11 @@ inline Lane4 sub4(Lane4 a, Lane4 b) { return _mm_sub_ps(a, b); }
 struct Lane4 {
   float v[4];
 };
-inline Lane4 load4(const float* p) { return {{p[0], p[1], p[2], p[3]}}; }
+inline Lane4 load4(const float* p) {  // p may be a vec3 followed by other data, as for SSE
+  Lane4 r;
+  std::memcpy(r.v, p, sizeof r.v);
+  return r;
+}
 inline void store4(float* p, Lane4 a) { std::memcpy(p, a.v, sizeof a.v); }
 inline Lane4 splat4(float x) { return {{x, x, x, x}}; }
 inline Lane4 min4(Lane4 a, Lane4 b) { return {{std::min(a.v[0], b.v[0]), std::min(a.v[1], b.v[1]), std::min(a.v[2], b.v[2]), std::min(a.v[3], b.v[3])}}; }
@@ -226,6 +230,8 @@ void buildBvh(VoxelGeometry& g, float padding, const std::vector<std::pair<uint3
   clusterFirst.push_back(n);
   refs.resize(clusters);
   for (uint32_t c = 0; c < clusters; ++c) refs[c] = {0.5f * (boxes[c].lo + boxes[c].hi), c};
+  thread_local std::vector<uint8_t> refBin;  // per ref: its bin in the current split
+  refBin.resize(clusters);
   auto trianglesOf = [&](uint32_t begin, uint32_t end) {
     uint32_t sum = 0;
     for (uint32_t k = begin; k < end; ++k) sum += clusterFirst[refs[k].index + 1] - clusterFirst[refs[k].index];
@@ -300,6 +306,8 @@ void buildBvh(VoxelGeometry& g, float padding, const std::vector<std::pair<uint3
       // would wait for the previous one's store. Min and max are exact, so how the sets are
       // merged cannot change the tree. A centre is loaded with its Ref's index as the fourth
       // lane, which is never read back.
+      // Each ref's bin is kept for the partition, so both see the same bins whatever the
+      // compiler's float evaluation (the children's bounds and counts come from the bins).
       Lane4 lo[2][kBvhBins], hi[2][kBvhBins], cLo[2][kBvhBins], cHi[2][kBvhBins];
       uint32_t binCount[kBvhBins] = {};
       for (int i = 0; i < kBvhBins; ++i)
@@ -308,6 +316,7 @@ void buildBvh(VoxelGeometry& g, float padding, const std::vector<std::pair<uint3
           hi[set][i] = cHi[set][i] = splat4(-std::numeric_limits<float>::infinity());
       for (uint32_t k = task.begin; k < task.end; ++k) {
         const int i = binOf(refs[k]);
+        refBin[k] = uint8_t(i);
         const Box& t = boxes[refs[k].index];
         const Lane4 c = load4(&refs[k].centre.x);
         lo[k & 1][i] = min4(lo[k & 1][i], load4(&t.lo.x));
@@ -353,19 +362,19 @@ void buildBvh(VoxelGeometry& g, float padding, const std::vector<std::pair<uint3
         continue;
       }
       if (bestSplit > 0) {
-        // std::partition's own algorithm (so the same order), with the bin test inlined.
-        Ref* first = refs.data() + task.begin;
-        Ref* last = refs.data() + task.end;
+        // std::partition's own algorithm (so the same order) on the bins kept above.
+        uint32_t first = task.begin, last = task.end;
         for (;;) {
-          while (first != last && binOf(*first) < bestSplit) ++first;
+          while (first != last && refBin[first] < bestSplit) ++first;
           if (first == last) break;
           --last;
-          while (first != last && !(binOf(*last) < bestSplit)) --last;
+          while (first != last && !(refBin[last] < bestSplit)) --last;
           if (first == last) break;
-          std::iter_swap(first, last);
+          std::swap(refs[first], refs[last]);
+          std::swap(refBin[first], refBin[last]);
           ++first;
         }
-        mid = uint32_t(first - refs.data());
+        mid = first;
         binned = mid > task.begin && mid < task.end;
         for (int side = 0; side < 2; ++side) {
           const int from = side ? bestSplit : 0, to = side ? kBvhBins : bestSplit;
