@@ -238,7 +238,7 @@ RenderStats render(const Scene& scene, Accelerator& accel, const RenderOptions& 
   const CameraRays camera(scene.camera, width, height);
   ShadingOptions shading;
   shading.maxDepth = options.maxDepth >= 0 ? options.maxDepth
-                     : scene.maxDepth > 0 ? scene.maxDepth
+                     : scene.maxDepth >= 0 ? scene.maxDepth
                                           : kDefaultMaxDepth;
   shading.displaced = options.displaced;
   const Integrator integrator(scene, accel, shading);

@@ -1172,6 +1172,11 @@ bool RibParser::executeCamera(const Call& call, bool* handled) {
     const int xs = int(std::lround(std::clamp(v[0], 1.0f, 4096.0f)));
     const int ys = int(std::lround(std::clamp(v[1], 1.0f, 4096.0f)));
     if (xs * ys > 4096) return fail(call.line, "'PixelSamples' asks for too many samples");
+    // Relief samples whole grids: a rate that is not a whole number of at least 1 is rounded,
+    // which the user should hear about.
+    if (float(xs) != v[0] || float(ys) != v[1])
+      warn(call.line, "'PixelSamples " + formatNumber(v[0]) + " " + formatNumber(v[1]) + "' takes " +
+                          std::to_string(xs) + " x " + std::to_string(ys) + " samples per pixel");
     scene_.pixelSamples = xs * ys;
   } else if (n == "PixelFilter") {
     // RenderMan's filters that Relief has keep their fixed support; the rest fall back to the
@@ -2773,8 +2778,9 @@ bool RibParser::doReliefOption(const Call& call, const std::vector<Param>& param
     scene_.cacheBudgetTriangles = uint64_t(budget);
   }
   if (depth != -1.0f) {
-    if (!(depth >= 1.0f && depth <= 64.0f) || depth != std::floor(depth))
-      return fail(call.line, "'Option \"relief\"': 'maxdepth' must be an integer from 1 to 64");
+    // The range of --max-depth: 0 (no secondary rays) to 100.
+    if (!(depth >= 0.0f && depth <= 100.0f) || depth != std::floor(depth))
+      return fail(call.line, "'Option \"relief\"': 'maxdepth' must be an integer from 0 to 100");
     scene_.maxDepth = int(depth);
   }
   if (!order.empty()) {

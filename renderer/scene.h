@@ -164,7 +164,7 @@ struct Scene {
   // Option "relief": render settings a scene may carry; command-line flags override them.
   uint64_t cacheBudgetTriangles = 0;  // 0: not set
   std::string order;                  // "": not set
-  int maxDepth = 0;                   // reflection/refraction depth; 0: not set
+  int maxDepth = -1;                  // reflection/refraction depth; -1: not set
   std::string pixelFilter;            // PixelFilter "gaussian"|"blackman-harris"|"box"; "": not set
   // Option "searchpath" "string texture": directories searched for texture files, in order
   // (relative entries already resolved against the scene file's directory).

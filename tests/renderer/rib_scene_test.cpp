@@ -115,7 +115,13 @@ TEST(RibOptions, ReliefOptionSetsRenderSettings) {
   r = read(world(""));
   EXPECT_EQ(r.scene->cacheBudgetTriangles, 0u);
   EXPECT_EQ(r.scene->order, "");
+  EXPECT_EQ(r.scene->maxDepth, -1);  // not set
+  // 0 (no secondary rays) to 100, as --max-depth.
+  r = read("Option \"relief\" \"int maxdepth\" [0]\n" + world(""));
+  ASSERT_TRUE(r.scene) << r.error.format();
   EXPECT_EQ(r.scene->maxDepth, 0);
+  EXPECT_FALSE(read("Option \"relief\" \"int maxdepth\" [101]\n" + world("")).scene);
+  EXPECT_FALSE(read("Option \"relief\" \"int maxdepth\" [2.5]\n" + world("")).scene);
   r = read("Option \"relief\" \"string order\" [\"spiral\"]\n" + world(""));
   EXPECT_FALSE(r.scene);
   EXPECT_EQ(r.error.line, 1);
@@ -136,6 +142,17 @@ TEST(RibOptions, PixelFilterChoosesTheReconstructionFilter) {
   EXPECT_EQ(r.scene->pixelFilter, "");
   EXPECT_NE(r.warnings.find("unsupported pixel filter 'catmull-rom'"), std::string::npos);
   EXPECT_EQ(read(world("")).scene->pixelFilter, "");
+}
+
+TEST(RibOptions, FractionalOrNonPositivePixelSamplesAreRoundedWithAWarning) {
+  ReadResult r = read("PixelSamples 2.5 -2\n" + world(""));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  EXPECT_EQ(r.scene->pixelSamples, 3);
+  EXPECT_NE(r.warnings.find("'PixelSamples 2.5 -2' takes 3 x 1 samples per pixel"), std::string::npos) << r.warnings;
+  r = read("PixelSamples 3 2\n" + world(""));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  EXPECT_EQ(r.scene->pixelSamples, 6);
+  EXPECT_EQ(r.warnings, "");
 }
 
 TEST(RibOptions, AbsurdCountsAndHandlesAreErrorsNotOverflows) {
