@@ -60,19 +60,22 @@ void VoxelGeometry::packPositions(float step, const glm::vec3& centre) {
   }
   if (next == 0) return;
   std::vector<glm::vec3> rest;
-  rest.reserve(n - next);
-  for (uint32_t i = 0; i < n; ++i)
-    if (order[i] == UINT32_MAX) order[i] = next + uint32_t(rest.size()), rest.push_back(P[i]);
-  for (uint16_t& v : indices16) v = uint16_t(order[v]);
-  for (uint32_t& v : indices32) v = order[v];
-  if (!bary16.empty()) {
-    std::vector<uint16_t> b(bary16.size());
-    for (uint32_t i = 0; i < n; ++i) b[2 * size_t(order[i])] = bary16[2 * size_t(i)], b[2 * size_t(order[i]) + 1] = bary16[2 * size_t(i) + 1];
-    bary16.swap(b);
-  } else if (!baryF.empty()) {
-    std::vector<glm::vec2> b(baryF.size());
-    for (uint32_t i = 0; i < n; ++i) b[order[i]] = baryF[i];
-    baryF.swap(b);
+  // Usually every vertex fits, the order stays, and nothing needs renumbering.
+  if (next < n) {
+    rest.reserve(n - next);
+    for (uint32_t i = 0; i < n; ++i)
+      if (order[i] == UINT32_MAX) order[i] = next + uint32_t(rest.size()), rest.push_back(P[i]);
+    for (uint16_t& v : indices16) v = uint16_t(order[v]);
+    for (uint32_t& v : indices32) v = order[v];
+    if (!bary16.empty()) {
+      std::vector<uint16_t> b(bary16.size());
+      for (uint32_t i = 0; i < n; ++i) b[2 * size_t(order[i])] = bary16[2 * size_t(i)], b[2 * size_t(order[i]) + 1] = bary16[2 * size_t(i) + 1];
+      bary16.swap(b);
+    } else if (!baryF.empty()) {
+      std::vector<glm::vec2> b(baryF.size());
+      for (uint32_t i = 0; i < n; ++i) b[order[i]] = baryF[i];
+      baryF.swap(b);
+    }
   }
   packed.push_back(0);  // the pad that lets the last vertex load as 8 bytes
   P16 = std::move(packed);
