@@ -180,10 +180,16 @@ constexpr float kBvhTraverseCost = 10.0f;
 // grown by `padding` (as the sub-grid's) and then rounded outward by one lattice step, so a
 // decoded box always holds its triangles whatever the float rounding of the decode.
 // Deterministic: the same triangles in the same order give the same tree. keyOf[i] is triangle i's
-// key (input triangle, micro id), as g holds them before the build puts them in leaf order.
+// key (input triangle, micro id); the build stores the keys in g, in leaf order (in their own
+// order where there is no tree).
 void buildBvh(VoxelGeometry& g, float padding, const std::vector<std::pair<uint32_t, uint32_t>>& keyOf) {
-  const uint32_t n = g.numTriangles();
-  if (n == 0 || n >= (1u << 24)) return;
+  const uint32_t n = uint32_t(keyOf.size());
+  g.microLow.reserve(n);
+  if (n == 0 || n >= (1u << 24)) {
+    for (const auto& [triangleId, microId] : keyOf) g.appendKey(triangleId, microId);
+    g.segments.shrink_to_fit();
+    return;
+  }
   // The split works on (centre, index) records in place, so nth_element compares local data.
   struct Ref {
     glm::vec3 centre;
@@ -355,8 +361,7 @@ void buildBvh(VoxelGeometry& g, float padding, const std::vector<std::pair<uint3
         const float cost = area(accLo, accHi) * float(accCount) + rightArea[i] * float(rightCount[i]);
         if (cost < bestCost) bestCost = cost, bestSplit = i;
       }
-      const glm::vec3 d = bhi - blo;
-      const float nodeArea = d.x * d.y + d.y * d.z + d.z * d.x;
+      const float nodeArea = halfArea(blo, bhi);
       if (count <= kBvhLeafSize && (bestSplit < 0 || bestCost >= (float(count) - kBvhTraverseCost) * nodeArea)) {
         makeLeaf();
         continue;
@@ -502,10 +507,7 @@ void buildBvh(VoxelGeometry& g, float padding, const std::vector<std::pair<uint3
       for (int c = 0; c < 3; ++c) indices[3 * size_t(k) + c] = g.indices32[3 * size_t(order[k]) + c];
     g.indices32.swap(indices);
   }
-  g.microLow.clear();
-  g.segments.clear();
   for (uint32_t k = 0; k < n; ++k) g.appendKey(keyOf[order[k]].first, keyOf[order[k]].second);
-  g.microLow.shrink_to_fit();
   g.segments.shrink_to_fit();
 }
 
@@ -853,13 +855,16 @@ std::unique_ptr<VoxelGeometry> GridAccelerator::buildVoxel(uint32_t voxel) {
   g->P.assign(points.begin(), points.end());
   if (points.size() <= 65536) g->indices16.assign(indices.begin(), indices.end());
   else g->indices32.assign(indices.begin(), indices.end());
-  g->microLow.reserve(keys.size());
-  for (const auto& [triangleId, microId] : keys) g->appendKey(triangleId, microId);
   // Resident memory is what the budget and the byte statistics describe: no growth slack.
   g->setBary(bary);
-  g->segments.shrink_to_fit();
-  if (options_.subVoxelGrid) buildSubGrid(*g, box, grid_.padding());
-  else buildBvh(*g, grid_.padding(), keys);
+  if (options_.subVoxelGrid) {
+    g->microLow.reserve(keys.size());
+    for (const auto& [triangleId, microId] : keys) g->appendKey(triangleId, microId);
+    g->segments.shrink_to_fit();
+    buildSubGrid(*g, box, grid_.padding());
+  } else {
+    buildBvh(*g, grid_.padding(), keys);  // stores the keys in leaf order
+  }
   g->packPositions(positionStep_, 0.5f * (box.lo + box.hi));
   g->packIndices();
   if (!proxies_.empty() && !g->bvhNodes.empty() && !proxies_[voxel].load(std::memory_order_acquire)) {
