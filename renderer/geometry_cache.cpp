@@ -18,7 +18,7 @@ int cacheThreadShard() {
 }
 
 uint64_t VoxelGeometry::bytes() const {
-  return sizeof(VoxelGeometry) + P.size() * sizeof(glm::vec3) + P16.size() * 2 + bary16.size() * 2 +
+  return sizeof(VoxelGeometry) + P.size() * sizeof(glm::vec3) + packedP.size() + bary16.size() * 2 + packedBary.size() +
          baryF.size() * sizeof(glm::vec2) + indices16.size() * 2 + indices32.size() * 4 + packedIndices.size() +
          microLow.size() * 2 + segments.size() * sizeof(Segment) + subOffsets16.size() * 2 + subOffsets32.size() * 4 +
          subTriangles16.size() * 2 + subTriangles32.size() * 4 + bvhNodes.size() * sizeof(BvhNode);
@@ -32,33 +32,107 @@ std::pair<uint32_t, uint32_t> VoxelGeometry::key(uint32_t i) const {
 }
 
 void VoxelGeometry::packPositions(float step, const glm::vec3& centre) {
-  if (!(step > 0.0f) || P.empty() || !P16.empty()) return;
-  // The window's corner: a lattice point 32768 steps below the centre's.
-  const glm::vec3 base = snapToLattice(centre, step) - glm::vec3(32768.0f * step);
+  if constexpr (std::endian::native != std::endian::little) return;
+  if (!(step > 0.0f) || P.empty() || packedCount) return;
+  // The window's corner: a lattice point 2^18 steps below the centre's.
+  constexpr uint32_t kWindow = 1u << kMaxStepBits;
+  const glm::vec3 corner = snapToLattice(centre, step) - glm::vec3(float(kWindow / 2) * step);
   const uint32_t n = uint32_t(P.size());
-  std::vector<uint16_t> packed;
-  packed.reserve(3 * size_t(n));
-  std::vector<uint32_t> order(n, UINT32_MAX);  // old vertex -> new vertex
-  uint32_t next = 0;
+  // Steps from the corner of every vertex that decodes from them exactly (UINT32_MAX: a float).
+  thread_local std::vector<glm::uvec3> steps;
+  steps.assign(n, glm::uvec3(UINT32_MAX));
+  glm::uvec3 lo(UINT32_MAX), hi(0);
+  uint32_t fitting = 0;
   for (uint32_t i = 0; i < n; ++i) {
-    uint16_t q[3];
+    glm::uvec3 q;
     bool fits = true;
     for (int k = 0; k < 3 && fits; ++k) {
       // Exact for lattice points within 2^24 steps: the difference of two multiples of a power
       // of two, scaled by its inverse. Taken only if it decodes to the vertex's own bits (which
       // also rules out points off the lattice, -0 and NaN).
-      const float s = (P[i][k] - base[k]) / step;
-      fits = s >= 0.0f && s <= 65535.0f;
+      const float s = (P[i][k] - corner[k]) / step;
+      fits = s >= 0.0f && s < float(kWindow);
       if (!fits) break;
-      q[k] = uint16_t(s);
-      const float decoded = base[k] + float(q[k]) * step;
+      q[k] = uint32_t(s);
+      const float decoded = corner[k] + float(q[k]) * step;
       fits = std::memcmp(&decoded, &P[i][k], sizeof(float)) == 0;
     }
     if (!fits) continue;
-    order[i] = next++;
-    packed.insert(packed.end(), q, q + 3);
+    steps[i] = q;
+    lo = glm::min(lo, q), hi = glm::max(hi, q);
+    ++fitting;
   }
-  if (next == 0) return;
+  if (fitting == 0) return;
+  // A few far-reaching corners can cost every vertex of the voxel bits on an axis: consider
+  // narrower windows centred on the voxel (by 1-3 bits on each axis), the corners they leave out
+  // kept as floats, and take whichever stores the voxel in the fewest bytes. Windows of one
+  // axis nest, so a vertex's place on it is the narrowest it is in (a 4 x 4 x 4 histogram).
+  int width[3];
+  for (int k = 0; k < 3; ++k) width[k] = std::bit_width(hi[k] - lo[k]);
+  auto narrowest = [&](int k, uint32_t q) {
+    int j = 0;
+    for (int t = 1; t <= 3 && width[k] - t >= 1; ++t) {
+      const uint32_t half = 1u << (width[k] - t - 1);
+      if (q + half < kWindow / 2 || q >= kWindow / 2 + half) break;
+      j = t;
+    }
+    return j;
+  };
+  uint32_t histogram[4][4][4] = {};
+  for (uint32_t i = 0; i < n; ++i)
+    if (steps[i].x != UINT32_MAX) ++histogram[narrowest(0, steps[i].x)][narrowest(1, steps[i].y)][narrowest(2, steps[i].z)];
+  uint64_t bestBytes = UINT64_MAX;
+  int cut[3] = {0, 0, 0};
+  for (int a = 0; a < 4; ++a)
+    for (int b = 0; b < 4; ++b)
+      for (int c = 0; c < 4; ++c) {
+        uint64_t inside = 0;
+        for (int x = a; x < 4; ++x)
+          for (int y = b; y < 4; ++y)
+            for (int z = c; z < 4; ++z) inside += histogram[x][y][z];
+        const uint64_t bytes = inside * uint64_t((width[0] + width[1] + width[2] - a - b - c + 7) / 8) + (n - inside) * 12;
+        if (bytes < bestBytes) bestBytes = bytes, cut[0] = a, cut[1] = b, cut[2] = c;
+      }
+  if (cut[0] | cut[1] | cut[2]) {
+    lo = glm::uvec3(UINT32_MAX), hi = glm::uvec3(0);
+    fitting = 0;
+    for (uint32_t i = 0; i < n; ++i) {
+      if (steps[i].x == UINT32_MAX) continue;
+      if (narrowest(0, steps[i].x) < cut[0] || narrowest(1, steps[i].y) < cut[1] || narrowest(2, steps[i].z) < cut[2]) {
+        steps[i] = glm::uvec3(UINT32_MAX);
+        continue;
+      }
+      lo = glm::min(lo, steps[i]), hi = glm::max(hi, steps[i]);
+      ++fitting;
+    }
+    if (fitting == 0) return;
+  }
+  // Steps from the smallest on each axis. The base is that vertex's own coordinate (corner +
+  // lo * step is exact, being a float the check above produced), so every decode below is the
+  // exact sum of two lattice points whose result is a float: the vertex's bits again. Checked
+  // all the same, since a vertex that would not decode must stay a float.
+  const glm::vec3 base = corner + glm::vec3(lo) * step;
+  uint32_t total = 0;
+  for (int k = 0; k < 3; ++k) pBits[k] = uint8_t(std::bit_width(hi[k] - lo[k])), total += pBits[k];
+  pBytes = uint8_t((total + 7) / 8);
+  std::vector<uint8_t> stream(size_t(pBytes) * fitting + sizeof(uint64_t), 0);
+  std::vector<uint32_t> order(n, UINT32_MAX);  // old vertex -> new vertex
+  uint32_t next = 0;
+  for (uint32_t i = 0; i < n; ++i) {
+    if (steps[i].x == UINT32_MAX) continue;
+    const glm::uvec3 d = steps[i] - lo;
+    const glm::vec3 decoded = base + glm::vec3(d) * step;
+    if (std::memcmp(&decoded, &P[i], sizeof decoded) != 0) continue;
+    uint64_t word;
+    std::memcpy(&word, stream.data() + size_t(pBytes) * next, sizeof word);
+    word |= uint64_t(d.x) | uint64_t(d.y) << pBits[0] | uint64_t(d.z) << (pBits[0] + pBits[1]);
+    std::memcpy(stream.data() + size_t(pBytes) * next, &word, sizeof word);
+    order[i] = next++;
+  }
+  if (next == 0) {
+    pBits[0] = pBits[1] = pBits[2] = 0, pBytes = 0;
+    return;
+  }
   std::vector<glm::vec3> rest;
   // Usually every vertex fits, the order stays, and nothing needs renumbering.
   if (next < n) {
@@ -76,10 +150,11 @@ void VoxelGeometry::packPositions(float step, const glm::vec3& centre) {
       for (uint32_t i = 0; i < n; ++i) b[order[i]] = baryF[i];
       baryF.swap(b);
     }
+    stream.resize(size_t(pBytes) * next + sizeof(uint64_t));
   }
-  packed.push_back(0);  // the pad that lets the last vertex load as 8 bytes
-  P16 = std::move(packed);
-  P16.shrink_to_fit();
+  packedP = std::move(stream);
+  packedP.shrink_to_fit();
+  packedCount = next;
   pBase = base, pStep = step;
   P = std::move(rest);
   P.shrink_to_fit();
@@ -108,7 +183,8 @@ void VoxelGeometry::packIndices() {
 }
 
 void VoxelGeometry::setBary(const std::vector<glm::vec2>& b) {
-  bary16.clear(), baryF.clear();
+  bary16.clear(), baryF.clear(), packedBary.clear();
+  baryPacked = false, baryShift = 0;
   bary16.reserve(2 * b.size());
   for (const glm::vec2& v : b) {
     for (int c = 0; c < 2; ++c) {
@@ -124,6 +200,28 @@ void VoxelGeometry::setBary(const std::vector<glm::vec2>& b) {
       bary16.push_back(uint16_t(std::nearbyint(scaled)));
     }
   }
+}
+
+void VoxelGeometry::packBary() {
+  if constexpr (std::endian::native != std::endian::little) return;
+  if (baryPacked || bary16.empty()) return;
+  uint16_t any = 0;
+  for (uint16_t v : bary16) any |= v;
+  const uint32_t shift = any ? uint32_t(std::countr_zero(any)) : 16u;
+  const uint32_t bits = 16 - shift;
+  const size_t vertices = bary16.size() / 2;
+  std::vector<uint8_t> stream((uint64_t(2 * bits) * vertices + 7) / 8 + sizeof(uint64_t), 0);
+  for (size_t v = 0; v < vertices; ++v) {
+    const uint64_t bit = uint64_t(2 * bits) * v;
+    uint64_t word;
+    std::memcpy(&word, stream.data() + (bit >> 3), sizeof word);
+    word |= (uint64_t(bary16[2 * v] >> shift) | uint64_t(bary16[2 * v + 1] >> shift) << bits) << (bit & 7);
+    std::memcpy(stream.data() + (bit >> 3), &word, sizeof word);
+  }
+  packedBary = std::move(stream);
+  baryShift = uint8_t(shift);
+  baryPacked = true;
+  bary16.clear(), bary16.shrink_to_fit();
 }
 
 GeometryCache::GeometryCache(uint32_t numVoxels, uint64_t budgetTriangles)

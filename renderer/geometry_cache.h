@@ -42,10 +42,12 @@
 namespace relief {
 
 // The displaced geometry resident for one voxel, stored compactly (docs/cache.md, "Density"):
-// - shared vertices (16-bit lattice steps, or floats; see P16) with their position in the input
-//   triangle as two 16-bit fixed-point numbers (exact for midpoint subdivision's dyadic
-//   barycentrics k / 2^level up to level 15, within 2^-16 for deeper levels and simplification's
-//   centre splits; float pairs only where a value lies outside [0, 1]);
+// - shared vertices (lattice steps in as many bits per axis as the voxel's extent needs, or
+//   floats; see packedP) with their position in the input triangle as two fixed-point numbers
+//   of at most 16 bits (exact for midpoint subdivision's dyadic barycentrics k / 2^level up to
+//   level 15, within 2^-16 for deeper levels and simplification's centre splits; a voxel whose
+//   barycentrics are all multiples of 2^-l stores l + 1 bits each; float pairs only where a value
+//   lies outside [0, 1]);
 // - 3 indices per triangle, as a bit stream of bit_width(vertices - 1) bits each (packIndices;
 //   16- or 32-bit numbers while building and where that is no larger);
 // - the (input triangle, micro-triangle) key per triangle as runs: a triangle stores the low 16
@@ -62,16 +64,28 @@ struct VoxelGeometry {
     uint32_t microHigh;   // packMicro(micro id) >> 16
   };
   // Vertex positions. Displaced vertices are points of the scene's position lattice (multiples of
-  // a power of two, snapToLattice). Those within a window of 65536 steps per axis around the voxel
-  // come first, stored as 16-bit steps from the window's corner (P16, pBase, pStep); the rest
-  // (corners of large simplified triangles reaching far out) follow as floats (P). Both forms
-  // decode to the same floats: a vertex shared by two voxels is the same bits in both.
-  std::vector<uint16_t> P16;  // 3 per packed vertex: vertices [0, numPacked()), then one pad
-  std::vector<glm::vec3> P;   // vertices [numPacked(), numVertices())
+  // a power of two, snapToLattice). Those within a window of 2^19 steps per axis around the voxel
+  // come first, as lattice steps from pBase (the smallest on each axis) in pBits[axis] bits each,
+  // the bits of the voxel's extent on that axis, packed into records of pBytes bytes read with
+  // one unaligned 64-bit load (packedP, pBase, pStep; whole bytes, so that four lanes decode
+  // with shifts common to all). The rest (corners of large simplified triangles reaching far out)
+  // follow as floats (P). Both forms decode to the same floats: a vertex shared by two voxels is
+  // the same bits in both.
+  std::vector<uint8_t> packedP;  // vertices [0, numPacked()), then 8 bytes of pad
+  std::vector<glm::vec3> P;      // vertices [numPacked(), numVertices())
   glm::vec3 pBase{0};
   float pStep = 0;
-  std::vector<uint16_t> bary16;     // 2 per vertex: (b1, b2) * 2^15, rounded
-  std::vector<glm::vec2> baryF;     // otherwise: (b1, b2)
+  uint32_t packedCount = 0;
+  uint8_t pBits[3] = {0, 0, 0};
+  uint8_t pBytes = 0;
+  // Barycentrics (b1, b2) * 2^15, rounded: 16-bit numbers while building (bary16); a finished
+  // voxel keeps them shifted right by baryShift (the trailing zero bits all of them share) as a
+  // bit stream of 2 x (16 - baryShift) bits per vertex (packedBary, packBary).
+  std::vector<uint16_t> bary16;
+  std::vector<uint8_t> packedBary;  // ends in 8 bytes of pad
+  uint8_t baryShift = 0;
+  bool baryPacked = false;
+  std::vector<glm::vec2> baryF;     // where a value lies outside [0, 1]: (b1, b2)
   // Triangles' corners. Built as 16-bit (at most 65536 vertices) or 32-bit numbers; a finished
   // voxel keeps them as a bit stream of 3 x indexBits bits per triangle, indexBits being the bits
   // of its largest vertex number, so one unaligned 64-bit load reads a triangle (packIndices).
@@ -107,17 +121,27 @@ struct VoxelGeometry {
   glm::vec3 bvhOrigin{0}, bvhStep{0};
 
   uint32_t numTriangles() const { return uint32_t(microLow.size()); }
-  uint32_t numPacked() const { return uint32_t(P16.size() / 3); }
+  uint32_t numPacked() const { return packedCount; }
   uint32_t numVertices() const { return numPacked() + uint32_t(P.size()); }
-  glm::vec3 vertex(uint32_t i) const {
-    const uint32_t packed = numPacked();
-    if (i >= packed) return P[i - packed];
-    return pBase + glm::vec3(float(P16[3 * size_t(i)]), float(P16[3 * size_t(i) + 1]), float(P16[3 * size_t(i) + 2])) * pStep;
+  // The lattice steps of packed vertex i from pBase, per axis.
+  glm::uvec3 packedSteps(uint32_t i) const {
+    uint64_t word;
+    std::memcpy(&word, packedP.data() + size_t(pBytes) * i, sizeof word);
+    return {uint32_t(word & ((uint64_t(1) << pBits[0]) - 1)),
+            uint32_t((word >> pBits[0]) & ((uint64_t(1) << pBits[1]) - 1)),
+            uint32_t((word >> (pBits[0] + pBits[1])) & ((uint64_t(1) << pBits[2]) - 1))};
   }
+  glm::vec3 vertex(uint32_t i) const {
+    if (i >= packedCount) return P[i - packedCount];
+    return pBase + glm::vec3(packedSteps(i)) * pStep;
+  }
+  // The most steps from pBase a packed vertex may lie on each axis: 19 bits, so that three fit
+  // the 57 bits an unaligned 64-bit load always holds.
+  static constexpr int kMaxStepBits = 19;
   // Packs the float vertices in P (all of them, before any are packed) that decode exactly from
-  // 16-bit steps of `step` (a power of two) in the window of 65536 steps centred on `centre`:
-  // they move to P16 and to the front of the vertex order (indices and barycentrics renumbered
-  // alike). No-op for step 0.
+  // lattice steps of `step` (a power of two) in the window of 2^19 steps centred on `centre`:
+  // they move to packedP and to the front of the vertex order (indices and barycentrics
+  // renumbered alike). No-op for step 0.
   void packPositions(float step, const glm::vec3& centre);
   // Moves indices16 or indices32 into packedIndices (little-endian machines, vertex numbers of
   // at most 19 bits: 3 of them and a 7-bit shift fit one 64-bit word) where that is smaller.
@@ -142,9 +166,17 @@ struct VoxelGeometry {
     return subTriangles16.empty() ? subTriangles32[k] : subTriangles16[k];
   }
   glm::vec2 bary(uint32_t vertex) const {
-    if (baryF.empty())
+    if (!baryF.empty()) return baryF[vertex];
+    if (!baryPacked)
       return glm::vec2(float(bary16[2 * vertex]), float(bary16[2 * vertex + 1])) * (1.0f / 32768.0f);
-    return baryF[vertex];
+    const uint32_t bits = 16u - baryShift;
+    const uint64_t bit = uint64_t(2 * bits) * vertex;
+    uint64_t word;
+    std::memcpy(&word, packedBary.data() + (bit >> 3), sizeof word);
+    word >>= bit & 7;
+    const uint64_t mask = (uint64_t(1) << bits) - 1;
+    return glm::vec2(float(uint32_t(word & mask) << baryShift), float(uint32_t((word >> bits) & mask) << baryShift)) *
+           (1.0f / 32768.0f);
   }
   // Appends the key of the next triangle (keys must be appended in triangle order).
   void appendKey(uint32_t triangleId, uint32_t microId) {
@@ -167,6 +199,8 @@ struct VoxelGeometry {
   std::pair<uint32_t, uint32_t> key(uint32_t i) const;
   // Stores vertex bary (b1, b2) in the compact form if every one lies in [0, 1].
   void setBary(const std::vector<glm::vec2>& b);
+  // Moves bary16 into packedBary (little-endian machines; after packPositions, which renumbers).
+  void packBary();
   uint64_t bytes() const;
 };
 

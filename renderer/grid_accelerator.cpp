@@ -867,6 +867,7 @@ std::unique_ptr<VoxelGeometry> GridAccelerator::buildVoxel(uint32_t voxel) {
   }
   g->packPositions(positionStep_, 0.5f * (box.lo + box.hi));
   g->packIndices();
+  g->packBary();
   if (!proxies_.empty() && !g->bvhNodes.empty() && !proxies_[voxel].load(std::memory_order_acquire)) {
     // Every fill of a voxel builds the same BVH (rule 1), so whichever fill publishes it, the
     // proxy is the root a resident voxel would have.
@@ -975,7 +976,12 @@ void GridAccelerator::intersectVoxel(uint32_t voxel, const WatertightRay& wr, co
 #if defined(__SSE2__)
   // Packed positions decode in the lanes with the arithmetic of VoxelGeometry::vertex.
   const __m128 pStep = _mm_set1_ps(g->pStep);
-  const __m128 pBase4 = _mm_setr_ps(g->pBase.x, g->pBase.y, g->pBase.z, 0.0f);
+  const __m128 pBaseAxis[3] = {_mm_set1_ps(g->pBase.x), _mm_set1_ps(g->pBase.y), _mm_set1_ps(g->pBase.z)};
+  const __m128i fieldShift[3] = {_mm_cvtsi32_si128(0), _mm_cvtsi32_si128(g->pBits[0]),
+                                 _mm_cvtsi32_si128(g->pBits[0] + g->pBits[1])};
+  __m128i fieldMask[3];
+  for (int axis = 0; axis < 3; ++axis) fieldMask[axis] = _mm_set1_epi64x(int64_t((uint64_t(1) << g->pBits[axis]) - 1));
+  const size_t recordBytes = g->pBytes;
   const uint32_t packed = g->numPacked();
 #endif
   // Triangles [first, end) in groups of four lanes, then in order, as `test` one by one would: a
@@ -993,20 +999,24 @@ void GridAccelerator::intersectVoxel(uint32_t voxel, const WatertightRay& wr, co
       bool allPacked = true;
       for (uint32_t j = 0; j < 4; ++j) allPacked &= tri[j].x < packed && tri[j].y < packed && tri[j].z < packed;
       if (allPacked) {
-        // A vertex's three steps load as 8 bytes (P16 ends in a pad), widen to 32 bits and decode
-        // together; four lanes' vertices then transpose into per-axis vectors.
-        const uint16_t* q = g->P16.data();
-        const __m128i zero = _mm_setzero_si128();
-        auto decode = [&](uint32_t v) {
-          const __m128i steps = _mm_unpacklo_epi16(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(q + 3 * size_t(v))), zero);
-          return _mm_add_ps(pBase4, _mm_mul_ps(_mm_cvtepi32_ps(steps), pStep));
+        // The four lanes' records of a corner load as two pairs of 64-bit words; each axis's
+        // field is cut out of all four with the voxel's shift and mask, gathered into one
+        // vector and decoded there, with the arithmetic of VoxelGeometry::vertex.
+        const uint8_t* records = g->packedP.data();
+        auto load2 = [&](uint32_t v0, uint32_t v1) {
+          return _mm_unpacklo_epi64(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(records + recordBytes * v0)),
+                                    _mm_loadl_epi64(reinterpret_cast<const __m128i*>(records + recordBytes * v1)));
+        };
+        auto lanes = [](__m128i w01, __m128i w23, __m128i shift, __m128i mask) {
+          const __m128 a = _mm_castsi128_ps(_mm_and_si128(_mm_srl_epi64(w01, shift), mask));
+          const __m128 b = _mm_castsi128_ps(_mm_and_si128(_mm_srl_epi64(w23, shift), mask));
+          return _mm_cvtepi32_ps(_mm_castps_si128(_mm_shuffle_ps(a, b, _MM_SHUFFLE(2, 0, 2, 0))));
         };
         __m128* out[3] = {corners.a, corners.b, corners.c};
         for (int corner = 0; corner < 3; ++corner) {
-          __m128 r0 = decode(tri[0][corner]), r1 = decode(tri[1][corner]);
-          __m128 r2 = decode(tri[2][corner]), r3 = decode(tri[3][corner]);
-          _MM_TRANSPOSE4_PS(r0, r1, r2, r3);
-          out[corner][0] = r0, out[corner][1] = r1, out[corner][2] = r2;
+          const __m128i w01 = load2(tri[0][corner], tri[1][corner]), w23 = load2(tri[2][corner], tri[3][corner]);
+          for (int axis = 0; axis < 3; ++axis)
+            out[corner][axis] = _mm_add_ps(pBaseAxis[axis], _mm_mul_ps(lanes(w01, w23, fieldShift[axis], fieldMask[axis]), pStep));
         }
       } else {
         glm::vec3 v[4][3];

@@ -214,6 +214,26 @@ TEST(VoxelStorage, KeysAndBarycentricsRoundTrip) {
   EXPECT_EQ(g.bary16.size(), 2 * dyadic.size());
   EXPECT_TRUE(g.baryF.empty());
   for (uint32_t v = 0; v < dyadic.size(); ++v) EXPECT_EQ(g.bary(v), dyadic[v]);
+  g.packBary();
+  EXPECT_TRUE(g.bary16.empty());
+  EXPECT_EQ(g.baryShift, 0u);  // 2^-15 needs every bit
+  for (uint32_t v = 0; v < dyadic.size(); ++v) EXPECT_EQ(g.bary(v), dyadic[v]);
+  // Packed, a voxel whose barycentrics are multiples of 2^-l keeps l + 1 bits each and decodes
+  // them exactly, at every level (level 16: all zero, no bits).
+  std::mt19937 rng(5);
+  for (int level = 0; level <= 16; ++level) {
+    std::vector<glm::vec2> b;
+    const int steps = level == 16 ? 0 : 1 << level;
+    std::uniform_int_distribution<int> k(0, steps);
+    for (int v = 0; v < 300; ++v) b.push_back(glm::vec2(float(k(rng)), float(k(rng))) / float(std::max(steps, 1)));
+    if (steps) b[7] = glm::vec2(1.0f / float(steps), 1.0f);  // the finest value occurs
+    g.setBary(b);
+    g.packBary();
+    const uint32_t bits = level == 16 ? 0 : uint32_t(level) + 1;
+    EXPECT_EQ(g.baryShift, 16u - bits) << level;
+    EXPECT_EQ(g.packedBary.size(), (2 * bits * b.size() + 7) / 8 + 8) << level;
+    for (uint32_t v = 0; v < b.size(); ++v) ASSERT_EQ(g.bary(v), b[v]) << level << " " << v;
+  }
   // Finer values (deeper levels, the thirds of centre splits) round to the nearest 2^-15.
   const std::vector<glm::vec2> fine = {{0.5f, 0.5f}, {1.0f / 65536, 0.0f}, {1.0f / 3, 1.0f / 3}, {0.3f, 0.1f}};
   g.setBary(fine);
@@ -230,8 +250,9 @@ TEST(VoxelStorage, KeysAndBarycentricsRoundTrip) {
   for (uint32_t v = 0; v < outside.size(); ++v) EXPECT_EQ(g.bary(v), outside[v]);
 }
 
-// Positions pack into 16-bit lattice steps around the voxel where they decode to their own bits;
-// the rest stay floats, and triangles and barycentrics follow the renumbering.
+// Positions pack into lattice steps around the voxel (as many bits per axis as the packed
+// vertices' extent needs, at most 19) where they decode to their own bits; the rest stay floats,
+// and triangles and barycentrics follow the renumbering.
 void expectPackingKeepsEveryCorner(bool wideIndices, bool floatBary) {
   const float step = 1.0f / 1024.0f;
   const glm::vec3 centre(0.3f, -0.2f, 5.1f);
@@ -243,10 +264,11 @@ void expectPackingKeepsEveryCorner(bool wideIndices, bool floatBary) {
   for (int i = 0; i < 300; ++i) {
     const int kind = i % 10;
     glm::vec3 p = c + glm::vec3(float(near(rng)), float(near(rng)), float(near(rng))) * step;
-    if (kind == 3) p.y = c.y + 40000.0f * step;  // outside the window
-    if (kind == 5) p.x += 0.3f * step;              // not a lattice point
-    if (kind == 7) p.z = c.z - 32769.0f * step;     // one step below the window
-    if (kind == 8) p.x = c.x + 32767.0f * step;     // the window's last step
+    if (kind == 3) p.y = c.y + 300000.0f * step;  // outside the window
+    if (kind == 5) p.x += 0.3f * step;               // not a lattice point
+    if (kind == 7) p.z = c.z - 262145.0f * step;     // one step below the window
+    if (kind == 8) p.x = c.x + 262143.0f * step;     // the window's last step
+    if (kind == 9) p.z = c.z - 262144.0f * step;     // its first
     expectPacked += kind != 3 && kind != 5 && kind != 7;
     P.push_back(p);
   }
@@ -276,7 +298,12 @@ void expectPackingKeepsEveryCorner(bool wideIndices, bool floatBary) {
       ASSERT_EQ(g.bary(tri[k]), bary[indices[3 * t + k]]);
     }
   }
-  // Packed vertices take 6 bytes instead of 12.
+  // Packed vertices take 19 + 16 + 19 bits here (the extents of x, y and z): 7 bytes, not 12.
+  EXPECT_EQ(int(g.pBits[0]), 19);
+  EXPECT_EQ(int(g.pBits[1]), 16);
+  EXPECT_EQ(int(g.pBits[2]), 19);
+  EXPECT_EQ(g.pBytes, 7u);
+  EXPECT_EQ(g.packedP.size(), 7 * expectPacked + 8);
   EXPECT_LT(g.bytes(), sizeof(VoxelGeometry) + 12 * P.size() + 2 * indices.size() * (wideIndices ? 2 : 1) +
                            bary.size() * (floatBary ? 8 : 4) + 2 * numTriangles);
   // A step of 0 (an undisplaced scene) packs nothing.
@@ -290,6 +317,22 @@ void expectPackingKeepsEveryCorner(bool wideIndices, bool floatBary) {
 TEST(VoxelStorage, PackedPositionsDecodeToTheirOwnBits) {
   expectPackingKeepsEveryCorner(false, false);
   expectPackingKeepsEveryCorner(true, true);
+  // A voxel of vertices in one axis-aligned plane spends no bits on that axis, and narrow
+  // extents few on the others: 3 + 0 + 5 bits, one byte a vertex.
+  const float step = 1.0f / 4096.0f;
+  VoxelGeometry g;
+  for (int i = 0; i < 40; ++i) g.P.push_back(glm::vec3(-2.0f + float(i % 8) * step, 0.75f, 3.0f + float(i * 3 / 4) * step));
+  g.packPositions(step, glm::vec3(-2.0f, 1.0f, 3.0f));
+  ASSERT_EQ(g.numPacked(), 40u);
+  EXPECT_EQ(int(g.pBits[0]), 3);
+  EXPECT_EQ(int(g.pBits[1]), 0);
+  EXPECT_EQ(int(g.pBits[2]), 5);
+  EXPECT_EQ(g.pBytes, 1u);
+  EXPECT_EQ(g.packedP.size(), 40u + 8);
+  for (uint32_t i = 0; i < 40; ++i) {
+    const glm::vec3 got = g.vertex(i), want(-2.0f + float(i % 8) * step, 0.75f, 3.0f + float(i * 3 / 4) * step);
+    ASSERT_EQ(std::memcmp(&got, &want, sizeof got), 0) << i;
+  }
 }
 
 // Indices pack into 3 x (bits of the largest vertex number) per triangle and read back the same,
