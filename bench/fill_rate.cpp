@@ -7,6 +7,10 @@
 //   iteration; unlimited budget with the side cache relief uses then). tris/s counts the triangles
 //   stored in voxels, a triangle overlapping two voxels counting twice, as it costs twice.
 // - Fill/<scene>/...: subdivideTriangle alone (shader + subdivision), whole input triangles.
+// - Trace/<scene>: intersection alone. The scene with a C++ bumps shader (so that valgrind, which
+//   cannot run the JIT's AVX-512 code, can count its instructions) is filled by one untimed pass
+//   of its camera rays at its resolution; the timed loop traces the same rays again, every voxel
+//   resident. rays/s counts closest-hit queries.
 // Counters of Fill/:
 //   tris/s             micro-triangles produced per second (all threads)
 //   shader_points/s    shader points per second spent inside evaluate (the shader's own ceiling)
@@ -15,6 +19,7 @@
 // displaced input triangles (threads take every other one), with no culling box.
 #include <benchmark/benchmark.h>
 
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <map>
@@ -26,6 +31,7 @@
 #include <vector>
 
 #include "compiler/shader_library.h"
+#include "renderer/camera.h"
 #include "renderer/grid_accelerator.h"
 #include "renderer/rib_reader.h"
 #include "renderer/subdivide.h"
@@ -46,6 +52,7 @@ struct Work {
 
 struct LoadedScene {
   Scene scene;
+  Scene bumpsScene;                   // the scene with bumpsEntry in every displacement
   std::vector<Displacement> trivial;  // the scene's displacements with the identity shader
   std::vector<Work> work, trivialWork;
   std::vector<Work> box;  // every triangle of the roundedbox-displaced meshes (simplification)
@@ -57,6 +64,19 @@ void identityEntry(const RlfShadingBatch* b, const void*, RlfStatus*) {
   std::memcpy(b->Pout.x, b->P.x, b->count * sizeof(float));
   std::memcpy(b->Pout.y, b->P.y, b->count * sizeof(float));
   std::memcpy(b->Pout.z, b->P.z, b->count * sizeof(float));
+  std::memcpy(b->Nout.x, b->N.x, b->count * sizeof(float));
+  std::memcpy(b->Nout.y, b->N.y, b->count * sizeof(float));
+  std::memcpy(b->Nout.z, b->N.z, b->count * sizeof(float));
+}
+
+// P += 0.02 * sin(30 x) sin(30 y) sin(30 z) * N: bumps within the example scenes' bounds.
+void bumpsEntry(const RlfShadingBatch* b, const void*, RlfStatus*) {
+  for (uint32_t i = 0; i < b->count; ++i) {
+    const float h = 0.02f * std::sin(30.0f * b->P.x[i]) * std::sin(30.0f * b->P.y[i]) * std::sin(30.0f * b->P.z[i]);
+    b->Pout.x[i] = b->P.x[i] + h * b->N.x[i];
+    b->Pout.y[i] = b->P.y[i] + h * b->N.y[i];
+    b->Pout.z[i] = b->P.z[i] + h * b->N.z[i];
+  }
   std::memcpy(b->Nout.x, b->N.x, b->count * sizeof(float));
   std::memcpy(b->Nout.y, b->N.y, b->count * sizeof(float));
   std::memcpy(b->Nout.z, b->N.z, b->count * sizeof(float));
@@ -99,8 +119,16 @@ const LoadedScene* loadScene(const std::string& name) {
     d.flatness = 0.0f;
     if (d.problems) d.problems = std::make_shared<ShaderProblemCounts>();
   }
+  auto bumps = std::make_shared<const runtime::CompiledShader>(
+      "bumps", bumpsEntry, std::vector<runtime::ParamInfo>{}, 0, nullptr);
+  loaded->bumpsScene = loaded->scene;
+  for (Displacement& d : loaded->bumpsScene.displacements) {
+    d.shader = std::make_shared<const runtime::ShaderInstance>(bumps);
+    if (d.problems) d.problems = std::make_shared<ShaderProblemCounts>();
+  }
   setSubdivisionLimits(loaded->scene);
   setSubdivisionLimits(loaded->identityScene);
+  setSubdivisionLimits(loaded->bumpsScene);
   std::vector<Work> all, allTrivial;
   for (const Mesh& mesh : loaded->scene.meshes) {
     if (mesh.displacementIndex == UINT32_MAX) continue;
@@ -204,6 +232,30 @@ void fillVoxels(benchmark::State& state, const std::string& sceneName, bool triv
   state.counters["voxels"] = benchmark::Counter(double(voxels), benchmark::Counter::kAvgIterations);
 }
 
+void trace(benchmark::State& state, const std::string& sceneName) {
+  const LoadedScene* loaded = loadScene(sceneName);
+  if (!loaded) {
+    state.SkipWithError("scene failed to load");
+    return;
+  }
+  const Scene& scene = loaded->bumpsScene;
+  AccelOptions options;
+  options.sideCacheTriangles = 1000000;
+  GridAccelerator accel(scene, options);
+  const CameraRays camera(scene.camera, scene.width, scene.height);
+  std::vector<Ray> rays;
+  for (int y = 0; y < scene.height; ++y)
+    for (int x = 0; x < scene.width; ++x) rays.push_back(camera.generate(float(x) + 0.5f, float(y) + 0.5f));
+  uint64_t hits = 0, queries = 0;
+  for (const Ray& ray : rays) hits += accel.intersect(ray).has_value();  // fills every voxel the rays need
+  for (auto _ : state) {
+    for (const Ray& ray : rays) hits += accel.intersect(ray).has_value();
+    queries += rays.size();
+  }
+  state.counters["rays/s"] = benchmark::Counter(double(queries), benchmark::Counter::kIsRate);
+  state.counters["hits"] = benchmark::Counter(double(hits), benchmark::Counter::kAvgIterations);
+}
+
 void registerAll() {
   for (const char* scene : {"sphere", "facade"}) {
     for (bool trivial : {false, true}) {
@@ -213,6 +265,10 @@ void registerAll() {
       })->ArgName("threads")->Arg(1)->Arg(2)->UseRealTime()->Unit(benchmark::kMillisecond);
     }
   }
+  for (const char* scene : {"sphere", "facade"})
+    benchmark::RegisterBenchmark((std::string("Trace/") + scene).c_str(), [scene](benchmark::State& s) {
+      trace(s, scene);
+    })->UseRealTime()->Unit(benchmark::kMillisecond);
   for (const char* scene : {"sphere", "facade", "sphere_box"}) {
     for (bool trivial : {false, true}) {
       const std::string name = std::string("Fill/") + scene + (trivial ? "/identity" : "/shader");
