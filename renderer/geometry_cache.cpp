@@ -20,7 +20,7 @@ int cacheThreadShard() {
 uint64_t VoxelGeometry::bytes() const {
   return sizeof(VoxelGeometry) + P.size() * sizeof(glm::vec3) + packedP.size() + bary16.size() * 2 + packedBary.size() +
          baryF.size() * sizeof(glm::vec2) + indices16.size() * 2 + indices32.size() * 4 + packedIndices.size() +
-         microLow.size() * 2 + segments.size() * sizeof(Segment) + subOffsets16.size() * 2 + subOffsets32.size() * 4 +
+         micro32.size() * 4 + packedMicro.size() + segments.size() * sizeof(Segment) + subOffsets16.size() * 2 + subOffsets32.size() * 4 +
          subTriangles16.size() * 2 + subTriangles32.size() * 4 + bvhNodes.size() * sizeof(BvhNode);
 }
 
@@ -28,7 +28,31 @@ std::pair<uint32_t, uint32_t> VoxelGeometry::key(uint32_t i) const {
   const auto it = std::upper_bound(segments.begin(), segments.end(), i,
                                    [](uint32_t t, const Segment& s) { return t < s.first; });
   const Segment& s = *(it - 1);
-  return {s.triangleId, unpackMicro((s.microHigh << 16) | microLow[i])};
+  if (!microBits) return {s.triangleId, unpackMicro(micro32[i])};
+  const uint64_t bit = uint64_t(microBits) * i;
+  uint64_t word;
+  std::memcpy(&word, packedMicro.data() + (bit >> 3), sizeof word);
+  return {s.triangleId, unpackMicro(uint32_t((word >> (bit & 7)) & ((uint64_t(1) << microBits) - 1)))};
+}
+
+void VoxelGeometry::packKeys() {
+  segments.shrink_to_fit();
+  if constexpr (std::endian::native != std::endian::little) return;
+  if (microBits || micro32.empty()) return;
+  uint32_t any = 0;
+  for (uint32_t m : micro32) any |= m;
+  const uint32_t bits = std::max(1, int(std::bit_width(any)));
+  std::vector<uint8_t> stream((uint64_t(bits) * micro32.size() + 7) / 8 + sizeof(uint64_t), 0);
+  for (size_t i = 0; i < micro32.size(); ++i) {
+    const uint64_t bit = uint64_t(bits) * i;
+    uint64_t word;
+    std::memcpy(&word, stream.data() + (bit >> 3), sizeof word);
+    word |= uint64_t(micro32[i]) << (bit & 7);
+    std::memcpy(stream.data() + (bit >> 3), &word, sizeof word);
+  }
+  packedMicro = std::move(stream);
+  microBits = uint8_t(bits);
+  micro32.clear(), micro32.shrink_to_fit();
 }
 
 void VoxelGeometry::packPositions(float step, const glm::vec3& centre) {

@@ -25,6 +25,7 @@
 // the eviction scan take one mutex, only when a fill completes.
 #pragma once
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <cstdint>
@@ -50,10 +51,10 @@ namespace relief {
 //   lies outside [0, 1]);
 // - 3 indices per triangle, as a bit stream of bit_width(vertices - 1) bits each (packIndices;
 //   16- or 32-bit numbers while building and where that is no larger);
-// - the (input triangle, micro-triangle) key per triangle as runs: a triangle stores the low 16
-//   bits of its micro id (rotated, see packMicro), and a segment table gives, from each segment's
-//   first triangle on, the input triangle and the high 16 bits. Keys are only needed at a hit (tie-breaking
-//   and reporting), where a binary search over the few segments is cheap;
+// - the (input triangle, micro-triangle) key per triangle: the micro id (rotated, see packMicro)
+//   per triangle in as many bits as the voxel's largest needs, and a segment table giving the
+//   input triangle from each segment's first triangle on. Keys are only needed at a hit
+//   (tie-breaking and reporting), where a binary search over the few segments is cheap;
 // - the sub-voxel grid over dense voxels with 16-bit cell offsets and triangle references where
 //   they fit.
 // Face normals are computed at a hit, so no per-vertex normals are stored.
@@ -61,7 +62,6 @@ struct VoxelGeometry {
   struct Segment {
     uint32_t first;       // first triangle of the segment
     uint32_t triangleId;  // global input triangle id
-    uint32_t microHigh;   // packMicro(micro id) >> 16
   };
   // Vertex positions. Displaced vertices are points of the scene's position lattice (multiples of
   // a power of two, snapToLattice). Those within a window of 2^19 steps per axis around the voxel
@@ -93,7 +93,12 @@ struct VoxelGeometry {
   std::vector<uint32_t> indices32;
   std::vector<uint8_t> packedIndices;  // ends in 8 bytes of pad for the 64-bit loads
   uint32_t indexBits = 0;              // 0: not packed
-  std::vector<uint16_t> microLow;   // per triangle: micro id & 0xffff
+  // Per triangle, packMicro(micro id): 32-bit numbers while building (micro32); a finished voxel
+  // keeps them as a bit stream of microBits bits each (packedMicro, packKeys).
+  std::vector<uint32_t> micro32;
+  std::vector<uint8_t> packedMicro;  // ends in 8 bytes of pad
+  uint8_t microBits = 0;             // 0: not packed
+  uint32_t triangleCount = 0;
   std::vector<Segment> segments;
 
   // Sub-voxel grid over dense voxels (kSubGridThreshold triangles or more): cells in compressed
@@ -107,20 +112,45 @@ struct VoxelGeometry {
   std::vector<uint32_t> subTriangles32;  // otherwise
 
   // Per-voxel BVH over every voxel with triangles (the default; the sub-grid above is the alternative kept for
-  // measurement, docs/cache.md): a binary SAH tree collapsed into 4-wide nodes, each holding its
-  // children's boxes in 16-bit fixed point on a per-voxel lattice (bvhOrigin + q * bvhStep,
-  // rounded outward), laid out per axis so one SIMD slab test covers all four. Leaves hold at
-  // most kBvhLeafSize triangles. The build stores the triangles (indices and keys) in leaf order,
-  // so a leaf is a range of them and needs no references. Node 0 is the root.
+  // measurement, docs/cache.md): a binary SAH tree collapsed into 4-wide nodes. Boxes live on a
+  // per-voxel lattice of 65536 steps per axis (bvhOrigin + q * bvhStep, rounded outward); a node
+  // holds its children's boxes in 8 bits per plane relative to its own frame (BvhFrame: a corner
+  // and a step on that lattice, derived from its parent's codes, the root's stored), laid out per
+  // axis so one SIMD slab test covers all four. Leaves hold at most kBvhLeafSize triangles. The
+  // build stores the triangles (indices and keys) in leaf order, so a leaf is a range of them and
+  // needs no references. Node 0 is the root.
   struct BvhNode {
-    uint16_t lo[3][4], hi[3][4];  // [axis][child]; an unused slot is lo 65535 > hi 0: never entered
-    uint32_t child[4];            // leaf: kBvhLeafFlag | count << 24 | first triangle; else a node
+    uint8_t lo[3][4], hi[3][4];  // [axis][child]; an unused slot is lo 255 > hi 0: never entered
+    uint32_t child[4];           // leaf: kBvhLeafFlag | count << 24 | first triangle; else a node
   };
   static constexpr uint32_t kBvhLeafFlag = 1u << 31;
+  // A node's frame on the voxel's lattice: child i's box is lo + code * step on each axis. The
+  // numbers are integers below 2^24 kept as floats, so the arithmetic here is exact, and the
+  // traversal turns a frame into slab distances without conversions.
+  struct BvhFrame {
+    float lo[3], step[3];
+    // The frame of child i of `node` (in this frame): its box, in 255 steps of at least one.
+    BvhFrame child(const BvhNode& node, int i) const {
+      BvhFrame f;
+      for (int k = 0; k < 3; ++k) {
+        f.lo[k] = lo[k] + float(node.lo[k][i]) * step[k];
+        const uint32_t extent = uint32_t(node.hi[k][i] - node.lo[k][i]) * uint32_t(step[k]);
+        f.step[k] = float(std::max(1u, (extent + 254) / 255));
+      }
+      return f;
+    }
+    // The frame of a box [lo, hi] of the lattice.
+    static BvhFrame of(const uint32_t lo[3], const uint32_t hi[3]) {
+      BvhFrame f;
+      for (int k = 0; k < 3; ++k) f.lo[k] = float(lo[k]), f.step[k] = float(std::max(1u, (hi[k] - lo[k] + 254) / 255));
+      return f;
+    }
+  };
   std::vector<BvhNode> bvhNodes;
   glm::vec3 bvhOrigin{0}, bvhStep{0};
+  BvhFrame bvhRoot{};
 
-  uint32_t numTriangles() const { return uint32_t(microLow.size()); }
+  uint32_t numTriangles() const { return triangleCount; }
   uint32_t numPacked() const { return packedCount; }
   uint32_t numVertices() const { return numPacked() + uint32_t(P.size()); }
   // The lattice steps of packed vertex i from pBase, per axis.
@@ -180,15 +210,16 @@ struct VoxelGeometry {
   }
   // Appends the key of the next triangle (keys must be appended in triangle order).
   void appendKey(uint32_t triangleId, uint32_t microId) {
-    const uint32_t packed = packMicro(microId);
-    if (segments.empty() || segments.back().triangleId != triangleId ||
-        segments.back().microHigh != packed >> 16)
-      segments.push_back({numTriangles(), triangleId, packed >> 16});
-    microLow.push_back(uint16_t(packed & 0xffff));
+    if (segments.empty() || segments.back().triangleId != triangleId) segments.push_back({triangleCount, triangleId});
+    micro32.push_back(packMicro(microId));
+    ++triangleCount;
   }
-  // Micro ids are (path code << kMicroRankBits) | rank (subdivide.h), and the path code changes
-  // every few triangles; rotated so the path code sits in the low bits, a segment spans every
-  // triangle of a contributor whose ranks stay below 2^(16 - path bits).
+  // Once every key is appended: moves micro32 into packedMicro (little-endian machines) and
+  // trims the segment table.
+  void packKeys();
+  // Micro ids are (path code << kMicroRankBits) | rank (subdivide.h), ranks are small and path
+  // codes short; rotated so the path code sits in the low bits, the ids of a voxel need only
+  // kMicroRankBits' complement plus the bits of its largest rank.
   static uint32_t packMicro(uint32_t id) {
     return (id << (32 - kMicroRankBits)) | (id >> kMicroRankBits);
   }

@@ -184,10 +184,10 @@ constexpr float kBvhTraverseCost = 10.0f;
 // order where there is no tree).
 void buildBvh(VoxelGeometry& g, float padding, const std::vector<std::pair<uint32_t, uint32_t>>& keyOf) {
   const uint32_t n = uint32_t(keyOf.size());
-  g.microLow.reserve(n);
+  g.micro32.reserve(n);
   if (n == 0 || n >= (1u << 24)) {
     for (const auto& [triangleId, microId] : keyOf) g.appendKey(triangleId, microId);
-    g.segments.shrink_to_fit();
+    g.packKeys();
     return;
   }
   // The split works on (centre, index) records in place, so nth_element compares local data.
@@ -424,6 +424,26 @@ void buildBvh(VoxelGeometry& g, float padding, const std::vector<std::pair<uint3
     const float dx = float(b.hi[0] - b.lo[0]), dy = float(b.hi[1] - b.lo[1]), dz = float(b.hi[2] - b.lo[2]);
     return dx * dy + dy * dz + dz * dx;
   };
+  // Codes of a binary node's box in a wide node's frame, rounded outward (the box lies in the
+  // frame, which is its parent's box rounded outward in turn).
+  using Frame = VoxelGeometry::BvhFrame;
+  auto encode = [](VoxelGeometry::BvhNode& node, int i, const Frame& f, const BinaryNode* b) {
+    for (int k = 0; k < 3; ++k) {
+      if (!b) {
+        node.lo[k][i] = 255, node.hi[k][i] = 0;
+        continue;
+      }
+      const uint32_t base = uint32_t(f.lo[k]), step = uint32_t(f.step[k]);
+      const uint32_t lo = b->lo[k] > base ? (b->lo[k] - base) / step : 0u;
+      const uint32_t hi = b->hi[k] > base ? (b->hi[k] - base + step - 1) / step : 0u;
+      node.lo[k][i] = uint8_t(std::min(lo, 255u)), node.hi[k][i] = uint8_t(std::min(hi, 255u));
+    }
+  };
+  {
+    uint32_t rootLo[3], rootHi[3];
+    for (int k = 0; k < 3; ++k) rootLo[k] = bin[0].lo[k], rootHi[k] = bin[0].hi[k];
+    g.bvhRoot = Frame::of(rootLo, rootHi);
+  }
   g.bvhNodes.assign(1, VoxelGeometry::BvhNode{});
   g.bvhNodes.reserve(bin.size() / 3 + 1);
   if (bin[0].data & VoxelGeometry::kBvhLeafFlag) {
@@ -433,18 +453,17 @@ void buildBvh(VoxelGeometry& g, float padding, const std::vector<std::pair<uint3
     VoxelGeometry::BvhNode& root = g.bvhNodes[0];
     for (int i = 0; i < 4; ++i) {
       root.child[i] = i == 0 ? bin[0].data : VoxelGeometry::kBvhLeafFlag;
-      for (int k = 0; k < 3; ++k) {
-        root.lo[k][i] = i == 0 ? bin[0].lo[k] : uint16_t(65535);
-        root.hi[k][i] = i == 0 ? bin[0].hi[k] : uint16_t(0);
-      }
+      encode(root, i, g.bvhRoot, i == 0 ? &bin[0] : nullptr);
     }
     bin.clear();
   }
   struct Job {
     uint32_t binary, wide;
+    Frame frame;
   };
   thread_local std::vector<Job> jobs;
-  jobs.assign(bin.empty() ? 0 : 1, {0, 0});
+  jobs.clear();
+  if (!bin.empty()) jobs.push_back({0, 0, g.bvhRoot});
   while (!jobs.empty()) {
     const Job job = jobs.back();
     jobs.pop_back();
@@ -461,6 +480,7 @@ void buildBvh(VoxelGeometry& g, float padding, const std::vector<std::pair<uint3
       kids[open] = first, kids[count++] = first + 1;
     }
     for (int i = 0; i < 4; ++i) {
+      encode(g.bvhNodes[job.wide], i, job.frame, i < count ? &bin[kids[i]] : nullptr);
       uint32_t ref = VoxelGeometry::kBvhLeafFlag;  // an empty leaf in an unused slot
       if (i < count) {
         const BinaryNode& b = bin[kids[i]];
@@ -468,16 +488,12 @@ void buildBvh(VoxelGeometry& g, float padding, const std::vector<std::pair<uint3
           ref = b.data;
         } else {
           ref = uint32_t(g.bvhNodes.size());
+          const Frame frame = job.frame.child(g.bvhNodes[job.wide], i);
           g.bvhNodes.emplace_back();
-          jobs.push_back({kids[i], ref});
+          jobs.push_back({kids[i], ref, frame});
         }
       }
-      VoxelGeometry::BvhNode& node = g.bvhNodes[job.wide];
-      node.child[i] = ref;
-      for (int k = 0; k < 3; ++k) {
-        node.lo[k][i] = i < count ? bin[kids[i]].lo[k] : uint16_t(65535);
-        node.hi[k][i] = i < count ? bin[kids[i]].hi[k] : uint16_t(0);
-      }
+      g.bvhNodes[job.wide].child[i] = ref;
     }
   }
   g.bvhNodes.shrink_to_fit();
@@ -508,7 +524,7 @@ void buildBvh(VoxelGeometry& g, float padding, const std::vector<std::pair<uint3
     g.indices32.swap(indices);
   }
   for (uint32_t k = 0; k < n; ++k) g.appendKey(keyOf[order[k]].first, keyOf[order[k]].second);
-  g.segments.shrink_to_fit();
+  g.packKeys();
 }
 
 }  // namespace
@@ -539,22 +555,33 @@ struct GridAccelerator::SlabRay {
 
 namespace {
 
+// A node frame's slab set-up for one ray: per axis, the distance of the frame's lo plane and of
+// one step, so that a child plane of code q lies at t = base + q * scale.
+struct FrameSlabs {
+  float base[3], scale[3];
+};
+inline FrameSlabs frameSlabs(const VoxelGeometry::BvhFrame& f, const glm::vec3& base, const glm::vec3& scale) {
+  FrameSlabs s;
+  for (int k = 0; k < 3; ++k) s.base[k] = base[k] + f.lo[k] * scale[k], s.scale[k] = f.step[k] * scale[k];
+  return s;
+}
+
 // The four children's slab tests of a BVH node at once: a bit per child the ray enters within
 // [tLow, limit], and its entry distance. Per axis, the near and far planes' distances are
 // t = base + q * scale (near is the low plane for a positive direction).
-int enterChildren(const VoxelGeometry::BvhNode& node, const GridAccelerator::SlabRay& sr, const glm::vec3& base,
-                  const glm::vec3& scale, float tLow, float limit, float tNear[4]) {
+inline int enterChildren(const VoxelGeometry::BvhNode& node, const FrameSlabs& fs, const GridAccelerator::SlabRay& sr,
+                         float tLow, float limit, float tNear[4]) {
 #if defined(__SSE2__)
   __m128 vNear = _mm_set1_ps(tLow), vFar = _mm_set1_ps(limit);
   const __m128i zero = _mm_setzero_si128();
   for (int k = 0; k < 3; ++k) {
-    const uint16_t* nearQ = sr.negative[k] ? node.hi[k] : node.lo[k];
-    const uint16_t* farQ = sr.negative[k] ? node.lo[k] : node.hi[k];
-    const __m128 qn = _mm_cvtepi32_ps(
-        _mm_unpacklo_epi16(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(nearQ)), zero));
-    const __m128 qf = _mm_cvtepi32_ps(
-        _mm_unpacklo_epi16(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(farQ)), zero));
-    const __m128 b = _mm_set1_ps(base[k]), s = _mm_set1_ps(scale[k]);
+    const uint8_t* nearQ = sr.negative[k] ? node.hi[k] : node.lo[k];
+    const uint8_t* farQ = sr.negative[k] ? node.lo[k] : node.hi[k];
+    uint32_t nearBytes, farBytes;
+    std::memcpy(&nearBytes, nearQ, 4), std::memcpy(&farBytes, farQ, 4);
+    const __m128 qn = _mm_cvtepi32_ps(_mm_unpacklo_epi16(_mm_unpacklo_epi8(_mm_cvtsi32_si128(int(nearBytes)), zero), zero));
+    const __m128 qf = _mm_cvtepi32_ps(_mm_unpacklo_epi16(_mm_unpacklo_epi8(_mm_cvtsi32_si128(int(farBytes)), zero), zero));
+    const __m128 b = _mm_set1_ps(fs.base[k]), s = _mm_set1_ps(fs.scale[k]);
     // Operands in this order, a NaN plane is ignored (SSE max/min return the second operand
     // then), as std::max/min ignore it in the scalar code: the test stays conservative.
     vNear = _mm_max_ps(_mm_add_ps(b, _mm_mul_ps(qn, s)), vNear);
@@ -568,8 +595,8 @@ int enterChildren(const VoxelGeometry::BvhNode& node, const GridAccelerator::Sla
     float tFar = limit;
     tNear[i] = tLow;
     for (int k = 0; k < 3; ++k) {
-      const float a = base[k] + float(sr.negative[k] ? node.hi[k][i] : node.lo[k][i]) * scale[k];
-      const float b = base[k] + float(sr.negative[k] ? node.lo[k][i] : node.hi[k][i]) * scale[k];
+      const float a = fs.base[k] + float(sr.negative[k] ? node.hi[k][i] : node.lo[k][i]) * fs.scale[k];
+      const float b = fs.base[k] + float(sr.negative[k] ? node.lo[k][i] : node.hi[k][i]) * fs.scale[k];
       tNear[i] = std::max(tNear[i], a), tFar = std::min(tFar, b);
     }
     mask |= int(tNear[i] <= tFar) << i;
@@ -858,9 +885,9 @@ std::unique_ptr<VoxelGeometry> GridAccelerator::buildVoxel(uint32_t voxel) {
   // Resident memory is what the budget and the byte statistics describe: no growth slack.
   g->setBary(bary);
   if (options_.subVoxelGrid) {
-    g->microLow.reserve(keys.size());
+    g->micro32.reserve(keys.size());
     for (const auto& [triangleId, microId] : keys) g->appendKey(triangleId, microId);
-    g->segments.shrink_to_fit();
+    g->packKeys();
     buildSubGrid(*g, box, grid_.padding());
   } else {
     buildBvh(*g, grid_.padding(), keys);  // stores the keys in leaf order
@@ -872,7 +899,7 @@ std::unique_ptr<VoxelGeometry> GridAccelerator::buildVoxel(uint32_t voxel) {
     // Every fill of a voxel builds the same BVH (rule 1), so whichever fill publishes it, the
     // proxy is the root a resident voxel would have.
     auto proxy = std::make_unique<VoxelProxy>();
-    proxy->origin = g->bvhOrigin, proxy->step = g->bvhStep;
+    proxy->origin = g->bvhOrigin, proxy->step = g->bvhStep, proxy->root = g->bvhRoot;
     proxy->nodes[0] = g->bvhNodes[0];
     uint32_t next = 1;
     for (uint32_t& ref : proxy->nodes[0].child)
@@ -905,12 +932,13 @@ bool GridAccelerator::passes(const VoxelProxy& p, const Ray& ray, const SlabRay&
   // triangles only in a leaf, and `limit` can only shrink through a hit, so a ray entering no
   // leaf here enters none there (and a root child that is a leaf is a leaf entered).
   float tNear[4];
-  const int mask = enterChildren(p.nodes[0], sr, base, scale, ray.tMin, limit, tNear);
+  const int mask = enterChildren(p.nodes[0], frameSlabs(p.root, base, scale), sr, ray.tMin, limit, tNear);
   for (int i = 0; i < 4; ++i) {
     if (!(mask >> i & 1)) continue;
     const uint32_t ref = p.nodes[0].child[i];
     if (ref & VoxelGeometry::kBvhLeafFlag) return false;
-    if (enterChildren(p.nodes[ref], sr, base, scale, ray.tMin, limit, tNear)) return false;
+    if (enterChildren(p.nodes[ref], frameSlabs(p.root.child(p.nodes[0], i), base, scale), sr, ray.tMin, limit, tNear))
+      return false;
   }
   return true;
 }
@@ -1051,8 +1079,9 @@ void GridAccelerator::intersectVoxel(uint32_t voxel, const WatertightRay& wr, co
     // leaves (kBvhLeafFlag), so leaves too are visited nearest first.
     uint32_t stackNode[kBvhStack];
     float stackT[kBvhStack];
+    VoxelGeometry::BvhFrame stackFrame[kBvhStack];  // of nodes (leaves need none)
     int top = 0;
-    stackNode[top] = 0, stackT[top] = tLow, ++top;
+    stackNode[top] = 0, stackT[top] = tLow, stackFrame[top] = g->bvhRoot, ++top;
     while (top > 0 && !(anyHit && best.found)) {
       --top;
       if (stackT[top] > limit) continue;  // a nearer hit was found since it was pushed
@@ -1063,20 +1092,26 @@ void GridAccelerator::intersectVoxel(uint32_t voxel, const WatertightRay& wr, co
         continue;
       }
       const VoxelGeometry::BvhNode& node = g->bvhNodes[ref];
+      const VoxelGeometry::BvhFrame frame = stackFrame[top];
       float tNear[4];
-      const int mask = enterChildren(node, sr, base, scale, tLow, limit, tNear);
+      const int mask = enterChildren(node, frameSlabs(frame, base, scale), sr, tLow, limit, tNear);
       if (!mask) continue;
       // Push the entered children farthest first, so the nearest is popped next.
-      uint32_t hitRef[4];
+      int hitSlot[4];
       float hitT[4];
       int hits = 0;
       for (int i = 0; i < 4; ++i) {
         if (!(mask >> i & 1)) continue;
         int j = hits++;
-        for (; j > 0 && hitT[j - 1] < tNear[i]; --j) hitRef[j] = hitRef[j - 1], hitT[j] = hitT[j - 1];
-        hitRef[j] = node.child[i], hitT[j] = tNear[i];
+        for (; j > 0 && hitT[j - 1] < tNear[i]; --j) hitSlot[j] = hitSlot[j - 1], hitT[j] = hitT[j - 1];
+        hitSlot[j] = i, hitT[j] = tNear[i];
       }
-      for (int j = 0; j < hits; ++j) stackNode[top] = hitRef[j], stackT[top] = hitT[j], ++top;
+      for (int j = 0; j < hits; ++j) {
+        const uint32_t child = node.child[hitSlot[j]];
+        stackNode[top] = child, stackT[top] = hitT[j];
+        if (!(child & VoxelGeometry::kBvhLeafFlag)) stackFrame[top] = frame.child(node, hitSlot[j]);
+        ++top;
+      }
     }
   } else if (g->subResolution.x == 0) {  // a direction the BVH cannot take, or a sparse sub-grid voxel
     testRange(0, g->numTriangles());

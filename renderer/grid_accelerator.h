@@ -97,6 +97,7 @@ class GridAccelerator final : public Accelerator {
   // root's child references point at them (leaves keep their leaf references).
   struct VoxelProxy {
     glm::vec3 origin, step;
+    VoxelGeometry::BvhFrame root;
     VoxelGeometry::BvhNode nodes[5];
   };
   // Whether `ray` passes the voxel of proxy `p` without testing a triangle (see intersectVoxel).

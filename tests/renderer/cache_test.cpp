@@ -207,6 +207,23 @@ TEST(VoxelStorage, KeysAndBarycentricsRoundTrip) {
   EXPECT_EQ(g.segments.size(), before + 1);
   for (uint32_t i = 7, path = 1; path < 512; path += 37)
     for (uint32_t r = 0; r < 20; ++r, ++i) ASSERT_EQ(g.key(i), std::make_pair(11u, path * rank + r));
+  // Packed, the keys read back the same, the micro ids in as many bits as the largest needs.
+  const uint32_t total = g.numTriangles();
+  std::vector<std::pair<uint32_t, uint32_t>> unpacked;
+  for (uint32_t i = 0; i < total; ++i) unpacked.push_back(g.key(i));
+  g.packKeys();
+  EXPECT_EQ(g.microBits, 32u);  // 0xffffffff
+  EXPECT_TRUE(g.micro32.empty());
+  for (uint32_t i = 0; i < total; ++i) ASSERT_EQ(g.key(i), unpacked[i]) << i;
+  // A voxel of small ranks and short path codes (packed: rank << 9 | code) takes few bits.
+  VoxelGeometry small;
+  for (uint32_t t = 0; t < 100; ++t) small.appendKey(t / 7, (((t % 5) + 16) << kMicroRankBits) | (t % 3));
+  small.packKeys();
+  EXPECT_EQ(small.microBits, 11u);  // rank < 4 above a 9-bit code slot
+  EXPECT_EQ(small.packedMicro.size(), (11 * 100 + 7) / 8 + 8);
+  EXPECT_EQ(small.segments.size(), 15u);
+  for (uint32_t t = 0; t < 100; ++t)
+    ASSERT_EQ(small.key(t), std::make_pair(t / 7, (((t % 5) + 16) << kMicroRankBits) | (t % 3))) << t;
 
   // Dyadic barycentrics up to level 15 use 16 bits and decode exactly.
   const std::vector<glm::vec2> dyadic = {{0, 0}, {1, 0}, {0, 1}, {0.5f, 0.25f}, {1.0f / 32768, 0.75f}};
@@ -285,7 +302,7 @@ void expectPackingKeepsEveryCorner(bool wideIndices, bool floatBary) {
   g.setBary(bary);
   ASSERT_EQ(g.baryF.empty(), !floatBary);
   const uint32_t numTriangles = uint32_t(indices.size() / 3);
-  for (uint32_t t = 0; t < numTriangles; ++t) g.microLow.push_back(uint16_t(t));
+  for (uint32_t t = 0; t < numTriangles; ++t) g.appendKey(0, t);
 
   g.packPositions(step, centre);
   EXPECT_EQ(g.numPacked(), expectPacked);
@@ -335,6 +352,60 @@ TEST(VoxelStorage, PackedPositionsDecodeToTheirOwnBits) {
   }
 }
 
+// Every BVH node's child boxes, decoded through the frames their ancestors' 8-bit codes give,
+// hold the triangles below them grown by the grid's padding (the traversal culls on them), and
+// nodes are 40 bytes: 8 bits a plane.
+void expectBoxesHold(const VoxelGeometry& g, uint32_t ref, const VoxelGeometry::BvhFrame& frame, float padding,
+                     glm::vec3 lo, glm::vec3 hi, int& leaves) {
+  if (ref & VoxelGeometry::kBvhLeafFlag) {
+    const uint32_t first = ref & 0xffffffu, count = (ref >> 24) & 0x7fu;
+    for (uint32_t t = first; t < first + count; ++t) {
+      const glm::uvec3 tri = g.triangle(t);
+      for (int c = 0; c < 3; ++c) {
+        const glm::vec3 p = g.vertex(tri[c]);
+        for (int k = 0; k < 3; ++k) {
+          // The root's box is the padded triangles' own, so their extremes meet its planes (to
+          // float rounding); every box below adds at least a lattice step outwards.
+          ASSERT_LE(lo[k], p[k] - 0.999f * padding) << "triangle " << t;
+          ASSERT_GE(hi[k], p[k] + 0.999f * padding) << "triangle " << t;
+        }
+      }
+    }
+    ++leaves;
+    return;
+  }
+  const VoxelGeometry::BvhNode& node = g.bvhNodes[ref];
+  for (int i = 0; i < 4; ++i) {
+    if (node.child[i] == VoxelGeometry::kBvhLeafFlag) continue;  // unused slot
+    glm::vec3 clo, chi;
+    for (int k = 0; k < 3; ++k) {
+      clo[k] = g.bvhOrigin[k] + (frame.lo[k] + float(node.lo[k][i]) * frame.step[k]) * g.bvhStep[k];
+      chi[k] = g.bvhOrigin[k] + (frame.lo[k] + float(node.hi[k][i]) * frame.step[k]) * g.bvhStep[k];
+    }
+    expectBoxesHold(g, node.child[i], frame.child(node, i), padding, clo, chi, leaves);
+  }
+}
+
+TEST(VoxelStorage, HierarchicalNodeBoxesHoldTheirTriangles) {
+  static_assert(sizeof(VoxelGeometry::BvhNode) == 40);
+  SphereOptions o = cacheOptions();
+  o.edgeLength = 0.01f;  // dense voxels: trees several levels deep
+  const Scene scene = makeSphereScene(o);
+  GridAccelerator accel(scene, AccelOptions{});
+  int deep = 0, leaves = 0;
+  for (uint32_t v = 0; v < accel.grid().numVoxels(); ++v) {
+    if (!accel.grid().hasContributors(v)) continue;
+    const auto g = accel.buildVoxelUncached(v);
+    if (g->bvhNodes.empty()) continue;
+    deep += g->bvhNodes.size() > 5;
+    const glm::vec3 inf(std::numeric_limits<float>::infinity());
+    expectBoxesHold(*g, 0, g->bvhRoot, accel.grid().padding(), -inf, inf, leaves);
+    if (::testing::Test::HasFatalFailure()) return;
+  }
+  EXPECT_GT(deep, 10);
+  EXPECT_GT(leaves, 1000);
+}
+
 // Indices pack into 3 x (bits of the largest vertex number) per triangle and read back the same,
 // at widths from 1 to 19 bits and at their edges; wider voxels keep 32-bit indices.
 TEST(VoxelStorage, PackedIndicesReadBackAtEveryWidth) {
@@ -349,7 +420,7 @@ TEST(VoxelStorage, PackedIndicesReadBackAtEveryWidth) {
       // The extremes at every position of a triangle, then random corners.
       if (t < 3) indices.insert(indices.end(), {vertices - 1, t % 2 ? 0u : vertices - 1, 0u});
       else indices.insert(indices.end(), {pick(rng), pick(rng), pick(rng)});
-      g.microLow.push_back(uint16_t(t));
+      g.appendKey(0, t);
     }
     if (vertices <= 65536) g.indices16.assign(indices.begin(), indices.end());
     else g.indices32 = indices;
