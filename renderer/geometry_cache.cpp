@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <bit>
+#include <cassert>
 #include <cmath>
 #include <cstring>
 #include <functional>
@@ -57,6 +58,7 @@ void VoxelGeometry::packKeys() {
 
 void VoxelGeometry::packPositions(float step, const glm::vec3& centre) {
   if constexpr (std::endian::native != std::endian::little) return;
+  assert(!baryPacked && !indexBits && "packPositions renumbers the build forms only");
   if (!(step > 0.0f) || P.empty() || packedCount) return;
   // The window's corner: a lattice point 2^18 steps below the centre's.
   constexpr uint32_t kWindow = 1u << kMaxStepBits;

@@ -27,6 +27,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cassert>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -64,13 +65,14 @@ struct VoxelGeometry {
     uint32_t triangleId;  // global input triangle id
   };
   // Vertex positions. Displaced vertices are points of the scene's position lattice (multiples of
-  // a power of two, snapToLattice). Those within a window of 2^19 steps per axis around the voxel
-  // come first, as lattice steps from pBase (the smallest on each axis) in pBits[axis] bits each,
-  // the bits of the voxel's extent on that axis, packed into records of pBytes bytes read with
-  // one unaligned 64-bit load (packedP, pBase, pStep; whole bytes, so that four lanes decode
-  // with shifts common to all). The rest (corners of large simplified triangles reaching far out)
-  // follow as floats (P). Both forms decode to the same floats: a vertex shared by two voxels is
-  // the same bits in both.
+  // a power of two, snapToLattice). Those packed come first, as lattice steps from pBase (the
+  // smallest on each axis) in pBits[axis] bits each, the bits of their extent on that axis, in
+  // records of pBytes bytes read with one unaligned 64-bit load (packedP, pBase, pStep; whole
+  // bytes, so that four lanes decode with shifts common to all). They lie in a window of 2^19
+  // steps per axis around the voxel, or a narrower one where that stores the voxel in fewer
+  // bytes (packPositions). The rest (corners of large simplified triangles reaching far out)
+  // follow as floats (P), as every vertex does on big-endian machines. Both forms decode to the
+  // same floats: a vertex shared by two voxels is the same bits in both.
   std::vector<uint8_t> packedP;  // vertices [0, numPacked()), then 8 bytes of pad
   std::vector<glm::vec3> P;      // vertices [numPacked(), numVertices())
   glm::vec3 pBase{0};
@@ -165,13 +167,14 @@ struct VoxelGeometry {
     if (i >= packedCount) return P[i - packedCount];
     return pBase + glm::vec3(packedSteps(i)) * pStep;
   }
-  // The most steps from pBase a packed vertex may lie on each axis: 19 bits, so that three fit
-  // the 57 bits an unaligned 64-bit load always holds.
+  // The most bits of steps from pBase a packed vertex may take on each axis: 19, so that a
+  // record (three of them) is at most 8 bytes.
   static constexpr int kMaxStepBits = 19;
   // Packs the float vertices in P (all of them, before any are packed) that decode exactly from
-  // lattice steps of `step` (a power of two) in the window of 2^19 steps centred on `centre`:
-  // they move to packedP and to the front of the vertex order (indices and barycentrics
-  // renumbered alike). No-op for step 0.
+  // lattice steps of `step` (a power of two) in the window of 2^19 steps centred on `centre`, or
+  // in narrower windows where the far ones take fewer bytes as floats: they move to packedP and
+  // to the front of the vertex order (indices16/32, bary16 and baryF renumbered alike, so it
+  // comes before packIndices and packBary). No-op for step 0 and on big-endian machines.
   void packPositions(float step, const glm::vec3& centre);
   // Moves indices16 or indices32 into packedIndices (little-endian machines, vertex numbers of
   // at most 19 bits: 3 of them and a 7-bit shift fit one 64-bit word) where that is smaller.
@@ -210,6 +213,7 @@ struct VoxelGeometry {
   }
   // Appends the key of the next triangle (keys must be appended in triangle order).
   void appendKey(uint32_t triangleId, uint32_t microId) {
+    assert(!microBits && "keys are appended before packKeys");
     if (segments.empty() || segments.back().triangleId != triangleId) segments.push_back({triangleCount, triangleId});
     micro32.push_back(packMicro(microId));
     ++triangleCount;

@@ -419,7 +419,8 @@ void buildBvh(VoxelGeometry& g, float padding, const std::vector<std::pair<uint3
   }
   // Collapse: each wide node takes its binary node's two children, then keeps opening the inner
   // child of largest surface area until it holds four (or only leaves). Leaves sit in their
-  // parent's slots; the tree keeps the binary one's boxes, so it is exactly as conservative.
+  // parent's slots; the tree keeps the binary one's boxes, rounded further outwards to its nodes'
+  // 8-bit codes, so it is at least as conservative.
   auto area = [](const BinaryNode& b) {
     const float dx = float(b.hi[0] - b.lo[0]), dy = float(b.hi[1] - b.lo[1]), dz = float(b.hi[2] - b.lo[2]);
     return dx * dy + dy * dz + dz * dx;
@@ -556,7 +557,9 @@ struct GridAccelerator::SlabRay {
 namespace {
 
 // A node frame's slab set-up for one ray: per axis, the distance of the frame's lo plane and of
-// one step, so that a child plane of code q lies at t = base + q * scale.
+// one step, so that a child plane of code q lies at t = base + q * scale. Two roundings more than
+// the voxel lattice's own t = base + place * scale; boxes carry a lattice step of slack on top of
+// the grid's padding, which is far beyond them.
 struct FrameSlabs {
   float base[3], scale[3];
 };
@@ -678,7 +681,7 @@ GridAccelerator::GridAccelerator(const Scene& scene, const AccelOptions& options
 float GridAccelerator::choosePositionStep() const {
   // Vertices are snapped to a lattice fine against the micro-triangles (1/1024 of the smallest
   // target edge length) and the voxels (1/16384 of a voxel, so a voxel's vertices, overhanging
-  // neighbours included, usually span fewer than 65536 steps and pack into 16 bits), and no
+  // neighbours included, usually span fewer than 2^19 steps and pack; VoxelGeometry::P), and no
   // coarser than the grid's padding: a snapped triangle then reaches at most half the padding
   // beyond the unsnapped one, so every voxel it enters holds it (the voxel boxes and the
   // contributor lists are grown by the padding). Where the lattice is finer than the floats
