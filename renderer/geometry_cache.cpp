@@ -65,25 +65,27 @@ void VoxelGeometry::packPositions(float step, const glm::vec3& centre) {
   const glm::vec3 corner = snapToLattice(centre, step) - glm::vec3(float(kWindow / 2) * step);
   const uint32_t n = uint32_t(P.size());
   // Steps from the corner of every vertex that decodes from them exactly (UINT32_MAX: a float).
+  // Exact for lattice points within 2^24 steps: the difference of two multiples of a power of
+  // two, scaled by its inverse (also a power of two, so multiplying is dividing). Taken only if
+  // it decodes to the vertex's own bits (which also rules out points off the lattice, -0 and NaN).
   thread_local std::vector<glm::uvec3> steps;
-  steps.assign(n, glm::uvec3(UINT32_MAX));
+  steps.resize(n);
+  const float inverse = 1.0f / step;
   glm::uvec3 lo(UINT32_MAX), hi(0);
   uint32_t fitting = 0;
   for (uint32_t i = 0; i < n; ++i) {
     glm::uvec3 q;
     bool fits = true;
-    for (int k = 0; k < 3 && fits; ++k) {
-      // Exact for lattice points within 2^24 steps: the difference of two multiples of a power
-      // of two, scaled by its inverse. Taken only if it decodes to the vertex's own bits (which
-      // also rules out points off the lattice, -0 and NaN).
-      const float s = (P[i][k] - corner[k]) / step;
-      fits = s >= 0.0f && s < float(kWindow);
-      if (!fits) break;
-      q[k] = uint32_t(s);
-      const float decoded = corner[k] + float(q[k]) * step;
-      fits = std::memcmp(&decoded, &P[i][k], sizeof(float)) == 0;
+    for (int k = 0; k < 3; ++k) {
+      const float s = (P[i][k] - corner[k]) * inverse;
+      const bool inWindow = s >= 0.0f && s < float(kWindow);
+      q[k] = inWindow ? uint32_t(s) : 0u;
+      fits &= inWindow && std::bit_cast<uint32_t>(corner[k] + float(q[k]) * step) == std::bit_cast<uint32_t>(P[i][k]);
     }
-    if (!fits) continue;
+    if (!fits) {
+      steps[i] = glm::uvec3(UINT32_MAX);
+      continue;
+    }
     steps[i] = q;
     lo = glm::min(lo, q), hi = glm::max(hi, q);
     ++fitting;
@@ -92,20 +94,28 @@ void VoxelGeometry::packPositions(float step, const glm::vec3& centre) {
   // A few far-reaching corners can cost every vertex of the voxel bits on an axis: consider
   // narrower windows centred on the voxel (by 1-3 bits on each axis), the corners they leave out
   // kept as floats, and take whichever stores the voxel in the fewest bytes. Windows of one
-  // axis nest, so a vertex's place on it is the narrowest it is in (a 4 x 4 x 4 histogram).
+  // axis nest, so a vertex's place on it, the narrowest it is in, is the number of them it is
+  // in (a 4 x 4 x 4 histogram).
   int width[3];
-  for (int k = 0; k < 3; ++k) width[k] = std::bit_width(hi[k] - lo[k]);
-  auto narrowest = [&](int k, uint32_t q) {
-    int j = 0;
-    for (int t = 1; t <= 3 && width[k] - t >= 1; ++t) {
-      const uint32_t half = 1u << (width[k] - t - 1);
-      if (q + half < kWindow / 2 || q >= kWindow / 2 + half) break;
-      j = t;
+  uint32_t windowLo[3][3], windowSpan[3][3];  // [axis][window t - 1]; span 0: no such window
+  for (int k = 0; k < 3; ++k) {
+    width[k] = std::bit_width(hi[k] - lo[k]);
+    for (int t = 1; t <= 3; ++t) {
+      const bool exists = width[k] - t >= 1;
+      const uint32_t half = exists ? 1u << (width[k] - t - 1) : 0u;
+      windowLo[k][t - 1] = kWindow / 2 - half, windowSpan[k][t - 1] = 2 * half;
     }
-    return j;
+  }
+  auto narrowest = [&](int k, uint32_t q) {
+    return int(q - windowLo[k][0] < windowSpan[k][0]) + int(q - windowLo[k][1] < windowSpan[k][1]) +
+           int(q - windowLo[k][2] < windowSpan[k][2]);
   };
+  // Estimated on at most about 256 of the vertices, evenly spaced (the choice only trades bytes:
+  // any choice decodes exactly, and the sample is a pure function of the voxel's vertices).
   uint32_t histogram[4][4][4] = {};
-  for (uint32_t i = 0; i < n; ++i)
+  const uint32_t stride = std::max(1u, n / 256);
+  uint32_t sampled = 0;
+  for (uint32_t i = 0; i < n; i += stride, ++sampled)
     if (steps[i].x != UINT32_MAX) ++histogram[narrowest(0, steps[i].x)][narrowest(1, steps[i].y)][narrowest(2, steps[i].z)];
   uint64_t bestBytes = UINT64_MAX;
   int cut[3] = {0, 0, 0};
@@ -116,7 +126,7 @@ void VoxelGeometry::packPositions(float step, const glm::vec3& centre) {
         for (int x = a; x < 4; ++x)
           for (int y = b; y < 4; ++y)
             for (int z = c; z < 4; ++z) inside += histogram[x][y][z];
-        const uint64_t bytes = inside * uint64_t((width[0] + width[1] + width[2] - a - b - c + 7) / 8) + (n - inside) * 12;
+        const uint64_t bytes = inside * uint64_t((width[0] + width[1] + width[2] - a - b - c + 7) / 8) + (sampled - inside) * 12;
         if (bytes < bestBytes) bestBytes = bytes, cut[0] = a, cut[1] = b, cut[2] = c;
       }
   if (cut[0] | cut[1] | cut[2]) {
@@ -142,7 +152,8 @@ void VoxelGeometry::packPositions(float step, const glm::vec3& centre) {
   for (int k = 0; k < 3; ++k) pBits[k] = uint8_t(std::bit_width(hi[k] - lo[k])), total += pBits[k];
   pBytes = uint8_t((total + 7) / 8);
   std::vector<uint8_t> stream(size_t(pBytes) * fitting + sizeof(uint64_t), 0);
-  std::vector<uint32_t> order(n, UINT32_MAX);  // old vertex -> new vertex
+  thread_local std::vector<uint32_t> order;  // old vertex -> new vertex
+  order.assign(n, UINT32_MAX);
   uint32_t next = 0;
   for (uint32_t i = 0; i < n; ++i) {
     if (steps[i].x == UINT32_MAX) continue;
