@@ -59,7 +59,7 @@ struct AccelOptions {
   // The subtree memos' total size, beyond which input triangles get none (the facade needs 5 MB:
   // about 2.3 bytes per displaced triangle of the input triangles fills reach).
   uint64_t memoBytesLimit = uint64_t(64) << 20;
-  // Voxel proxies: a voxel's first fill keeps the top two levels of its BVH (at most 344 bytes)
+  // Voxel proxies: a voxel's first fill keeps the top two levels of its BVH (at most 248 bytes)
   // for the rest of the render, and rays that would enter no leaf there pass the voxel without
   // the cache (after an eviction, a refill avoided). Never changes the image.
   bool voxelProxies = true;
