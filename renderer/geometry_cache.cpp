@@ -68,7 +68,12 @@ void VoxelGeometry::packPositions(float step, const glm::vec3& centre) {
   // Exact for lattice points within 2^24 steps: the difference of two multiples of a power of
   // two, scaled by its inverse (also a power of two, so multiplying is dividing). Taken only if
   // it decodes to the vertex's own bits (which also rules out points off the lattice, -0 and NaN).
-  thread_local std::vector<glm::uvec3> steps;
+  // Per-thread scratch up to kScratchVertices (a render's voxels are far smaller), so that one
+  // huge voxel does not leave its arrays behind on the thread.
+  constexpr uint32_t kScratchVertices = 1u << 16;
+  thread_local std::vector<glm::uvec3> stepsScratch;
+  std::vector<glm::uvec3> stepsLarge;
+  std::vector<glm::uvec3>& steps = n <= kScratchVertices ? stepsScratch : stepsLarge;
   steps.resize(n);
   const float inverse = 1.0f / step;
   glm::uvec3 lo(UINT32_MAX), hi(0);
@@ -152,7 +157,9 @@ void VoxelGeometry::packPositions(float step, const glm::vec3& centre) {
   for (int k = 0; k < 3; ++k) pBits[k] = uint8_t(std::bit_width(hi[k] - lo[k])), total += pBits[k];
   pBytes = uint8_t((total + 7) / 8);
   std::vector<uint8_t> stream(size_t(pBytes) * fitting + sizeof(uint64_t), 0);
-  thread_local std::vector<uint32_t> order;  // old vertex -> new vertex
+  thread_local std::vector<uint32_t> orderScratch;
+  std::vector<uint32_t> orderLarge;
+  std::vector<uint32_t>& order = n <= kScratchVertices ? orderScratch : orderLarge;  // old -> new vertex
   order.assign(n, UINT32_MAX);
   uint32_t next = 0;
   for (uint32_t i = 0; i < n; ++i) {
