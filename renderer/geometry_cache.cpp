@@ -21,19 +21,46 @@ int cacheThreadShard() {
 uint64_t VoxelGeometry::bytes() const {
   return sizeof(VoxelGeometry) + P.size() * sizeof(glm::vec3) + packedP.size() + bary16.size() * 2 + packedBary.size() +
          baryF.size() * sizeof(glm::vec2) + indices16.size() * 2 + indices32.size() * 4 + packedIndices.size() +
-         micro32.size() * 4 + packedMicro.size() + segments.size() * sizeof(Segment) + subOffsets16.size() * 2 + subOffsets32.size() * 4 +
+         micro32.size() * 4 + packedMicro.size() + segments.size() * sizeof(Segment) + packedIds.size() + subOffsets16.size() * 2 + subOffsets32.size() * 4 +
          subTriangles16.size() * 2 + subTriangles32.size() * 4 + bvhNodes.size() * sizeof(BvhNode);
 }
 
-std::pair<uint32_t, uint32_t> VoxelGeometry::key(uint32_t i) const {
-  const auto it = std::upper_bound(segments.begin(), segments.end(), i,
-                                   [](uint32_t t, const Segment& s) { return t < s.first; });
-  const Segment& s = *(it - 1);
-  if (!microBits) return {s.triangleId, unpackMicro(micro32[i])};
-  const uint64_t bit = uint64_t(microBits) * i;
+namespace {
+
+// Field i of a bit stream of `bits`-bit fields (at most 32; the stream ends in 8 bytes of pad).
+uint32_t readBits(const std::vector<uint8_t>& stream, uint32_t bits, uint32_t i) {
+  const uint64_t bit = uint64_t(bits) * i;
   uint64_t word;
-  std::memcpy(&word, packedMicro.data() + (bit >> 3), sizeof word);
-  return {s.triangleId, unpackMicro(uint32_t((word >> (bit & 7)) & ((uint64_t(1) << microBits) - 1)))};
+  std::memcpy(&word, stream.data() + (bit >> 3), sizeof word);
+  return uint32_t((word >> (bit & 7)) & ((uint64_t(1) << bits) - 1));
+}
+
+// A bit stream of values[i] - base in `bits` bits each, with the pad readBits needs.
+template <typename Value>
+std::vector<uint8_t> writeBits(const Value* values, size_t count, uint32_t base, uint32_t bits) {
+  std::vector<uint8_t> stream((uint64_t(bits) * count + 7) / 8 + sizeof(uint64_t), 0);
+  for (size_t i = 0; i < count; ++i) {
+    const uint64_t bit = uint64_t(bits) * i;
+    uint64_t word;
+    std::memcpy(&word, stream.data() + (bit >> 3), sizeof word);
+    word |= uint64_t(uint32_t(values[i]) - base) << (bit & 7);
+    std::memcpy(stream.data() + (bit >> 3), &word, sizeof word);
+  }
+  return stream;
+}
+
+}  // namespace
+
+std::pair<uint32_t, uint32_t> VoxelGeometry::key(uint32_t i) const {
+  uint32_t triangleId;
+  if (!packedIds.empty()) {
+    triangleId = idBase + readBits(packedIds, idBits, i);
+  } else {
+    const auto it = std::upper_bound(segments.begin(), segments.end(), i,
+                                     [](uint32_t t, const Segment& s) { return t < s.first; });
+    triangleId = (it - 1)->triangleId;
+  }
+  return {triangleId, unpackMicro(microBits ? readBits(packedMicro, microBits, i) : micro32[i])};
 }
 
 void VoxelGeometry::packKeys() {
@@ -43,17 +70,24 @@ void VoxelGeometry::packKeys() {
   uint32_t any = 0;
   for (uint32_t m : micro32) any |= m;
   const uint32_t bits = std::max(1, int(std::bit_width(any)));
-  std::vector<uint8_t> stream((uint64_t(bits) * micro32.size() + 7) / 8 + sizeof(uint64_t), 0);
-  for (size_t i = 0; i < micro32.size(); ++i) {
-    const uint64_t bit = uint64_t(bits) * i;
-    uint64_t word;
-    std::memcpy(&word, stream.data() + (bit >> 3), sizeof word);
-    word |= uint64_t(micro32[i]) << (bit & 7);
-    std::memcpy(stream.data() + (bit >> 3), &word, sizeof word);
-  }
-  packedMicro = std::move(stream);
+  packedMicro = writeBits(micro32.data(), micro32.size(), 0, bits);
   microBits = uint8_t(bits);
   micro32.clear(), micro32.shrink_to_fit();
+  // Input triangles per triangle instead of segments, where that takes fewer bytes: voxels of
+  // small input triangles (furniture, undisplaced meshes) start a segment at nearly every triangle.
+  uint32_t lo = UINT32_MAX, hi = 0;
+  for (const Segment& s : segments) lo = std::min(lo, s.triangleId), hi = std::max(hi, s.triangleId);
+  const uint32_t idWidth = uint32_t(std::bit_width(hi - lo));
+  const uint64_t streamBytes = (uint64_t(idWidth) * triangleCount + 7) / 8 + sizeof(uint64_t);
+  if (streamBytes >= segments.size() * sizeof(Segment)) return;
+  std::vector<uint32_t> ids(triangleCount);
+  for (size_t k = 0; k < segments.size(); ++k) {
+    const uint32_t end = k + 1 < segments.size() ? segments[k + 1].first : triangleCount;
+    std::fill(ids.begin() + segments[k].first, ids.begin() + end, segments[k].triangleId);
+  }
+  packedIds = writeBits(ids.data(), ids.size(), lo, idWidth);
+  idBase = lo, idBits = uint8_t(idWidth);
+  segments.clear(), segments.shrink_to_fit();
 }
 
 void VoxelGeometry::packPositions(float step, const glm::vec3& centre) {

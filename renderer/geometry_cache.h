@@ -53,9 +53,10 @@ namespace relief {
 // - 3 indices per triangle, as a bit stream of bit_width(vertices - 1) bits each (packIndices;
 //   16- or 32-bit numbers while building and where that is no larger);
 // - the (input triangle, micro-triangle) key per triangle: the micro id (rotated, see packMicro)
-//   per triangle in as many bits as the voxel's largest needs, and a segment table giving the
-//   input triangle from each segment's first triangle on. Keys are only needed at a hit
-//   (tie-breaking and reporting), where a binary search over the few segments is cheap;
+//   per triangle in as many bits as the voxel's largest needs, and the input triangle as a
+//   segment table giving it from each segment's first triangle on, or, where that is smaller
+//   (voxels of many small input triangles), per triangle in as many bits as the voxel's id range
+//   needs. Keys are only needed at a hit (tie-breaking and reporting);
 // - the sub-voxel grid over dense voxels with 16-bit cell offsets and triangle references where
 //   they fit.
 // Face normals are computed at a hit, so no per-vertex normals are stored.
@@ -101,7 +102,10 @@ struct VoxelGeometry {
   std::vector<uint8_t> packedMicro;  // ends in 8 bytes of pad
   uint8_t microBits = 0;             // 0: not packed
   uint32_t triangleCount = 0;
-  std::vector<Segment> segments;
+  std::vector<Segment> segments;     // empty once packedIds holds the input triangles
+  std::vector<uint8_t> packedIds;    // per triangle: input triangle - idBase, in idBits bits
+  uint32_t idBase = 0;
+  uint8_t idBits = 0;
 
   // Sub-voxel grid over dense voxels (kSubGridThreshold triangles or more): cells in compressed
   // rows of triangle indices; empty when the voxel is sparse.
@@ -218,8 +222,8 @@ struct VoxelGeometry {
     micro32.push_back(packMicro(microId));
     ++triangleCount;
   }
-  // Once every key is appended: moves micro32 into packedMicro (little-endian machines) and
-  // trims the segment table.
+  // Once every key is appended: moves micro32 into packedMicro (little-endian machines), and
+  // the segment table into packedIds where that is smaller (else trims it).
   void packKeys();
   // Micro ids are (path code << kMicroRankBits) | rank (subdivide.h), ranks are small and path
   // codes short; rotated so the path code sits in the low bits, the ids of a voxel need only

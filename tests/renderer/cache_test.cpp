@@ -222,9 +222,19 @@ TEST(VoxelStorage, KeysAndBarycentricsRoundTrip) {
   small.packKeys();
   EXPECT_EQ(small.microBits, 11u);  // rank < 4 above a 9-bit code slot
   EXPECT_EQ(small.packedMicro.size(), (11 * 100 + 7) / 8 + 8);
-  EXPECT_EQ(small.segments.size(), 15u);
+  // 15 input triangles in runs of 7: 15 segments would take 120 bytes, the ids in 4 bits each 58.
+  EXPECT_TRUE(small.segments.empty());
+  EXPECT_EQ(small.idBits, 4u);
+  EXPECT_EQ(small.packedIds.size(), (4 * 100 + 7) / 8 + 8);
   for (uint32_t t = 0; t < 100; ++t)
     ASSERT_EQ(small.key(t), std::make_pair(t / 7, (((t % 5) + 16) << kMicroRankBits) | (t % 3))) << t;
+  // Long runs keep their segments: 3 of them against 300 ids of 20 bits.
+  VoxelGeometry runs;
+  for (uint32_t t = 0; t < 300; ++t) runs.appendKey(1000000 + (t / 100) * 500000, t);
+  runs.packKeys();
+  EXPECT_EQ(runs.segments.size(), 3u);
+  EXPECT_TRUE(runs.packedIds.empty());
+  for (uint32_t t = 0; t < 300; ++t) ASSERT_EQ(runs.key(t), std::make_pair(1000000 + (t / 100) * 500000, t)) << t;
 
   // Dyadic barycentrics up to level 15 use 16 bits and decode exactly.
   const std::vector<glm::vec2> dyadic = {{0, 0}, {1, 0}, {0, 1}, {0.5f, 0.25f}, {1.0f / 32768, 0.75f}};
