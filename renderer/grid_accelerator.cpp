@@ -2,6 +2,9 @@
 #include "renderer/grid_accelerator.h"
 
 #include <algorithm>
+#include <array>
+#include <bit>
+#include <cassert>
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
@@ -822,6 +825,15 @@ std::unique_ptr<VoxelGeometry> GridAccelerator::buildVoxel(uint32_t voxel) {
   thread_local std::vector<glm::vec3> points;
   thread_local std::vector<uint32_t> indices;
   thread_local std::vector<std::pair<uint32_t, uint32_t>> keys;  // (input triangle, micro id)
+  // The vertices of whole input triangles, by their snapped position's bits (see below).
+  struct PositionHash {
+    size_t operator()(const std::array<uint32_t, 3>& p) const {
+      return size_t((uint64_t(p[0]) * 0x9E3779B97F4A7C15ull) ^ (uint64_t(p[1]) * 0xC2B2AE3D27D4EB4Full) ^
+                    (uint64_t(p[2]) * 0x165667B19E3779F9ull));
+    }
+  };
+  thread_local std::unordered_map<std::array<uint32_t, 3>, uint32_t, PositionHash> wholeVertices;
+  if (!wholeVertices.empty()) wholeVertices.clear();
   bary.clear(), points.clear(), indices.clear(), keys.clear();
   SubdivideCounters counters;
   const std::span<const uint32_t> contributors = grid_.contributors(voxel);
@@ -852,6 +864,14 @@ std::unique_ptr<VoxelGeometry> GridAccelerator::buildVoxel(uint32_t voxel) {
     }
     const MicroMesh& mm = whole ? *whole : culled;
     remap.assign(mm.P.size(), UINT32_MAX);
+    // An input triangle kept whole (undisplaced, or never split) has its corners' barycentrics
+    // by position (subdivideTriangle: corners 0, 1, 2 at (0, 0), (1, 0), (0, 1)), and a hit on
+    // it takes them so (intersectVoxel), so its vertices need none of their own and are shared with every whole triangle of the
+    // voxel that has them: undisplaced meshes then store their vertices once, not once per
+    // triangle.
+    const bool wholeCorners = mm.numTriangles() == 1 && mm.ids[0] == kWholeTriangleId;
+    assert(!wholeCorners || (mm.indices[0] == 0 && mm.indices[1] == 1 && mm.indices[2] == 2 &&
+                             mm.bary[0] == glm::vec2(0, 0) && mm.bary[1] == glm::vec2(1, 0) && mm.bary[2] == glm::vec2(0, 1)));
     for (uint32_t i = 0; i < mm.numTriangles(); ++i) {
       const uint32_t* tri = &mm.indices[3 * size_t(i)];
       if (!overlaps(box, mm.P[tri[0]], mm.P[tri[1]], mm.P[tri[2]])) continue;
@@ -859,8 +879,20 @@ std::unique_ptr<VoxelGeometry> GridAccelerator::buildVoxel(uint32_t voxel) {
       for (int c = 0; c < 3; ++c) {
         uint32_t& slot = remap[tri[c]];
         if (slot == UINT32_MAX) {
-          slot = uint32_t(points.size());
-          points.push_back(snapToLattice(mm.P[tri[c]], positionStep_));
+          const glm::vec3 p = snapToLattice(mm.P[tri[c]], positionStep_);
+          if (wholeCorners) {
+            const auto [it, added] = wholeVertices.try_emplace(
+                std::array<uint32_t, 3>{std::bit_cast<uint32_t>(p.x), std::bit_cast<uint32_t>(p.y), std::bit_cast<uint32_t>(p.z)},
+                uint32_t(points.size()));
+            slot = it->second;
+            if (!added) {
+              indices.push_back(slot);
+              continue;
+            }
+          } else {
+            slot = uint32_t(points.size());
+          }
+          points.push_back(p);
           bary.push_back(mm.bary[tri[c]]);
         }
         indices.push_back(slot);
@@ -997,7 +1029,11 @@ void GridAccelerator::intersectVoxel(uint32_t voxel, const WatertightRay& wr, co
   auto accept = [&](uint32_t i, const glm::uvec3& tri) {
     const auto [triangleId, microId] = g->key(i);
     if (!improves(triangleId, microId)) return;
-    for (int c = 0; c < 3; ++c) best.p[c] = g->vertex(tri[c]), best.bary[c] = g->bary(tri[c]);
+    // A whole input triangle's corners share vertices with other whole triangles of the voxel,
+    // whose barycentrics are their own: its corners are its corners (buildVoxel).
+    static constexpr glm::vec2 kCorner[3] = {{0, 0}, {1, 0}, {0, 1}};
+    for (int c = 0; c < 3; ++c)
+      best.p[c] = g->vertex(tri[c]), best.bary[c] = microId == kWholeTriangleId ? kCorner[c] : g->bary(tri[c]);
   };
   auto test = [&](uint32_t i) {
     const glm::uvec3 tri = g->triangle(i);

@@ -154,7 +154,8 @@ namespace {
 // (input triangle changes) and micro ids of every width, barycentrics in every encoding.
 // Undisplaced input triangles dense in a voxel go through the cache (stored whole, with a
 // sub-voxel grid); the nearest hit, its triangle and its barycentrics must be what testing every
-// triangle gives, and none of it may show in the displaced-geometry statistics.
+// triangle gives (with vertices shared between triangles), and none of it may show in the
+// displaced-geometry statistics.
 TEST(GeometryCache, DenseUndisplacedVoxelsMatchBruteForce) {
   SphereOptions o;
   o.nu = 96, o.nv = 48;  // 9,216 triangles in one voxel
@@ -188,6 +189,11 @@ TEST(GeometryCache, DenseUndisplacedVoxelsMatchBruteForce) {
   EXPECT_EQ(s.accesses, 0u);
   EXPECT_EQ(s.uniqueDisplacedTriangles, 0u);
   EXPECT_EQ(s.peakResidentTriangles, 0u);
+  // Whole input triangles share their vertices in a voxel (their barycentrics are their corners'),
+  // so the closed mesh keeps about one vertex per two triangles, not three per triangle.
+  const auto g = accel.buildVoxelUncached(0);
+  EXPECT_EQ(g->numTriangles(), mesh.numTriangles());
+  EXPECT_LT(g->numVertices(), g->numTriangles() * 6 / 10);
 }
 
 TEST(VoxelStorage, KeysAndBarycentricsRoundTrip) {
