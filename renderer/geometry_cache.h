@@ -46,6 +46,8 @@ namespace relief {
 // The displaced geometry resident for one voxel, stored compactly (docs/cache.md, "Density"):
 // - shared vertices (lattice steps in as many bits per axis as the voxel's extent needs, or
 //   floats; see packedP) with their position in the input triangle as two fixed-point numbers
+//   (a vertex shared by whole input triangles, micro id kWholeTriangleId, holds the first one's:
+//   a hit on a whole triangle takes its corners' barycentrics by position instead)
 //   of at most 16 bits (exact for midpoint subdivision's dyadic barycentrics k / 2^level up to
 //   level 15, within 2^-16 for deeper levels and simplification's centre splits; a voxel whose
 //   barycentrics are all multiples of 2^-l stores l + 1 bits each; float pairs only where a value
@@ -202,6 +204,8 @@ struct VoxelGeometry {
   uint32_t subTriangle(uint32_t k) const {
     return subTriangles16.empty() ? subTriangles32[k] : subTriangles16[k];
   }
+  // The vertex's barycentrics on its input triangle (for a vertex of whole triangles, on the
+  // first of them to store it; see the comment at the top).
   glm::vec2 bary(uint32_t vertex) const {
     if (!baryF.empty()) return baryF[vertex];
     if (!baryPacked)

@@ -833,6 +833,9 @@ std::unique_ptr<VoxelGeometry> GridAccelerator::buildVoxel(uint32_t voxel) {
     }
   };
   thread_local std::unordered_map<std::array<uint32_t, 3>, uint32_t, PositionHash> wholeVertices;
+  // Cleared before use; after a huge voxel its buckets are let go rather than kept (and zeroed
+  // by every later clear) on the thread.
+  if (wholeVertices.bucket_count() > (size_t(1) << 16)) decltype(wholeVertices)().swap(wholeVertices);
   if (!wholeVertices.empty()) wholeVertices.clear();
   bary.clear(), points.clear(), indices.clear(), keys.clear();
   SubdivideCounters counters;
@@ -866,9 +869,9 @@ std::unique_ptr<VoxelGeometry> GridAccelerator::buildVoxel(uint32_t voxel) {
     remap.assign(mm.P.size(), UINT32_MAX);
     // An input triangle kept whole (undisplaced, or never split) has its corners' barycentrics
     // by position (subdivideTriangle: corners 0, 1, 2 at (0, 0), (1, 0), (0, 1)), and a hit on
-    // it takes them so (intersectVoxel), so its vertices need none of their own and are shared with every whole triangle of the
-    // voxel that has them: undisplaced meshes then store their vertices once, not once per
-    // triangle.
+    // it takes them so (intersectVoxel). So its vertices need none of their own and are shared
+    // with every whole triangle of the voxel that has them: undisplaced meshes then store their
+    // vertices once, not once per triangle.
     const bool wholeCorners = mm.numTriangles() == 1 && mm.ids[0] == kWholeTriangleId;
     assert(!wholeCorners || (mm.indices[0] == 0 && mm.indices[1] == 1 && mm.indices[2] == 2 &&
                              mm.bary[0] == glm::vec2(0, 0) && mm.bary[1] == glm::vec2(1, 0) && mm.bary[2] == glm::vec2(0, 1)));

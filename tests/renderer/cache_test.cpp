@@ -540,6 +540,53 @@ void expectHitsMatchBruteForce(GridAccelerator& accel, const Scene& scene, int n
   EXPECT_GT(hits, numRays / 4);
 }
 
+// An undisplaced mesh in a displaced scene: its triangles are kept whole and share vertices
+// (snapped and packed like the displaced ones) with their neighbours in a voxel, and a hit on one
+// still reports its own triangle and barycentrics.
+TEST(VoxelStorage, WholeTrianglesSharingVerticesMatchBruteForce) {
+  Scene scene = makeSphereScene(cacheOptions());
+  Mesh plane;
+  constexpr int kCells = 16;
+  for (int j = 0; j <= kCells; ++j)
+    for (int i = 0; i <= kCells; ++i)
+      plane.P.push_back(glm::vec3(-0.9f + 1.8f * float(i) / kCells, -0.9f + 1.8f * float(j) / kCells,
+                                  1.25f + 0.1f * std::sin(float(i * j))));
+  for (int j = 0; j < kCells; ++j)
+    for (int i = 0; i < kCells; ++i) {
+      const uint32_t a = uint32_t(j * (kCells + 1) + i), b = a + 1, c = a + kCells + 1, d = c + 1;
+      plane.indices.insert(plane.indices.end(), {a, b, d, a, d, c});
+    }
+  scene.meshes.push_back(plane);
+  GridAccelerator accel(scene, AccelOptions{});
+  EXPECT_EQ(accel.grid().outside().size(), 0u);  // every plane triangle is in the grid
+  testing::BruteForce expected(scene, accel.positionStep());
+  int planeHits = 0;
+  for (const Ray& ray : testing::randomRays(2000, 43, 3.0f, 1.2f)) {
+    const auto hit = accel.intersect(ray);
+    const auto ref = expected.intersect(ray);
+    ASSERT_EQ(hit.has_value(), ref.has_value());
+    if (!hit) continue;
+    EXPECT_EQ(hit->t, ref->t);
+    EXPECT_EQ(hit->meshIndex, ref->mesh);
+    EXPECT_EQ(hit->triangleIndex, ref->triangle);
+    EXPECT_EQ(hit->microIndex, ref->micro);
+    EXPECT_EQ(hit->bary, ref->bary);
+    planeHits += hit->meshIndex == 1;
+  }
+  EXPECT_GT(planeHits, 100);
+  // The plane's voxels hold fewer vertices than three per whole triangle.
+  uint64_t wholeTriangles = 0, vertices = 0;
+  for (uint32_t v = 0; v < accel.grid().numVoxels(); ++v) {
+    if (!accel.grid().hasContributors(v)) continue;
+    const auto g = accel.buildVoxelUncached(v);
+    uint32_t whole = 0;
+    for (uint32_t i = 0; i < g->numTriangles(); ++i) whole += g->key(i).second == kWholeTriangleId;
+    if (whole == g->numTriangles() && whole > 0) wholeTriangles += whole, vertices += g->numVertices();
+  }
+  EXPECT_GT(wholeTriangles, 100u);
+  EXPECT_LT(vertices, 2 * wholeTriangles);
+}
+
 // One voxel holding everything: more than 65536 vertices (indices as a 17-bit stream), triangles
 // and sub-grid references (32-bit sub-grid offsets and references), with the BVH and with the
 // sub-voxel grid, still in exact agreement with brute force.

@@ -125,6 +125,7 @@ class BruteForce {
   struct Result {
     float t;
     uint32_t mesh, triangle, micro;
+    glm::vec2 bary;  // on the input triangle, combined as GridAccelerator::intersect does
   };
   std::optional<Result> intersect(const Ray& ray) const {
     const WatertightRay wr(ray);
@@ -139,7 +140,8 @@ class BruteForce {
         if (!best || h.t < best->t ||
             (h.t == best->t && std::tie(e.mesh, e.triangle, e.micro.ids[i]) <
                                    std::tie(best->mesh, best->triangle, best->micro)))
-          best = Result{h.t, e.mesh, e.triangle, e.micro.ids[i]};
+          best = Result{h.t, e.mesh, e.triangle, e.micro.ids[i],
+                        h.b0 * e.micro.bary[tri[0]] + h.b1 * e.micro.bary[tri[1]] + h.b2 * e.micro.bary[tri[2]]};
       }
     }
     return best;
