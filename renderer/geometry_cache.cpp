@@ -35,15 +35,17 @@ uint32_t readBits(const std::vector<uint8_t>& stream, uint32_t bits, uint32_t i)
   return uint32_t((word >> (bit & 7)) & ((uint64_t(1) << bits) - 1));
 }
 
-// A bit stream of values[i] - base in `bits` bits each, with the pad readBits needs.
+// A bit stream of (values[i] - base) >> shift in `bits` bits each, with the pad readBits needs.
+// The stream forms of VoxelGeometry (indices, barycentrics, micro ids, input triangles) are all
+// written here.
 template <typename Value>
-std::vector<uint8_t> writeBits(const Value* values, size_t count, uint32_t base, uint32_t bits) {
+std::vector<uint8_t> writeBits(const Value* values, size_t count, uint32_t base, uint32_t bits, uint32_t shift = 0) {
   std::vector<uint8_t> stream((uint64_t(bits) * count + 7) / 8 + sizeof(uint64_t), 0);
   for (size_t i = 0; i < count; ++i) {
     const uint64_t bit = uint64_t(bits) * i;
     uint64_t word;
     std::memcpy(&word, stream.data() + (bit >> 3), sizeof word);
-    word |= uint64_t(uint32_t(values[i]) - base) << (bit & 7);
+    word |= uint64_t((uint32_t(values[i]) - base) >> shift) << (bit & 7);
     std::memcpy(stream.data() + (bit >> 3), &word, sizeof word);
   }
   return stream;
@@ -245,16 +247,9 @@ void VoxelGeometry::packIndices() {
   const uint32_t vertices = numVertices();
   const uint32_t bits = std::max(1, int(std::bit_width(vertices > 0 ? vertices - 1 : 0u)));
   if (bits > 19 || (bits == 16 && !indices16.empty())) return;  // no room, or no gain
-  std::vector<uint8_t> stream((uint64_t(3 * bits) * n + 7) / 8 + sizeof(uint64_t), 0);
-  for (uint32_t i = 0; i < n; ++i) {
-    const glm::uvec3 t = triangle(i);
-    const uint64_t bit = uint64_t(3 * bits) * i;
-    uint64_t word;
-    std::memcpy(&word, stream.data() + (bit >> 3), sizeof word);
-    word |= (uint64_t(t.x) | uint64_t(t.y) << bits | uint64_t(t.z) << (2 * bits)) << (bit & 7);
-    std::memcpy(stream.data() + (bit >> 3), &word, sizeof word);
-  }
-  packedIndices = std::move(stream);
+  // Triangle i's corners are fields 3i, 3i + 1 and 3i + 2: one 64-bit load reads all three.
+  packedIndices = indices16.empty() ? writeBits(indices32.data(), indices32.size(), 0, bits)
+                                    : writeBits(indices16.data(), indices16.size(), 0, bits);
   indexBits = bits;
   indices16.clear(), indices16.shrink_to_fit();
   indices32.clear(), indices32.shrink_to_fit();
@@ -287,16 +282,8 @@ void VoxelGeometry::packBary() {
   for (uint16_t v : bary16) any |= v;
   const uint32_t shift = any ? uint32_t(std::countr_zero(any)) : 16u;
   const uint32_t bits = 16 - shift;
-  const size_t vertices = bary16.size() / 2;
-  std::vector<uint8_t> stream((uint64_t(2 * bits) * vertices + 7) / 8 + sizeof(uint64_t), 0);
-  for (size_t v = 0; v < vertices; ++v) {
-    const uint64_t bit = uint64_t(2 * bits) * v;
-    uint64_t word;
-    std::memcpy(&word, stream.data() + (bit >> 3), sizeof word);
-    word |= (uint64_t(bary16[2 * v] >> shift) | uint64_t(bary16[2 * v + 1] >> shift) << bits) << (bit & 7);
-    std::memcpy(stream.data() + (bit >> 3), &word, sizeof word);
-  }
-  packedBary = std::move(stream);
+  // Vertex v's (b1, b2) are fields 2v and 2v + 1.
+  packedBary = writeBits(bary16.data(), bary16.size(), 0, bits, shift);
   baryShift = uint8_t(shift);
   baryPacked = true;
   bary16.clear(), bary16.shrink_to_fit();
