@@ -101,6 +101,8 @@ bool hasContextCall(const Expr& e) {
       return b && (b->shape == BuiltinShape::Noise || b->shape == BuiltinShape::Texture ||
                    b->shape == BuiltinShape::Random || b->shape == BuiltinShape::PNoise);
     }
+    // A tuple is typed by context the same way (§2.2), wherever it stands in the chain.
+    case ExprKind::Tuple: return e.operands.size() == 3;
     case ExprKind::Unary: return e.op == Tok::Minus && hasContextCall(*e.operands[0]);
     case ExprKind::Conditional:
       return hasContextCall(*e.operands[1]) || hasContextCall(*e.operands[2]);
@@ -798,7 +800,11 @@ class Checker {
               .range(e.range);
           return set(e, kError);
         }
-        return set(e, expected.isTriple() ? expected : Type(TypeKind::Point));
+        if (expected.isTriple()) return set(e, expected);
+        // Judged as the other operand of a context-typed call (probe): its kind is not known
+        // yet, so it must not decide the call's (`noise(P) + (1, 2, 3)` takes the outer type).
+        if (contextFloat_) return set(e, kFloat);
+        return set(e, Type(TypeKind::Point));
       }
     }
     return set(e, kError);

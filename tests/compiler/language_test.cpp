@@ -201,6 +201,25 @@ displacement pf()
             "1.500000\n");
 }
 
+// §2.2: an RSL tuple takes its type from context as a noise call does (§6.1), on either side
+// of an operator: before, a tuple left of `+ - * /` was a point, so a color could not take it.
+TEST(TupleTest, TypedByContextOnEitherSideOfAnOperator) {
+  const std::string source = R"(
+displacement tc()
+{
+    color a = (1, 2, 3) + color(0.5);
+    color b = (1, 2, 3) * 2;
+    color c = (1, 2, 3) + 0.5;
+    color d; d = (1, 2, 3) * u;
+    color e = (u > 0 ? (1, 2, 3) : (0, 0, 0)) + color(0);
+    color f = noise(P * 3.7) + (1, 2, 3);
+    color g = (1, 2, 3) + noise(P * 3.7);
+    printf("%.2c|%.2c|%.2c|%.2c|%.2c|%d\n", a, b, c, d, e, f == g && comp(f, 0) != comp(f, 1));
+})";
+  TestBatch b(1);
+  EXPECT_EQ(evaluate(source, b), "1.50 2.50 3.50|2.00 4.00 6.00|1.50 2.50 3.50|0.25 0.50 0.75|1.00 2.00 3.00|1\n");
+}
+
 TEST(IndexTest, FloatIndicesTruncateAsRslLoopsNeed) {
   TestBatch b(1);
   const std::string printed = evaluate(R"(
