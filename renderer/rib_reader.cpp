@@ -1911,6 +1911,24 @@ bool RibParser::doDisplacement(const Call& call) {
         return fail(call.line, "parameter '" + p.name + "' of shader '" + name +
                                 "' expects numbers, got " + p.value.describe());
       value.numbers.assign(p.value.numbers.begin(), p.value.numbers.end());
+      // As in RenderMan, points, vectors and normals are given in the space current at the call
+      // and the shader sees them in its "current" space (world): each triple moves as its declared
+      // kind does (a point with the translation, a vector without, a normal by the inverse
+      // transpose). Scalars splatted into a triple are left as given.
+      const glm::mat3 linear(attr_.ctm);
+      const bool spatial = value.type == runtime::ParamType::Point ||
+                           value.type == runtime::ParamType::Vector || value.type == runtime::ParamType::Normal;
+      if (spatial && value.numbers.size() % 3 == 0) {
+        // (Geometry under a singular transform is skipped; its normals stay as given.)
+        const glm::mat3 normalMatrix = singular(attr_.ctm) ? glm::mat3(1.0f) : glm::transpose(glm::inverse(linear));
+        for (size_t i = 0; i < value.numbers.size(); i += 3) {
+          const glm::vec3 x(value.numbers[i], value.numbers[i + 1], value.numbers[i + 2]);
+          const glm::vec3 y = value.type == runtime::ParamType::Point  ? glm::vec3(attr_.ctm * glm::vec4(x, 1.0f))
+                              : value.type == runtime::ParamType::Vector ? linear * x
+                                                                         : normalMatrix * x;
+          value.numbers[i] = y.x, value.numbers[i + 1] = y.y, value.numbers[i + 2] = y.z;
+        }
+      }
     }
     std::string error;
     if (!instance->bind(value, &error)) return fail(call.line, error);

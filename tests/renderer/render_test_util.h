@@ -113,7 +113,18 @@ inline std::shared_ptr<const runtime::CompiledShader> makePushShader() {
   params[2].type = runtime::ParamType::String;
   params[2].offset = 16;
   params[2].defaultStrings = {""};
-  return std::make_shared<runtime::CompiledShader>("push", &pushEntry, std::move(params), 24,
+  // Triples of each spatial kind, for the spaces their values are bound in.
+  const char* spatial[3] = {"centre", "direction", "facing"};
+  const runtime::ParamType kinds[3] = {runtime::ParamType::Point, runtime::ParamType::Vector,
+                                       runtime::ParamType::Normal};
+  for (int k = 0; k < 3; ++k) {
+    runtime::ParamInfo& info = params.emplace_back();
+    info.name = spatial[k];
+    info.type = kinds[k];
+    info.offset = uint32_t(24 + 12 * k);
+    info.defaultNumbers = {0, 0, 1};
+  }
+  return std::make_shared<runtime::CompiledShader>("push", &pushEntry, std::move(params), 60,
                                                    nullptr);
 }
 

@@ -296,6 +296,28 @@ TEST(RibReader, DisplacementBindsTypedAndUntypedParameters) {
   EXPECT_FLOAT_EQ(d.spaces.objectFromCurrent[0], 1.0f / 3.0f);
 }
 
+// RenderMan gives point, vector and normal parameters in the space current at the call; the
+// shader reads them in its current space (world). Before, they were bound as given.
+TEST(RibReader, SpatialShaderParametersAreInTheSpaceOfTheCall) {
+  test::TestShaderProvider shaders;
+  ReadResult r = read(world("Attribute \"displacementbound\" \"float sphere\" [0.1]\n"
+                            "Translate 1 0 0\nScale 2 1 1\n"
+                            "Displacement \"push\" \"centre\" [0 0 -1] \"vector direction\" [1 1 0]"
+                            " \"normal facing\" [1 1 0]\n"
+                            "Sphere 1 -1 1 360"),
+                      &shaders);
+  ASSERT_TRUE(r.scene) << r.error.format();
+  ASSERT_EQ(r.scene->displacements.size(), 1u);
+  const std::byte* block = r.scene->displacements[0].shader->block().data();
+  glm::vec3 centre, direction, facing;
+  std::memcpy(&centre, block + 24, 12);
+  std::memcpy(&direction, block + 36, 12);
+  std::memcpy(&facing, block + 48, 12);
+  expectNear(centre, glm::vec3(1, 0, -1));    // translated
+  expectNear(direction, glm::vec3(2, 1, 0));  // scaled, not translated
+  expectNear(facing, glm::vec3(0.5f, 1, 0));  // inverse transpose
+}
+
 TEST(RibReader, WorldBoundIsNotScaled) {
   test::TestShaderProvider shaders;
   ReadResult r = read(world("Attribute \"displacementbound\" \"float sphere\" [0.1]"
