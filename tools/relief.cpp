@@ -40,6 +40,10 @@
 namespace {
 
 constexpr const char* kVersion = "0.1.0";
+// What a resident displaced triangle costs the process with everything around it (voxel records,
+// memos, side cache, scratch): the fine facade peaks at 36 bytes per triangle unlimited. Sizes the
+// budget that keeps an "unlimited" cache within the machine's memory.
+constexpr double kBytesPerCachedTriangle = 48;
 // Side-cache capacity (shared by the threads) used when the cache budget is unlimited (--side-cache).
 constexpr uint64_t kDefaultSideCache = 1000000;
 
@@ -958,18 +962,30 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
       const double pixels = double(scene.width) * double(scene.height);
       const bool many = estimates[i] > kManyMicroTriangles ||
                         (estimates[i] > kManyForTheImage && estimates[i] > kPerPixel * pixels);
-      if (many && estimates[i] <= relief::kMaxEstimatedMicroTriangles && warnings)
-        *warnings << d.sourceFile << ":" << d.sourceLine << ": warning: displacement shader '"
-                  << d.shader->name() << "': an edge length of " << d.edgeLength << " (world units) asks for about "
-                  << formatCount(estimates[i]) << " micro-triangles on the whole undisplaced surface; "
-                  << "rendering may be slow and large: " << edgeLengthSetting(cl.edgeLength > 0.0f)
-                  << " sets it\n";
-      if (estimates[i] <= relief::kMaxEstimatedMicroTriangles) continue;
+      // Beyond the guard, or beyond any use for the image: a pixel cannot show 100,000
+      // micro-triangles, and such a scene would fill memory for hours before its first pixels
+      // (an edge length of 1e-4 on a unit sphere asks for 1.5e10).
+      constexpr double kErrorFloor = 1e9, kErrorPerPixel = 1e5;
+      const double limit =
+          std::min(relief::kMaxEstimatedMicroTriangles, std::max(kErrorFloor, kErrorPerPixel * pixels));
+      if (estimates[i] <= limit) {
+        if (many && warnings)
+          *warnings << d.sourceFile << ":" << d.sourceLine << ": warning: displacement shader '"
+                    << d.shader->name() << "': an edge length of " << d.edgeLength << " (world units) asks for about "
+                    << formatCount(estimates[i]) << " micro-triangles on the whole undisplaced surface; "
+                    << "rendering may be slow and large: " << edgeLengthSetting(cl.edgeLength > 0.0f)
+                    << " sets it\n";
+        continue;
+      }
       std::cerr << d.sourceFile << ":" << d.sourceLine << ": error: displacement shader '"
                 << d.shader->name() << "': an edge length of " << d.edgeLength << " asks for about "
                 << formatCount(estimates[i]) << " micro-triangles on the undisplaced surface alone, more than "
-                << formatCount(relief::kMaxEstimatedMicroTriangles) << "; raise "
-                << edgeLengthSetting(cl.edgeLength > 0.0f) << "\n";
+                << formatCount(limit)
+                << (limit < relief::kMaxEstimatedMicroTriangles
+                        ? " (" + formatCount(kErrorPerPixel) + " per pixel of a " + std::to_string(scene.width) +
+                              "x" + std::to_string(scene.height) + " image, at least " + formatCount(kErrorFloor) + ")"
+                        : std::string())
+                << "; raise " << edgeLengthSetting(cl.edgeLength > 0.0f) << "\n";
       tooMuch = true;
     }
     if (tooMuch) return 1;
@@ -980,6 +996,30 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
   accelOptions.cacheBudgetTriangles = cl.cacheTrianglesSet || scene.cacheBudgetTriangles == 0
                                           ? cl.cacheTriangles
                                           : scene.cacheBudgetTriangles;
+  // A budget left unset is no licence to outgrow the machine: a scene asking for more
+  // micro-triangles than half the memory holds gets a budget of that much (the image is the same
+  // under any budget), where it would otherwise grow until the kernel kills it. An explicit
+  // `--cache-triangles unlimited` is taken at its word.
+  if (!cl.cacheTrianglesSet && scene.cacheBudgetTriangles == 0 && cl.accel == "grid") {
+    double asked = 0;
+    for (double e : estimates) asked += e;
+    const long pages = sysconf(_SC_PHYS_PAGES), pageSize = sysconf(_SC_PAGESIZE);
+    if (pages > 0 && pageSize > 0) {
+      // The memory: physical, or the address space the process may use if that is less.
+      double memory = double(pages) * double(pageSize);
+      struct rlimit limit {};
+      if (getrlimit(RLIMIT_AS, &limit) == 0 && limit.rlim_cur != RLIM_INFINITY)
+        memory = std::min(memory, double(limit.rlim_cur));
+      const double cap = std::floor(0.5 * memory / kBytesPerCachedTriangle);
+      if (asked > cap) {
+        accelOptions.cacheBudgetTriangles = uint64_t(cap);
+        if (warnings)
+          *warnings << cl.scene << ": warning: the displacements ask for about " << formatCount(asked)
+                    << " micro-triangles, more than half the memory holds; the cache keeps at most "
+                    << formatCount(cap) << " (--cache-triangles sets another budget)\n";
+      }
+    }
+  }
   accelOptions.displace = cl.displace;
   accelOptions.gridResolution = cl.gridResolution;
   accelOptions.refineContributors = cl.refine;

@@ -261,8 +261,9 @@ TEST(Relief, RunningOutOfMemoryNamesTheDisplacement) {
                                    "Displacement \"bumps\" \"Km\" 5 \"freq\" 10\n"
                                    "Patch \"bilinear\" \"P\" [-200 0 -200  200 0 -200  -200 0 200  200 0 200]\n"
                                    "WorldEnd\n");
-  const RunResult r = run("ulimit -v 2000000; " + kRelief + " " + scene.string() + " -I " + kSource +
-                          "/examples/shaders --threads 2 -o " + (dir / "plane.png").string());
+  // Asked for in so many words: an unlimited cache, so the fills run out of memory.
+  RunResult r = run("ulimit -v 1000000; " + kRelief + " " + scene.string() + " -I " + kSource +
+                    "/examples/shaders --threads 2 --cache-triangles unlimited -o " + (dir / "plane.png").string());
   EXPECT_EQ(r.exitCode, 1) << r.err;
   EXPECT_NE(r.err.find(scene.string() + ":8: warning: displacement shader 'bumps': an edge length of 0.05 "
                                          "(world units) asks for about 3.4e+07"),
@@ -273,6 +274,17 @@ TEST(Relief, RunningOutOfMemoryNamesTheDisplacement) {
             std::string::npos)
       << r.err;
   EXPECT_FALSE(fs::exists(dir / "plane.png"));
+  // With no budget given, a scene asking for more than half the memory holds (here the address
+  // space, 1,000,000 KiB: 10.7M triangles at 48 bytes) gets that budget and renders (a few pixels,
+  // so fast).
+  r = run("ulimit -v 1000000; " + kRelief + " " + scene.string() + " -I " + kSource +
+          "/examples/shaders --threads 2 --resolution 4x3 -o " + (dir / "small.png").string());
+  EXPECT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_NE(r.err.find(scene.string() + ": warning: the displacements ask for about 3.4e+07 micro-triangles, "
+                                         "more than half the memory holds; the cache keeps at most 1.1e+07"),
+            std::string::npos)
+      << r.err;
+  EXPECT_TRUE(fs::exists(dir / "small.png"));
 #endif
 }
 
@@ -715,6 +727,16 @@ TEST(Relief, RunawaySubdivisionIsAnErrorNotAHang) {
       << r.err;
   EXPECT_NE(r.err.find("raise --edge-length"), std::string::npos) << r.err;
   EXPECT_FALSE(fs::exists(dir / "tiny.png"));
+  // Far below that guard but far beyond what the image can show (1.5e10 micro-triangles for 192
+  // pixels): an error too, where it filled memory for minutes before.
+  r = run(kRelief + " " + sphere.string() + " --edge-length 1e-4 -o " + (dir / "fine.png").string());
+  EXPECT_EQ(r.exitCode, 1) << r.err;
+  EXPECT_NE(r.err.find(":6: error: displacement shader 'push': an edge length of 0.0001 asks for about 1.5e+10 "
+                       "micro-triangles on the undisplaced surface alone, more than 1e+09 (100000 per pixel of "
+                       "a 16x12 image, at least 1e+09)"),
+            std::string::npos)
+      << r.err;
+  EXPECT_FALSE(fs::exists(dir / "fine.png"));
   // The same sphere at a sane edge length renders.
   r = run(kRelief + " " + sphere.string() + " --edge-length 0.05 -o " + (dir / "sane.png").string());
   EXPECT_EQ(r.exitCode, 0) << r.err;
