@@ -97,6 +97,9 @@ struct ShaderProblemCounts {
   std::atomic<uint64_t> excessPoints{0};
   uint64_t pointLimit = 0;
   std::atomic<bool> runaway{false};
+  // The guard stopped the render because too many invocations hit the loop limit (kLoopLimitStop
+  // in subdivide.h), not for runaway subdivision.
+  std::atomic<bool> loopRunaway{false};
 };
 
 // Everything needed to displace one mesh: the bound shader instance and the subdivision settings.

@@ -369,6 +369,10 @@ void displaceBatch(const Displacement& disp, const TriangleFrame& frame, Vertice
     add(pc->nonFinite, std::max(status.nonFinite, replaced));
     add(pc->badNormal, status.badNormal);
     add(pc->loopLimit, status.loopLimit), add(pc->indexClamped, status.indexClamped);
+    if (status.loopLimit && pc->pointLimit && pc->loopLimit.load(std::memory_order_relaxed) > kLoopLimitStop) {
+      pc->loopRunaway.store(true, std::memory_order_relaxed);
+      pc->runaway.store(true, std::memory_order_relaxed);
+    }
     add(pc->unknownSpace, status.unknownSpace), add(pc->textureErrors, status.textureErrors);
     add(pc->splineBasis, status.splineBasis);
   }
@@ -378,8 +382,16 @@ void displaceBatch(const Displacement& disp, const TriangleFrame& frame, Vertice
 void displace(const Displacement& disp, const TriangleFrame& frame, Vertices& vs, uint32_t first,
               Batch& batch, SubdivideCounters& counters, RlfStatus* shadingStatus = nullptr) {
   const uint32_t end = vs.size();
+  const ShaderProblemCounts* pc = disp.problems.get();
   for (uint32_t from = first; from < end;) {
-    const uint32_t to = from + std::min(end - from, kShaderBatchPoints);
+    if (pc && pc->runaway.load(std::memory_order_relaxed)) {
+      // The render is stopping: the points left keep their undisplaced positions (nothing of
+      // this subdivision is used).
+      for (uint32_t i = from; i < end; ++i) vs.displaced[i] = vs.P.get(i);
+      break;
+    }
+    const bool looping = pc && pc->loopLimit.load(std::memory_order_relaxed) != 0;
+    const uint32_t to = from + std::min(end - from, looping ? kLoopLimitBatchPoints : kShaderBatchPoints);
     displaceBatch(disp, frame, vs, from, to, batch, counters, shadingStatus);
     from = to;
   }

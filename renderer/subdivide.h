@@ -166,6 +166,14 @@ constexpr uint64_t kRunawayAllowance = 64;
 constexpr uint64_t kGrossExcess = 16;
 constexpr uint64_t kRunawayPoints = uint64_t(1) << 20;
 constexpr uint64_t kRunawaySubdivisions = 8;
+// The same guard stops the render once this many invocations of one Displacement's shader hit
+// the loop-iteration limit (language.md §7): each costs a million iterations (about a millisecond),
+// so a loop that never ends at most points would otherwise take minutes for a thumbnail. A few
+// points hitting it (a loop that fails to converge near a singularity) still render, with the
+// warning. Once a shader has hit it, its calls take kLoopLimitBatchPoints points at a time, so the
+// stop is not held up by a full batch of them.
+constexpr uint64_t kLoopLimitStop = 1024;
+constexpr uint32_t kLoopLimitBatchPoints = 16;
 
 // The k above: halvings of the longest edge of triangle p to reach edgeLength, at most maxDepth.
 int undisplacedLevels(const glm::vec3 p[3], float edgeLength, int maxDepth);

@@ -540,6 +540,13 @@ void reportRunaway(const relief::Scene& scene, const std::vector<double>& estima
     const relief::Displacement& d = scene.displacements[i];
     const relief::ShaderProblemCounts* p = d.problems.get();
     if (!p || !p->runaway.load() || !d.shader) continue;
+    if (p->loopRunaway.load()) {
+      out << d.sourceFile << ":" << d.sourceLine << ": error: displacement shader '" << d.shader->name()
+          << "': " << p->loopLimit.load()
+          << " invocations hit the loop-iteration limit (a loop that does not end; each costs its "
+             "whole limit of iterations); rendering stopped: fix the shader's loops\n";
+      continue;
+    }
     out << d.sourceFile << ":" << d.sourceLine << ": error: displacement shader '" << d.shader->name()
         << "': subdivision ran away: its input triangles split into over "
         << relief::kRunawayAllowance

@@ -703,6 +703,25 @@ TEST(Relief, NanFromAShaderIsAWarningNamingIt) {
   EXPECT_EQ(r.err.find("left undisplaced"), std::string::npos) << r.err;
 }
 
+// A shader loop that never ends costs each point the whole loop-iteration limit (language.md §7):
+// at every point of a 64x48 sphere that took minutes. The render now stops with an error at the
+// Displacement once 1024 invocations have hit the limit, with no image.
+TEST(Relief, EndlessShaderLoopsStopTheRender) {
+  const fs::path dir = scratchDir();
+  writeFile(dir / "loopy.disp",
+            "displacement loopy(float Km = 0.05)\n{\n    float i = 0;\n    while (i < 1) { i = i * 1; }\n"
+            "    P += Km * normalize(N);\n}\n");
+  const fs::path scene = writeFile(dir / "loopy.rib",
+                                   "Format 64 48 1\nProjection \"perspective\" \"fov\" [40]\nTranslate 0 0 5\n"
+                                   "WorldBegin\nAttribute \"displacementbound\" \"float sphere\" [0.1]\n"
+                                   "Displacement \"loopy\"\nSphere 1 -1 1 360\nWorldEnd\n");
+  const RunResult r = run(kRelief + " " + scene.string() + " --threads 2 -o " + (dir / "loopy.png").string());
+  EXPECT_EQ(r.exitCode, 1) << r.err;
+  EXPECT_NE(r.err.find(scene.string() + ":6: error: displacement shader 'loopy': "), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("invocations hit the loop-iteration limit"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir / "loopy.png"));
+}
+
 // subdivide.h, work guard: a scene whose undisplaced surface alone asks for more micro-triangles
 // than any render could make is an error at its Displacement line before rendering, and a shader
 // whose edges never get short (here: points moved a thousand times beyond the bound, rippling
