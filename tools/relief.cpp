@@ -363,7 +363,7 @@ uint64_t peakRssBytes(int who = RUSAGE_SELF) {
 }
 
 StatList collectStats(const CommandLine& cl, const relief::Scene& scene,
-                      const relief::AccelStats& a, const relief::RenderStats& r,
+                      const relief::AccelStats& a, const relief::RenderStats& r, relief::PixelOrder order,
                       double loadSeconds, double buildSeconds, uint64_t inputTriangles) {
   auto u = [](uint64_t v) { return std::to_string(v); };
   auto f = [](double v) {
@@ -407,7 +407,7 @@ StatList collectStats(const CommandLine& cl, const relief::Scene& scene,
       {"image.height", u(uint64_t(scene.height))},
       {"render.samples_per_pixel", u(uint64_t(r.samplesPerPixel))},
       {"render.threads", u(uint64_t(r.threads))},
-      {"render.order", relief::compiler::jsonQuoted(relief::pixelOrderName(cl.order))},
+      {"render.order", relief::compiler::jsonQuoted(relief::pixelOrderName(order))},
       {"render.displacement", cl.displace ? "true" : "false"},
       {"render.walk", r.sharedWalk ? "\"shared\"" : "\"stretches\""},
       {"render.deferred_pixels", u(r.deferredPixels)},
@@ -931,6 +931,25 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
                                  : "; give each frame its own Display\n");
     }
   }
+  // Two outputs of one frame on one file (two Displays, or the statistics over an image) would
+  // leave only the last written: an error before the render, naming both.
+  {
+    std::vector<std::pair<std::string, std::string>> claims;  // (key, what writes it)
+    for (size_t i = 0; i < outputs.size(); ++i)
+      claims.emplace_back(outputKeys[i], i == 0 ? "the image" : "the \"" + modes[i] + "\" display");
+    if (!cl.statsJson.empty()) {
+      std::error_code ignored;
+      claims.emplace_back(std::filesystem::absolute(perFrame(cl.statsJson), ignored).lexically_normal().string(),
+                          "--stats-json");
+    }
+    for (size_t i = 0; i < claims.size(); ++i)
+      for (size_t j = 0; j < i; ++j)
+        if (claims[i].first == claims[j].first) {
+          std::cerr << "relief: error: " << claims[j].second << " and " << claims[i].second << " would both write '"
+                    << claims[i].first << "'\n";
+          return 1;
+        }
+  }
   written->paths.insert(outputKeys.begin(), outputKeys.end());
   // A format nothing can write, or a place nothing can be written to, fails now, not after the
   // render.
@@ -1202,7 +1221,7 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
     reportThinBudget(cl.scene, accelStats, *warnings);
   }
   const StatList stats =
-      collectStats(cl, scene, accelStats, renderStats, loadSeconds, buildSeconds, inputTriangles);
+      collectStats(cl, scene, accelStats, renderStats, renderOptions.order, loadSeconds, buildSeconds, inputTriangles);
   const std::string statsJson = cl.statsJson.empty() ? std::string() : perFrame(cl.statsJson);
   if (!statsJson.empty() && !writeStatsJson(statsJson, stats)) {
     std::cerr << "relief: error: cannot write statistics to '" << statsJson << "'\n";

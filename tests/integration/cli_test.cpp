@@ -908,6 +908,34 @@ TEST(Relief, AnUnwritableFormatFailsBeforeTheRender) {
   EXPECT_EQ(run(kRelief + " " + scene.string() + " --stats-json ''").exitCode, 2);
 }
 
+// Two outputs of one frame on one file would keep only the last written (the depth image over
+// the colour one, the statistics over the image): an error before rendering, naming both.
+// The statistics give the pixel order the render used, here the scene's.
+TEST(Relief, OutputsOfOneFrameMayNotShareAFile) {
+  const fs::path dir = scratchDir();
+  const std::string same = (dir / "same.png").string();
+  const fs::path scene = smallScene(dir, "Display \"" + same + "\" \"file\" \"rgb\"\nDisplay \"+" + same +
+                                             "\" \"file\" \"z\"\n");
+  RunResult r = run(kRelief + " " + scene.string());
+  EXPECT_EQ(r.exitCode, 1);
+  EXPECT_NE(r.err.find("relief: error: the image and the \"z\" display would both write '" + same + "'"),
+            std::string::npos)
+      << r.err;
+  EXPECT_FALSE(fs::exists(same));
+  const fs::path plain = smallScene(dir, "", "");
+  const std::string image = (dir / "x.png").string();
+  r = run(kRelief + " " + plain.string() + " -o " + image + " --stats-json " + image);
+  EXPECT_EQ(r.exitCode, 1);
+  EXPECT_NE(r.err.find("relief: error: the image and --stats-json would both write '" + image + "'"),
+            std::string::npos)
+      << r.err;
+  EXPECT_FALSE(fs::exists(image));
+  const fs::path ordered = smallScene(dir, "Option \"relief\" \"string order\" [\"scanline\"]\n");
+  r = run(kRelief + " " + ordered.string() + " --quiet -o " + image + " --stats-json " + (dir / "s.json").string());
+  EXPECT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_NE(readFile(dir / "s.json").find("\"render.order\": \"scanline\""), std::string::npos);
+}
+
 // Displays are all-or-nothing: when a later one cannot be written, the earlier ones (complete by
 // then) are not left behind either, nor any temporary file; the exit status says the render failed.
 TEST(Relief, FailedDisplayLeavesNoneOfTheOthers) {
