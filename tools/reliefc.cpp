@@ -381,6 +381,9 @@ int main(int argc, char** argv) {
   if (!args.output.empty() && !args.emitAst && !args.eval && !args.emitBundle) args.emitLlvm = true;
   if (args.emitBundle && (args.files.size() != 1 || args.eval || args.emitAst || args.emitLlvm))
     return usageError("--emit-bundle takes exactly one file and no other output");
+  // Binary code is no use on a terminal (and can upset it), as clang refuses for bitcode.
+  if (args.emitBundle && (args.output.empty() || args.output == "-") && isatty(STDOUT_FILENO))
+    return usageError("--emit-bundle writes binary code: give -o FILE or redirect standard output");
   // What would go to standard output is collected and written to the -o file at the end, so a
   // failed compile leaves no file (and an earlier one intact) rather than a partial one.
   std::ostringstream collected;
