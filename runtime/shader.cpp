@@ -110,19 +110,22 @@ bool ShaderInstance::bindValue(const ParamInfo& info, const ParamValue& value, s
     if (info.arrayLength) declared.append("[").append(std::to_string(info.arrayLength)).append("]");
     error->assign("parameter '").append(value.name).append("' of shader '");
     error->append(shader_->name()).append("' is declared '").append(declared);
-    if (value.type == info.type && value.type != ParamType::String) {
+    if (value.type == info.type) {
       // The right type with the wrong count (`"color c" 0.1`): say the count.
-      const size_t need = size_t(paramComponents(info.type)) * elements;
-      error->append("' (").append(std::to_string(need)).append(need == 1 ? " number" : " numbers");
-      error->append(") but was given ").append(std::to_string(value.numbers.size()));
+      const bool strings = value.type == ParamType::String;
+      const size_t need = strings ? elements : size_t(paramComponents(info.type)) * elements;
+      const char* unit = strings ? (need == 1 ? " string" : " strings") : (need == 1 ? " number" : " numbers");
+      error->append("' (").append(std::to_string(need)).append(unit);
+      error->append(") but was given ").append(std::to_string(strings ? value.strings.size() : value.numbers.size()));
       return false;
     }
     error->append("' but was given '").append(paramTypeName(value.type)).append("'");
     return false;
   };
   if (info.type == ParamType::String || value.type == ParamType::String) {
-    if (info.type != value.type || value.strings.empty() || value.strings.size() > elements)
-      return mismatch();
+    // Arrays take all their elements, as RenderMan binds them: a short list would leave the
+    // rest at their defaults without a word.
+    if (info.type != value.type || value.strings.size() != elements) return mismatch();
     storeStrings(info, value.strings);
     return true;
   }
@@ -142,9 +145,7 @@ bool ShaderInstance::bindValue(const ParamInfo& info, const ParamValue& value, s
   } else {
     return mismatch();
   }
-  if (numbers.empty() || numbers.size() > elements * components ||
-      numbers.size() % components != 0)
-    return mismatch();
+  if (numbers.size() != elements * components) return mismatch();
   storeNumbers(info, numbers);
   return true;
 }

@@ -88,7 +88,7 @@ class ShaderInstance {
   // Overrides one parameter. Returns false and sets *error (without a location; the caller knows
   // it) for an unknown name or a value that does not fit the declared type. Numeric promotions
   // follow the language: a float fits int (truncated) and triples (splat); point/vector/normal
-  // interconvert; color only from color or a scalar.
+  // interconvert; color only from color or a scalar. An array takes exactly its length in values.
   bool bind(const ParamValue& value, std::string* error);
 
   // Evaluates a batch. Never throws; problems are counted in `status`.

@@ -72,6 +72,9 @@ TEST(ShaderInstance, BindRejectsWhatDoesNotFit) {
   EXPECT_NE(error.find("declared 'color'"), std::string::npos) << error;
   EXPECT_FALSE(inst.bind({"Km", ParamType::String, {}, {"x"}}, &error));
   EXPECT_FALSE(inst.bind({"arr", ParamType::Float, {1, 2, 3}, {}}, &error));  // too many
+  // Too few: RenderMan binds whole arrays (a short list kept the rest at their defaults).
+  EXPECT_FALSE(inst.bind({"arr", ParamType::Float, {1}, {}}, &error));
+  EXPECT_NE(error.find("declared 'float[2]' (2 numbers) but was given 1"), std::string::npos) << error;
   EXPECT_FALSE(inst.bind({"Km", ParamType::Float, {}, {}}, &error));          // no value
   // The right type with the wrong count says the count, not "declared 'color', given 'color'".
   EXPECT_FALSE(inst.bind({"c", ParamType::Color, {0.1f}, {}}, &error));
