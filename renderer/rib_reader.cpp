@@ -607,6 +607,17 @@ class RibParser {
                        nameArg.strings[0] + "'; parameter ignored");
         continue;
       }
+      // A declared array of one value per element (`"float[2] Ks" [0.5 0.2]`) holds exactly that.
+      // Primitive variables of other classes hold one such array per face or vertex.
+      if (p.arraySize > 0 && p.type && *p.type != runtime::ParamType::String &&
+          (p.storageClass.empty() || p.storageClass == "constant") && p.value.isNumeric()) {
+        const size_t need = size_t(p.arraySize) * size_t(runtime::paramComponents(*p.type)) *
+                            (p.homogeneous ? 4 : 1) / (p.homogeneous ? 3 : 1);
+        if (p.value.numbers.size() != need)
+          return fail(nameArg.line, "'" + call.name + "': parameter '" + nameArg.strings[0] + "' expects " +
+                                        std::to_string(need) + " value" + (need == 1 ? "" : "s") + ", got " +
+                                        std::to_string(p.value.numbers.size()));
+      }
       // A name given twice is most likely a copy-and-paste slip: the later value wins, as the
       // later of two settings does everywhere else, and the user hears about it.
       const auto earlier = std::find_if(params->begin(), params->end(), [&](const Param& q) { return q.name == p.name; });
@@ -648,7 +659,16 @@ class RibParser {
       const size_t close = typeWord.find(']', bracket);
       if (close == std::string::npos)
         return fail(line, "malformed parameter declaration '" + text + "'");
-      p->arraySize = std::atoi(typeWord.substr(bracket + 1, close - bracket - 1).c_str());
+      // A whole number from 1 to a million, and nothing after the bracket: `float[2x]`,
+      // `float[-1]` and `float[0x10]` are slips, not sizes.
+      const std::string size = typeWord.substr(bracket + 1, close - bracket - 1);
+      const bool digits = !size.empty() && size.size() <= 7 &&
+                          std::all_of(size.begin(), size.end(), [](char c) { return c >= '0' && c <= '9'; });
+      const int n = digits ? std::stoi(size) : 0;
+      if (n < 1 || n > 1000000 || close + 1 != typeWord.size())
+        return fail(line, "malformed parameter declaration '" + text +
+                              "': the array size must be a whole number from 1 to 1000000");
+      p->arraySize = n;
       typeWord = typeWord.substr(0, bracket);
     }
     p->type = parseTypeWord(typeWord, &p->homogeneous);

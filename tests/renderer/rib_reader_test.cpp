@@ -498,6 +498,20 @@ TEST(RibReader, WrongArgumentTypesAreErrors) {
   r = read(world("Color 1 2"));
   ASSERT_FALSE(r.scene);
   EXPECT_EQ(r.error.message, "'Color' expects 3 numbers, got 2");
+  // Array sizes in declarations are whole numbers (they were read with atoi, so junk passed), and
+  // a declared array holds that many values.
+  for (const char* junk : {"float[0x10] Ks", "float[-1] Ks", "float[4000000000] Ks", "float[2]x Ks", "float[] Ks"}) {
+    r = read(world(std::string("Surface \"plastic\" \"") + junk + "\" [0.5]"));
+    ASSERT_FALSE(r.scene) << junk;
+    EXPECT_EQ(r.error.message, std::string("malformed parameter declaration '") + junk +
+                                   "': the array size must be a whole number from 1 to 1000000");
+  }
+  r = read(world("Surface \"plastic\" \"float[2] Ks\" [0.5]"));
+  ASSERT_FALSE(r.scene);
+  EXPECT_EQ(r.error.message, "'Surface': parameter 'float[2] Ks' expects 2 values, got 1");
+  r = read(world("Declare \"w\" \"color[2]\"\nSurface \"plastic\" \"w\" [1 2 3]"));
+  ASSERT_FALSE(r.scene);
+  EXPECT_EQ(r.error.message, "'Surface': parameter 'w' expects 6 values, got 3");
 }
 
 TEST(RibReader, TruncatedFilesAreErrors) {
