@@ -1166,8 +1166,9 @@ bool RibParser::executeCamera(const Call& call, bool* handled) {
   size_t next = 0;
   if (n == "Format") {
     if (!positionalNumbers(call, 3, &v, &next)) return false;
-    if (v[0] < 1 || v[1] < 1 || v[0] > 65536 || v[1] > 65536)
-      return fail(call.line, "'Format' resolution must be between 1 and 65536");
+    if (v[0] < 1 || v[1] < 1 || v[0] > 65536 || v[1] > 65536 || v[0] != std::floor(v[0]) ||
+        v[1] != std::floor(v[1]))
+      return fail(call.line, "'Format' resolution must be whole numbers between 1 and 65536");
     if (uint64_t(v[0]) * uint64_t(v[1]) > kMaxPixels)
       return fail(call.line, "'Format' asks for more than " + std::to_string(kMaxPixels) +
                                  " pixels");
@@ -1962,11 +1963,21 @@ bool RibParser::doDisplacement(const Call& call) {
 bool RibParser::executeGeometry(const Call& call, bool* handled) {
   *handled = true;
   const std::string& n = call.name;
-  auto intArray = [](const Arg& a) {
-    std::vector<int> out;
-    for (double d : a.numbers) out.push_back(int(std::clamp(d, -1e9, 1e9)));
-    return out;
+  // Counts and indices: a fraction or a number beyond a billion is a slip, not something to
+  // truncate or clamp (an index of 1.5 quietly became 1).
+  auto intArray = [&](const Arg& a, const char* what, std::vector<int>* out) {
+    out->clear();
+    for (double d : a.numbers) {
+      if (d != std::floor(d) || std::fabs(d) > 1e9) {
+        char text[32];
+        std::snprintf(text, sizeof text, "%.10g", d);
+        return fail(a.line, "'" + n + "': " + what + " must be whole numbers up to 1e9, got " + text);
+      }
+      out->push_back(int(d));
+    }
+    return true;
   };
+
   static const std::set<std::string> kShapes = {
       "Sphere",         "Cylinder",       "Cone",     "Disk",     "Torus",
       "Paraboloid",     "Hyperboloid",    "Polygon",  "GeneralPolygon",
@@ -1993,9 +2004,10 @@ bool RibParser::executeGeometry(const Call& call, bool* handled) {
     if (!requireWorld(call)) return false;
     if (call.args.size() < 2 || !call.args[0].isNumeric() || !call.args[1].isNumeric())
       return fail(call.line, "'PointsPolygons' expects [nverts] [vertices] then parameters");
-    const std::vector<int> nverts = intArray(call.args[0]);
-    return buildPolygonMesh(call, std::vector<int>(nverts.size(), 1), nverts,
-                            intArray(call.args[1]), 2);
+    std::vector<int> nverts, vertices;
+    if (!intArray(call.args[0], "vertex counts", &nverts) || !intArray(call.args[1], "vertex indices", &vertices))
+      return false;
+    return buildPolygonMesh(call, std::vector<int>(nverts.size(), 1), nverts, vertices, 2);
   }
   if (n == "PointsGeneralPolygons") {
     if (!requireWorld(call)) return false;
@@ -2003,8 +2015,11 @@ bool RibParser::executeGeometry(const Call& call, bool* handled) {
         !call.args[2].isNumeric())
       return fail(call.line,
                   "'PointsGeneralPolygons' expects [nloops] [nverts] [vertices] then parameters");
-    return buildPolygonMesh(call, intArray(call.args[0]), intArray(call.args[1]),
-                            intArray(call.args[2]), 3);
+    std::vector<int> nloops, nverts, vertices;
+    if (!intArray(call.args[0], "loop counts", &nloops) || !intArray(call.args[1], "vertex counts", &nverts) ||
+        !intArray(call.args[2], "vertex indices", &vertices))
+      return false;
+    return buildPolygonMesh(call, nloops, nverts, vertices, 3);
   }
   if (n == "Polygon" || n == "GeneralPolygon") {
     if (!requireWorld(call)) return false;
@@ -2014,7 +2029,7 @@ bool RibParser::executeGeometry(const Call& call, bool* handled) {
     const size_t first = general ? 1 : 0;
     std::vector<int> nverts;
     if (general) {
-      nverts = intArray(call.args[0]);
+      if (!intArray(call.args[0], "vertex counts", &nverts)) return false;
     } else {
       // The point count comes from "P"; the indices are the points in order.
       std::vector<Param> params;

@@ -512,6 +512,16 @@ TEST(RibReader, WrongArgumentTypesAreErrors) {
   r = read(world("Declare \"w\" \"color[2]\"\nSurface \"plastic\" \"w\" [1 2 3]"));
   ASSERT_FALSE(r.scene);
   EXPECT_EQ(r.error.message, "'Surface': parameter 'w' expects 6 values, got 3");
+  // Counts and indices are whole numbers: an index of 1.5 was truncated, a count of 3e9 clamped.
+  r = read(world("PointsPolygons [3] [0 1 1.5] \"P\" [0 0 0 1 0 0 0 1 0]"));
+  ASSERT_FALSE(r.scene);
+  EXPECT_EQ(r.error.message, "'PointsPolygons': vertex indices must be whole numbers up to 1e9, got 1.5");
+  r = read(world("PointsGeneralPolygons [1] [3000000000] [0 1 2] \"P\" [0 0 0 1 0 0 0 1 0]"));
+  ASSERT_FALSE(r.scene);
+  EXPECT_EQ(r.error.message, "'PointsGeneralPolygons': vertex counts must be whole numbers up to 1e9, got 3000000000");
+  r = read("Format 64.5 48 1\n" + world(""));
+  ASSERT_FALSE(r.scene);
+  EXPECT_EQ(r.error.message, "'Format' resolution must be whole numbers between 1 and 65536");
 }
 
 TEST(RibReader, TruncatedFilesAreErrors) {
