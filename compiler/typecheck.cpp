@@ -1476,7 +1476,12 @@ class Checker {
       const size_t start = i;
       size_t j = i + 1;
       while (j < f.size() && std::string("-+ #0123456789.").find(f[j]) != std::string::npos) ++j;
-      if (j >= f.size()) break;
+      if (j >= f.size()) {
+        // A '%' (and flags) with no conversion ends the format: printed verbatim at run time.
+        const SourceRange r = literalCharRange(format, start, j - start);
+        report(DiagId::WarnFormatInvalid, r.begin).arg("").range(r);
+        break;
+      }
       const char conv = f[j];
       i = j;
       ++conversions;
