@@ -46,7 +46,9 @@ void compileBuffer(CompileResult& result, SourceManager::FileId file, const Comp
   ppOptions.includeDirs = options.includeDirs;
   ppOptions.defines = options.defines;
   ppOptions.builtinIncludeDir = stdlibDir;
-  std::vector<Token> tokens = Preprocessor(*result.sources, diags, ppOptions).run(file);
+  Preprocessor preprocessor(*result.sources, diags, ppOptions);
+  std::vector<Token> tokens = preprocessor.run(file);
+  if (preprocessor.stopped()) return;
   Parser parser(std::move(tokens), result.sources->name(file), diags);
   std::unique_ptr<TranslationUnit> unit = parser.parseTranslationUnit();
   typeCheck(*unit, diags, result.prelude.get());

@@ -535,7 +535,8 @@ void Preprocessor::expand(std::vector<Token> input, std::vector<Token>& out, con
   } guard{++expansionDepth_};
   if (expansionDepth_ > 200) {
     if (!input.empty())
-      diags_.report(DiagId::ErrMacroNestingTooDeep, input.front().loc).arg(input.front().text);
+      diags_.report(DiagId::ErrMacroNestingTooDeep, input.front().loc)
+          .arg(outermost_.empty() ? input.front().text : outermost_);
     fatal_ = true;
     return;
   }
@@ -544,7 +545,7 @@ void Preprocessor::expand(std::vector<Token> input, std::vector<Token>& out, con
     const Token t = input[pos++];
     if (out.size() > kMaxExpandedTokens) {
       // Exponential macro definitions (#define A B B, #define B C C, ...) would exhaust memory.
-      diags_.report(DiagId::ErrMacroNestingTooDeep, t.loc).arg(t.text);
+      diags_.report(DiagId::ErrMacroNestingTooDeep, t.loc).arg(outermost_.empty() ? t.text : outermost_);
       fatal_ = true;
       return;
     }
@@ -567,6 +568,7 @@ void Preprocessor::expand(std::vector<Token> input, std::vector<Token>& out, con
       if (it != macros_.end()) out.back().noExpand = true;
       continue;
     }
+    if (expansionDepth_ == 1) outermost_ = name;  // what a "too deep" error names
     const Macro m = it->second;  // a copy: expansion never redefines, but keep it simple and safe
     std::vector<Token> replacement;
     if (!m.functionLike) {

@@ -34,6 +34,9 @@ class Preprocessor {
   ~Preprocessor();
   // The token stream of `file` after preprocessing, ending with Eof.
   std::vector<Token> run(SourceManager::FileId file);
+  // A fatal problem (an include not found, a runaway macro) cut the tokens short: parsing them
+  // would only report the cut.
+  bool stopped() const { return fatal_; }
 
  private:
   struct Macro {
@@ -87,6 +90,7 @@ class Preprocessor {
   std::set<std::string> onceFiles_;
   bool fatal_ = false;
   int expansionDepth_ = 0;
+  std::string outermost_;  // the macro used in the source whose expansion is under way
 };
 
 }  // namespace relief::compiler
