@@ -74,8 +74,10 @@ void bridgeHole(const std::vector<glm::dvec2>& pts, std::vector<uint32_t>* outer
 
 }  // namespace
 
-std::vector<uint32_t> triangulatePolygon(const std::vector<std::vector<glm::vec3>>& loops, bool* fanned) {
+std::vector<uint32_t> triangulatePolygon(const std::vector<std::vector<glm::vec3>>& loops, bool* fanned,
+                                         size_t* outsideHoles) {
   if (fanned) *fanned = false;
+  if (outsideHoles) *outsideHoles = 0;
   std::vector<uint32_t> triangles;
   if (loops.empty() || loops[0].size() < 3) return triangles;
   if (loops.size() == 1 && loops[0].size() == 3) return {0, 1, 2};
@@ -127,8 +129,30 @@ std::vector<uint32_t> triangulatePolygon(const std::vector<std::vector<glm::vec3
 
   std::vector<uint32_t> polygon = loopIndices[0];
   std::vector<std::vector<uint32_t>> holes;
+  // Even-odd containment in the boundary; points on it count as inside (a hole may touch it).
+  auto inside = [&](glm::dvec2 q) {
+    bool in = false;
+    for (size_t a = 0, b = polygon.size() - 1; a < polygon.size(); b = a++) {
+      const glm::dvec2 pa = pts[polygon[a]], pb = pts[polygon[b]];
+      const double cross = (pb.x - pa.x) * (q.y - pa.y) - (pb.y - pa.y) * (q.x - pa.x);
+      const bool between = std::min(pa.y, pb.y) <= q.y && q.y <= std::max(pa.y, pb.y) &&
+                           std::min(pa.x, pb.x) <= q.x && q.x <= std::max(pa.x, pb.x);
+      if (cross == 0.0 && between) return true;
+      if ((pa.y > q.y) != (pb.y > q.y) && q.x < pa.x + (q.y - pa.y) * (pb.x - pa.x) / (pb.y - pa.y)) in = !in;
+    }
+    return in;
+  };
   for (size_t i = 1; i < loopIndices.size(); ++i) {
     if (loopIndices[i].size() < 3) continue;
+    // Up to 16 of its vertices are checked (the whole check stays linear in the points).
+    const std::vector<uint32_t>& loop = loopIndices[i];
+    const size_t stride = std::max<size_t>(1, loop.size() / 16);
+    bool contained = true;
+    for (size_t v = 0; v < loop.size() && contained; v += stride) contained = inside(pts[loop[v]]);
+    if (!contained) {
+      if (outsideHoles) ++*outsideHoles;
+      continue;
+    }
     std::vector<uint32_t> hole = loopIndices[i];
     if (signedArea(pts, hole) > 0) std::reverse(hole.begin(), hole.end());  // holes run clockwise
     holes.push_back(std::move(hole));

@@ -23,10 +23,12 @@ namespace relief {
 // Polygons of more than kMaxEarClippingPoints points in all (holes included) are fanned from their
 // first corner instead, holes ignored: ear clipping's quadratic cost would otherwise let one
 // polygon stall the load. `fanned`, if given, says whether that happened to a polygon that is
-// not a convex loop (so that the caller can warn).
+// not a convex loop (so that the caller can warn). A hole with a vertex outside the boundary
+// (in the projection plane) is left out rather than bridged, which would draw a spike out to it;
+// `outsideHoles`, if given, counts them.
 constexpr size_t kMaxEarClippingPoints = 20000;
 std::vector<uint32_t> triangulatePolygon(const std::vector<std::vector<glm::vec3>>& loops,
-                                         bool* fanned = nullptr);
+                                         bool* fanned = nullptr, size_t* outsideHoles = nullptr);
 
 // A cubic basis as RenderMan defines it: weights of the 4 control points at parameter u are
 // [u^3 u^2 u 1] * matrix (row-major, matrix[row][column]), and `step` control points separate

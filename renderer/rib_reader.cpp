@@ -2442,7 +2442,11 @@ bool RibParser::buildPolygonMesh(const Call& call, const std::vector<int>& nloop
       loops.push_back(std::move(points));
     }
     bool fanned = false;
-    for (uint32_t i : triangulatePolygon(loops, &fanned)) mesh.indices.push_back(faceVertices[i]);
+    size_t outsideHoles = 0;
+    for (uint32_t i : triangulatePolygon(loops, &fanned, &outsideHoles)) mesh.indices.push_back(faceVertices[i]);
+    if (outsideHoles)
+      warnOnce(call.line, "outsidehole",
+               "'" + call.name + "': a hole reaches outside its polygon's boundary; the hole is ignored");
     if (fanned)
       warnOnce(call.line, "fanned",
                "'" + call.name + "': a polygon of more than " + std::to_string(kMaxEarClippingPoints) +

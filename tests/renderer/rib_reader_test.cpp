@@ -683,6 +683,15 @@ TEST(RibReader, ParaboloidHyperboloidAndGeneralPolygon) {
   EXPECT_EQ(r.scene->meshes[2].numTriangles(), 2u);
   // The second loop is a hole (here it covers half of the square): 4 + 3 corners, 2 bridges.
   EXPECT_EQ(r.scene->meshes[3].numTriangles(), 7u);
+  // A hole outside the boundary was bridged to, drawing a spike out to it: now it is left out,
+  // with a warning.
+  r = read(world("GeneralPolygon [4 3] \"P\" [-1 -1 0  1 -1 0  1 1 0  -1 1 0  5 5 0  6 5 0  5 6 0]"));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  ASSERT_EQ(r.scene->meshes.size(), 1u);
+  EXPECT_EQ(r.scene->meshes[0].numTriangles(), 2u);
+  for (const uint32_t i : r.scene->meshes[0].indices) EXPECT_LE(r.scene->meshes[0].P[i].x, 1.0f);
+  EXPECT_NE(r.warnings.find("a hole reaches outside its polygon's boundary; the hole is ignored"), std::string::npos)
+      << r.warnings;
 }
 
 TEST(RibReader, NamedCoordinateSystems) {
