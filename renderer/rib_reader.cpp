@@ -1791,10 +1791,13 @@ bool RibParser::doSurface(const Call& call) {
                        name == "constant";
   std::vector<Param> params;
   if (!parseParams(call, 1, &params, !isKnown)) return false;
+  // A new shader with its own parameters; what other requests set (Color, Opacity, Sides, the
+  // visibility attribute) stays: a Surface after the visibility attribute used to cast shadows.
   Material m = matteMaterial();
   m.color = attr_.material.color;
   m.opacity = attr_.material.opacity;
   m.twoSided = attr_.material.twoSided;
+  m.castsShadows = attr_.material.castsShadows;
   std::vector<std::string_view> known = {"Ka", "Kd"};
   if (name == "matte") {
   } else if (name == "plastic") {

@@ -500,6 +500,11 @@ TEST(RibSurfaces, VisibilityTransmissionControlsShadowCasting) {
   EXPECT_TRUE(materialOf(*r.scene, 2).castsShadows);
   EXPECT_FALSE(materialOf(*r.scene, 3).castsShadows);
   EXPECT_TRUE(materialOf(*r.scene, 4).castsShadows);  // restored by AttributeEnd
+  // A Surface after the attribute keeps it (it made a new material that cast shadows again).
+  ReadResult after = read(world("Attribute \"visibility\" \"int transmission\" [0]\nSurface \"plastic\"\n" +
+                                std::string(kTriangle)));
+  ASSERT_TRUE(after.scene) << after.error.format();
+  EXPECT_FALSE(materialOf(*after.scene, 0).castsShadows);
   EXPECT_NE(r.warnings.find("'visibility' 'camera' ignored"), std::string::npos) << r.warnings;
   ReadResult bad = read(world("Attribute \"visibility\" \"string transmission\" [\"glassy\"]"));
   EXPECT_FALSE(bad.scene);
