@@ -324,6 +324,7 @@ struct AttributeState {
   glm::mat4 worldFromShader{1.0f};
   int displacementLine = 0;
   float boundRadius = 0.0f;
+  bool boundGiven = false;  // a bound of 0 given is a statement, not an omission
   std::string boundSpace = "object";
   float boundNamedScale = 1.0f;  // for a boundSpace made by CoordinateSystem
   float edgeLength = 0.05f;
@@ -935,7 +936,7 @@ class RibParser {
     toRlfMatrix(glm::inverse(scene_.camera.worldFromCamera), d.spaces.cameraFromCurrent);
     d.sourceFile = fileName_;
     d.sourceLine = attr_.displacementLine;
-    if (d.boundWorld <= 0.0f)
+    if (!attr_.boundGiven)
       warnOnce(line, "zerobound" + std::to_string(attr_.displacementLine),
                "displacement shader '" + d.shader->name() +
                    "' has no 'displacementbound'; displaced geometry may be clipped");
@@ -1580,12 +1581,14 @@ bool RibParser::executeAttributes(const Call& call, bool* handled) {
         return fail(call.line, "'displacementbound': unknown coordinate system '" + space + "'");
       }
       if (attr_.boundRadius < 0) return fail(call.line, "'displacementbound' must be >= 0");
+      attr_.boundGiven = attr_.boundGiven || findParam(params, "sphere");
       attr_.boundSpace = space;
       warnUnusedParams(call, params, {"sphere", "coordinatesystem"});
     } else if (category == "bound") {
       // The pre-3.2 spelling: Attribute "bound" "displacement" [r], r in object space.
       if (!floatParam(call, params, "displacement", &attr_.boundRadius)) return false;
       if (attr_.boundRadius < 0) return fail(call.line, "'bound' 'displacement' must be >= 0");
+      attr_.boundGiven = attr_.boundGiven || findParam(params, "displacement");
       attr_.boundSpace = "object";
       warnUnusedParams(call, params, {"displacement"});
     } else if (category == "relief") {

@@ -520,6 +520,14 @@ TEST(RibSurfaces, OlderDisplacementBoundSpelling) {
   ASSERT_TRUE(r.scene) << r.error.format();
   ASSERT_EQ(r.scene->displacements.size(), 1u);
   EXPECT_FLOAT_EQ(r.scene->displacements[0].boundWorld, 0.5f);
+  // A missing bound warns; a bound of 0 given is the scene's word (it warned as missing).
+  r = read(world("Displacement \"push\"\nSphere 1 -1 1 360"), &shaders);
+  ASSERT_TRUE(r.scene) << r.error.format();
+  EXPECT_NE(r.warnings.find("has no 'displacementbound'"), std::string::npos) << r.warnings;
+  r = read(world("Attribute \"displacementbound\" \"sphere\" [0]\nDisplacement \"push\"\nSphere 1 -1 1 360"),
+           &shaders);
+  ASSERT_TRUE(r.scene) << r.error.format();
+  EXPECT_EQ(r.warnings.find("displacementbound"), std::string::npos) << r.warnings;
 }
 
 TEST(RibSurfaces, DisplacementKnowsTheOrientation) {
