@@ -38,6 +38,10 @@
 
 #include <glm/glm.hpp>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 #include "renderer/contributor_grid.h"
 #include "renderer/subdivide.h"
 
@@ -253,7 +257,13 @@ struct VoxelGeometry {
 // floats are no finer than the lattice), infinite or NaN is already as good as it gets, and kept.
 inline float snapToLattice(float x, float step) {
   const float q = x / step;
+#if defined(__SSE2__)
+  // cvtss2si rounds as nearbyint does in the default mode (to nearest, ties to even), exactly
+  // below 2^24, without libm's call (SSE2 has no inline nearbyint); -0 becomes +0 either way.
+  return (std::fabs(q) < 16777216.0f ? float(_mm_cvtss_si32(_mm_set_ss(q))) * step : x) + 0.0f;
+#else
   return (std::fabs(q) < 16777216.0f ? std::nearbyint(q) * step : x) + 0.0f;
+#endif
 }
 inline glm::vec3 snapToLattice(const glm::vec3& p, float step) {
   if (!(step > 0.0f)) return p;

@@ -334,7 +334,12 @@ void buildBvh(VoxelGeometry& g, float padding, const std::vector<std::pair<uint3
         cHi[k & 1][i] = max4(cHi[k & 1][i], c);
         binCount[i] += clusterFirst[refs[k].index + 1] - clusterFirst[refs[k].index];
       }
+      // Empty bins hold (+inf, -inf) bounds, which change no minimum or maximum, and add no
+      // triangles: merging or sweeping over them only repeats the neighbour's figures, and a
+      // boundary next to one costs exactly what the boundary before it did (the first of equal
+      // costs wins). So they are skipped, and the tree is the same; small nodes fill few bins.
       for (int i = 0; i < kBvhBins; ++i) {
+        if (binCount[i] == 0) continue;
         lo[0][i] = min4(lo[0][i], lo[1][i]), hi[0][i] = max4(hi[0][i], hi[1][i]);
         cLo[0][i] = min4(cLo[0][i], cLo[1][i]), cHi[0][i] = max4(cHi[0][i], cHi[1][i]);
       }
@@ -349,6 +354,10 @@ void buildBvh(VoxelGeometry& g, float padding, const std::vector<std::pair<uint3
       Lane4 accLo = lo[0][kBvhBins - 1], accHi = hi[0][kBvhBins - 1];
       uint32_t accCount = 0;
       for (int i = kBvhBins - 1; i > 0; --i) {
+        if (binCount[i] == 0 && i < kBvhBins - 1) {
+          rightArea[i] = rightArea[i + 1], rightCount[i] = rightCount[i + 1];
+          continue;
+        }
         accLo = min4(accLo, lo[0][i]), accHi = max4(accHi, hi[0][i]);
         accCount += binCount[i];
         rightArea[i] = accCount ? area(accLo, accHi) : 0.0f, rightCount[i] = accCount;
@@ -358,6 +367,7 @@ void buildBvh(VoxelGeometry& g, float padding, const std::vector<std::pair<uint3
       float bestCost = std::numeric_limits<float>::infinity();
       int bestSplit = -1;
       for (int i = 1; i < kBvhBins; ++i) {
+        if (binCount[i - 1] == 0) continue;
         accLo = min4(accLo, lo[0][i - 1]), accHi = max4(accHi, hi[0][i - 1]);
         accCount += binCount[i - 1];
         if (accCount == 0 || rightCount[i] == 0) continue;
@@ -814,8 +824,21 @@ std::unique_ptr<VoxelGeometry> GridAccelerator::buildVoxel(uint32_t voxel) {
   // holding its centroid, and only on the voxel's first fill.
   const bool countUnique = voxelCounted_[voxel].exchange(1, std::memory_order_relaxed) == 0;
   const Bounds3& gridBounds = grid_.bounds();
-  const glm::ivec3 res = grid_.resolution();
   uint64_t unique = 0;
+  // The centroid's cell is clamp(floor((c - lo) / size), 0, res - 1); it is this voxel exactly
+  // when, per axis, (c - lo) / size lies in [cell, cell + 1), open-ended at the grid's faces
+  // (floor(q) >= k iff q >= k for whole k): no floor, conversion or clamp per triangle.
+  glm::vec3 cellLo, cellHi;
+  {
+    const glm::ivec3 res = grid_.resolution();
+    const glm::ivec3 cell(int(voxel % uint32_t(res.x)), int(voxel / uint32_t(res.x) % uint32_t(res.y)),
+                          int(voxel / uint32_t(res.x) / uint32_t(res.y)));
+    assert(grid_.voxelIndex(cell) == voxel);
+    for (int k = 0; k < 3; ++k) {
+      cellLo[k] = cell[k] == 0 ? -std::numeric_limits<float>::infinity() : float(cell[k]);
+      cellHi[k] = cell[k] == res[k] - 1 ? std::numeric_limits<float>::infinity() : float(cell[k] + 1);
+    }
+  }
   thread_local MicroMesh culled;
   thread_local std::vector<uint32_t> remap;
   thread_local std::vector<uint8_t> reached;  // per contributor: some micro-triangle kept here
@@ -903,9 +926,8 @@ std::unique_ptr<VoxelGeometry> GridAccelerator::buildVoxel(uint32_t voxel) {
       keys.emplace_back(id, mm.ids[i]);
       if (countUnique) {
         const glm::vec3 centroid = (mm.P[tri[0]] + mm.P[tri[1]] + mm.P[tri[2]]) / 3.0f;
-        const glm::ivec3 cell = glm::clamp(
-            glm::ivec3(glm::floor((centroid - gridBounds.lo) / grid_.voxelSize())), glm::ivec3(0), res - 1);
-        unique += grid_.voxelIndex(cell) == voxel;
+        const glm::vec3 q = (centroid - gridBounds.lo) / grid_.voxelSize();
+        unique += glm::all(glm::greaterThanEqual(q, cellLo)) && glm::all(glm::lessThan(q, cellHi));
       }
     }
   }
