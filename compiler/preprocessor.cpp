@@ -323,14 +323,20 @@ void Preprocessor::include(const Token& name, const std::vector<Token>& line) {
   for (const std::string& d : options_.includeDirs) dirs.push_back(d);
   if (!options_.builtinIncludeDir.empty()) dirs.push_back(options_.builtinIncludeDir);
   std::string found;
-  for (const std::string& d : dirs) {
+  bool builtin = false;
+  for (size_t k = 0; k < dirs.size(); ++k) {
+    const std::string& d = dirs[k];
     const std::filesystem::path candidate = d.empty() ? std::filesystem::path(file) : std::filesystem::path(d) / file;
     std::error_code ec;
     if (std::filesystem::is_regular_file(candidate, ec)) {
       found = candidate.string();
+      builtin = !options_.builtinIncludeDir.empty() && k + 1 == dirs.size();
       break;
     }
   }
+  // The built-in directory's files are the prelude, compiled with every shader (prelude.cpp):
+  // including one adds nothing, and including its text again would redefine every function in it.
+  if (builtin && std::filesystem::path(found).extension() == ".disp") return;
   if (found.empty()) {
     diags_.report(DiagId::FatalIncludeNotFound, nameTok->loc).arg(file).range(nameTok->range());
     fatal_ = true;  // compilation stops: later errors would only be noise

@@ -63,6 +63,17 @@ TEST(PreludeTest, UserFunctionsHideLibraryFunctions) {
       << renderDiagnostics(hidden);
 }
 
+// The stdlib's files are the prelude, always compiled in: including one (as RSL shaders include
+// their noise headers) adds nothing. Its text included again redefined every function in it
+// (errors when included twice, a -Wshadow warning per function once).
+TEST(PreludeTest, IncludingAStdlibFileChangesNothing) {
+  CompileResult r = check(
+      "#include <noise.disp>\n#include <noise.disp>\n#include \"geometry.disp\"\n"
+      "displacement d(float Km = 0.05) { P += Km * fBm(P, 4) * area(P) * normalize(N); }\n");
+  ASSERT_TRUE(r.success()) << renderDiagnostics(r);
+  EXPECT_EQ(renderDiagnostics(r), "") << renderDiagnostics(r);
+}
+
 TEST(PreludeTest, MisusedLibraryCallsAreReportedAtTheCallLikeBuiltins) {
   // No location inside stdlib/ ever shows: the callee name, as for a built-in (§6).
   CompileResult r = check("displacement d() { P += (fBm(1, 2, 3) + luminance(P) + reflect(N)) * N; }");
