@@ -844,21 +844,32 @@ class Checker {
     Expr& l = *e.operands[0];
     Expr& r = *e.operands[1];
     Type tl, tr;
+    // A tuple beside a triple is that triple's kind whatever the operator: it cannot be the float
+    // a noise call becomes under `*` or `/` (`Ct * (0.3, 0.59, 0.11)`).
+    auto hint = [&](const Expr& operand, Type other) {
+      return operand.kind == ExprKind::Tuple && other.isTriple() ? other : contextHint(e.op, other, expected);
+    };
     if (isArithmetic(e.op)) {
       const bool cl = hasContextCall(l);
       const bool cr = hasContextCall(r);
       if (cl && cr) {
         const Type pl = probe(l);
         const Type pr = probe(r);
-        tl = checkExpr(l, contextHint(e.op, pr, expected));
-        tr = checkExpr(r, contextHint(e.op, pl, expected));
+        tl = checkExpr(l, hint(l, pr));
+        tr = checkExpr(r, hint(r, pl));
       } else if (cl) {
         tr = checkExpr(r, kError);
-        tl = checkExpr(l, contextHint(e.op, contextFloat_ ? tr : tr, expected));
+        tl = checkExpr(l, hint(l, tr));
       } else {
         tl = checkExpr(l, kError);
-        tr = checkExpr(r, contextHint(e.op, tl, expected));
+        tr = checkExpr(r, hint(r, tl));
       }
+    } else if ((e.op == Tok::EqEq || e.op == Tok::NotEq) && l.kind == ExprKind::Tuple) {
+      tr = checkExpr(r, kError);  // `(0, 0, 0) != Ct`: the tuple takes Ct's kind
+      tl = checkExpr(l, tr.isTriple() ? tr : kError);
+    } else if (e.op == Tok::EqEq || e.op == Tok::NotEq) {
+      tl = checkExpr(l, kError);
+      tr = checkExpr(r, r.kind == ExprKind::Tuple && tl.isTriple() ? tl : kError);
     } else {
       tl = checkExpr(l, kError);
       tr = checkExpr(r, kError);
@@ -969,7 +980,10 @@ class Checker {
     if (const Expr& root = indexRoot(target); e.op == Tok::Assign && root.kind == ExprKind::Identifier && root.decl)
       --(written = root.decl)->reads;
     const Tok base = compoundBase(e.op);
-    const Type tv = checkExpr(value, base == Tok::Eof ? tt : contextHint(base, tt, tt));
+    // (A tuple takes the target's kind under any operator, `Ct *= (0.3, 0.59, 0.11)`, as in checkBinary.)
+    const Type tv = checkExpr(value, base == Tok::Eof || (value.kind == ExprKind::Tuple && tt.isTriple())
+                                         ? tt
+                                         : contextHint(base, tt, tt));
     e.isVarying = value.isVarying;
     if (tt.isError()) return set(e, kError);
     const bool surfaceNormal = e.op == Tok::Assign && target.kind == ExprKind::Identifier && isSurfaceNormal(value);
@@ -1370,6 +1384,23 @@ class Checker {
       const Type t = checkExpr(*a, kError);
       e.isVarying |= a->isVarying;
       if (!requireValue(*a, t)) ok = false;
+    }
+    // Tuples among the arguments take the kind of the first other triple argument, or else the
+    // expected one (`mix(Ct, (1, 0.5, 0.25), s)`, `color c = mix((0, 0, 0), (1, 1, 1), s)`): they
+    // were points, which a color argument does not match.
+    if (ok) {
+      Type kind = kError;
+      for (const ExprPtr& a : args)
+        if (a->kind != ExprKind::Tuple && a->type.isTriple() && !a->type.isArray()) {
+          kind = a->type;
+          break;
+        }
+      // (Not for transforms: which transform applies follows the argument's kind, not the result's.)
+      if (kind.isError() && expected.isTriple() && !expected.isArray() && b && b->shape != BuiltinShape::Transform)
+        kind = expected;
+      if (!kind.isError())
+        for (ExprPtr& a : args)
+          if (a->kind == ExprKind::Tuple && a->type.isTriple()) a->type = Type(kind.kind);
     }
     if (!b) {
       if (!suppress_)

@@ -218,6 +218,20 @@ displacement tc()
 })";
   TestBatch b(1);
   EXPECT_EQ(evaluate(source, b), "1.50 2.50 3.50|2.00 4.00 6.00|1.50 2.50 3.50|0.25 0.50 0.75|1.00 2.00 3.00|1\n");
+  // Beside a color under `*`, `/`, `*=`, `==` and `!=`, and among the arguments of overloaded
+  // built-ins, a tuple is a color too (it was a point, which a color does not take).
+  const std::string more = R"(
+displacement tm()
+{
+    color Ct = color(1);
+    Ct *= (0.3, 0.5, 0.25);
+    color d = Ct * (1, 2, 4), e = Ct / (1, 2, 4);
+    color m = mix(color(0), (1, 0.5, 0.25), 0.5), m2 = mix((0, 0, 0), (1, 1, 1), 0.5);
+    color c = clamp(Ct, (0, 0, 0), (0.3, 0.3, 0.3));
+    printf("%.3c|%.3c|%.3c|%.3c|%.3c|%.3c|%d%d\n", Ct, d, e, m, m2, c, Ct != (0, 0, 0), (0, 0, 0) == Ct);
+})";
+  EXPECT_EQ(evaluate(more, b), "0.300 0.500 0.250|0.300 1.000 1.000|0.300 0.250 0.062|0.500 0.250 0.125|"
+                               "0.500 0.500 0.500|0.300 0.300 0.250|10\n");
 }
 
 TEST(IndexTest, FloatIndicesTruncateAsRslLoopsNeed) {
