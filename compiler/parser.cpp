@@ -260,6 +260,8 @@ std::unique_ptr<TranslationUnit> Parser::parseTranslationUnit() {
   while (!tok().is(Tok::Eof)) {
     if (tok().is(Tok::KwDisplacement)) {
       parseShader();
+    } else if (tok().is(Tok::Semi)) {
+      consume();  // `float f() { ... };`: an empty declaration, as C++ and RSL compilers take it
     } else if (tok().is(Tok::ShaderKindWord)) {
       diags_.report(DiagId::ErrOnlyDisplacement, tok().loc).arg(tok().text).range(tok().range());
       consume();

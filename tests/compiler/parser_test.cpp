@@ -109,6 +109,12 @@ TEST(ParserTest, RslAndOslParameterGroups) {
   EXPECT_TRUE(params[4]->isOutput);
 }
 
+// A stray ';' between definitions (`float f() { ... };`) is an empty declaration, as C++ and RSL
+// compilers take it; it was "expected a shader or function definition".
+TEST(ParserTest, StraySemicolonsBetweenDefinitionsAreEmptyDeclarations) {
+  EXPECT_EQ(errorsOf("float f(float x) { return x; };\n;\ndisplacement d(float Km = 0.1) { P += f(Km) * N; };\n"), "");
+}
+
 TEST(ParserTest, MissingSemicolonIsReportedPastThePreviousToken) {
   EXPECT_EQ(errorsOf("displacement d()\n{\n    P += N\n    P += N;\n}\n"),
             "3:11: expected ';' after expression\n");
