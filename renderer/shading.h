@@ -115,10 +115,12 @@ class Integrator {
   // Nearest hit that is not a culled back face of a one-sided surface.
   std::optional<Hit> findHit(Ray ray) const;
   bool resolve(const Ray& ray, const Hit& hit, Surface* s) const;
+  // `weight`: the largest factor by which what this ray returns reaches the pixel (1 for a camera
+  // ray). Secondary rays whose weight would fall below kMinRayWeight are not traced.
   glm::vec3 radianceAt(const Ray& ray, int depth, uint64_t seed, RenderStats* stats,
-                       SampleResult* first) const;
+                       SampleResult* first, float weight = 1.0f) const;
   glm::vec3 shade(const Ray& ray, const Surface& s, int depth, uint64_t seed,
-                  RenderStats* stats) const;
+                  RenderStats* stats, float weight) const;
   // Ambient light reaching the surface (unshadowed) and shadowed samples of every other light
   // whose direction lies in the hemisphere around Nf.
   glm::vec3 ambient(const Surface& s) const;

@@ -142,6 +142,33 @@ TEST(RenderMaterial, GlassReflectsFresnelFractionAtNormalIncidence) {
 }
 
 // A mirror tilted 45 degrees sends the camera's +z rays to -x, onto a constant wall.
+// Glass between two mirrors spawns two rays at every glass hit, so the ray tree grows as 2^depth:
+// --max-depth 100 took minutes for a thumbnail. Rays whose weight falls below 1/1024 are not
+// traced, which bounds the tree whatever the depth (and changes the colour by less than that).
+TEST(RenderMaterial, DeepRayTreesAreCutByWeight) {
+  Scene scene;
+  Material glass;
+  glass.type = SurfaceType::Glass;
+  glass.eta = 1.5f;
+  glass.Ks = 0.0f;
+  Material mirror;
+  mirror.type = SurfaceType::Mirror;
+  mirror.Ka = mirror.Ks = 0.0f;
+  const uint32_t g = test::addMaterial(&scene, glass);
+  const uint32_t m = test::addMaterial(&scene, mirror);
+  scene.meshes.push_back(test::box({-3, -3, 0}, {3, 3, 0.5f}, g));
+  scene.meshes.push_back(quad({-4, -4, -2}, {8, 0, 0}, {0, 8, 0}, m));  // behind the ray, facing +z
+  scene.meshes.push_back(wall(m, 2.0f));                                  // ahead, facing -z
+  test::BruteForceAccelerator accel(scene);
+  ShadingOptions options;
+  options.maxDepth = 24;  // uncut: about 2^24 rays
+  Integrator integrator(scene, accel, options);
+  RenderStats stats;
+  const SampleResult r = integrator.trace(rayFrom({0.1f, 0.2f, -1}, {0.05f, 0.02f, 1}), 1, &stats);
+  EXPECT_LT(stats.reflectionRays + stats.refractionRays, 20000u);
+  EXPECT_TRUE(std::isfinite(r.color.r));
+}
+
 TEST(RenderMaterial, MirrorReflection) {
   Scene scene;
   Material mirror;
