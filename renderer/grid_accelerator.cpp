@@ -685,9 +685,23 @@ GridAccelerator::GridAccelerator(const Scene& scene, const AccelOptions& options
     sharedContributor_.assign(grid_.numTriangles(), 0);
     for (uint32_t v = 0; v < grid_.numVoxels(); ++v)
       for (uint32_t id : grid_.allContributors(v)) {
-        if (seen[id]) sharedContributor_[id] = 1;
+        if (seen[id]) sharedContributor_[id] = kShared;
         seen[id] = 1;
       }
+    // A memo pays where a subdivision is dear: a triangle asking for fewer than 4^kMemoMinLevels
+    // micro-triangles is cheaper to cull again than to remember. The sphere's 65K input triangles
+    // of about 11 micro-triangles each held 68 MB of memos at a 10% budget (of 1 MB of
+    // triangles), and rendered faster without them.
+    constexpr int kMemoMinLevels = 3;
+    for (uint32_t id = 0; id < grid_.numTriangles(); ++id) {
+      if (!sharedContributor_[id]) continue;
+      const auto [m, t] = grid_.split(id);
+      const Displacement* d = grid_.displacement(m);
+      if (!d) continue;
+      glm::vec3 p[3];
+      for (int c = 0; c < 3; ++c) p[c] = scene.meshes[m].P[scene.meshes[m].indices[3 * size_t(t) + c]];
+      if (undisplacedLevels(p, d->edgeLength, kMemoMinLevels) >= kMemoMinLevels) sharedContributor_[id] |= kMemoWorthy;
+    }
   }
 }
 
@@ -868,10 +882,10 @@ std::unique_ptr<VoxelGeometry> GridAccelerator::buildVoxel(uint32_t voxel) {
     const uint32_t id = contributors[k];
     const auto [mesh, triangle] = grid_.split(id);
     std::shared_ptr<const MicroMesh> whole;
-    const bool shared = !sharedContributor_.empty() && sharedContributor_[id];
-    if (shared && options_.sideCacheTriangles)
+    const uint8_t sharing = sharedContributor_.empty() ? 0 : sharedContributor_[id];
+    if ((sharing & kShared) && options_.sideCacheTriangles)
       whole = sideCached(id, counters);
-    else if (subtreeMemos_.empty() || !shared)
+    else if (subtreeMemos_.empty() || !(sharing & kMemoWorthy))
       subdivideTriangle(scene_.meshes[mesh], triangle, grid_.displacement(mesh), culled, counters, &cull);
     else {
       const SubtreeMemo* known = subtreeMemos_[id].load(std::memory_order_acquire);

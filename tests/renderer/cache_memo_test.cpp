@@ -317,6 +317,46 @@ TEST(CacheMemo, SameHitsWithMemosAndProxiesAtAnyBudgetAndOnTwoThreads) {
   }
 }
 
+// Memos are kept only for triangles subdivided three or more levels deep: the memo of a triangle of
+// a few micro-triangles costs more bytes than the fill it saves. A sphere of 0.26-wide triangles
+// at edge length 0.1 (two levels) keeps none; at 0.02 (four levels) it keeps some.
+TEST(CacheMemo, TrianglesOfFewMicroTrianglesKeepNoMemo) {
+  for (float edge : {0.1f, 0.02f}) {
+    testing::SphereOptions so;
+    so.nu = 24, so.nv = 12;
+    so.edgeLength = edge;
+    so.flatness = 0.001f;
+    const Scene scene = testing::makeSphereScene(so);
+    const std::vector<Ray> rays = sweeps();
+    AccelOptions base;
+    base.gridResolution = 6;  // most triangles listed in two or more voxels
+    base.voxelProxies = false, base.learnSubtrees = false;
+    GridAccelerator reference(scene, base);
+    const std::vector<HitKey> expected = hitKeys(reference, rays);
+    const AccelStats plain = reference.stats();
+    AccelOptions o = base;
+    o.cacheBudgetTriangles = plain.residentTriangles / 10;
+    GridAccelerator forgetful(scene, o);
+    o.learnSubtrees = true;
+    GridAccelerator accel(scene, o);
+    for (size_t i = 0; i < rays.size(); ++i) {
+      ASSERT_EQ(hitKey(forgetful.intersect(rays[i])), expected[i]) << i;
+      ASSERT_EQ(hitKey(accel.intersect(rays[i])), expected[i]) << i;
+    }
+    const AccelStats without = forgetful.stats(), got = accel.stats();
+    ASSERT_GT(got.capacityMisses, 10u) << edge;  // refills, where a memo would be read
+    // Memo bytes beyond the per-triangle table of memo pointers (8 bytes a triangle).
+    const uint64_t table = 8 * uint64_t(scene.meshes[0].indices.size() / 3);
+    if (edge > 0.05f) {
+      EXPECT_LE(got.memoBytes, without.memoBytes + table) << got.memoBytes << " vs " << without.memoBytes;
+      EXPECT_EQ(got.shaderPoints, without.shaderPoints);
+    } else {
+      EXPECT_GT(got.memoBytes, without.memoBytes + table + 10000) << got.memoBytes << " vs " << without.memoBytes;
+      EXPECT_LT(got.shaderPoints, without.shaderPoints);
+    }
+  }
+}
+
 // Sparse voxels (fewer than kSubGridThreshold triangles) get a BVH root too, one leaf under the
 // box of their triangles, so their proxies let rays that pass beside the triangles skip the voxel
 // (on sphere_box, 58% of the visits to sparse voxels missed that box). The hits stay those of an
