@@ -99,6 +99,9 @@ struct AccelStats {
   // Micro-triangles of every subdivision (refills included) before and after the paper's 3.1
   // simplification; equal when nothing is simplified.
   uint64_t trianglesBeforeSimplification = 0, trianglesAfterSimplification = 0;
+  // Whether the displaced geometry was made before the render (the Embree baseline): its
+  // subdivision and shader times are then part of the build, not of the render.
+  bool upFront = false;
 };
 
 class Accelerator {

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "renderer/atomic_max.h"
+#include "renderer/geometry_cache.h"  // cacheThreadShard
 #include "renderer/subdivide.h"
 #include "renderer/ticks.h"
 
@@ -52,7 +53,7 @@ class EmbreeAccelerator final : public Accelerator {
 
   std::optional<Hit> intersect(const Ray& ray) override;
   bool occluded(const Ray& ray) override;
-  AccelStats stats() const override { return stats_; }
+  AccelStats stats() const override;
 
  private:
   void tessellate(const AccelOptions& options, int threads);
@@ -68,6 +69,13 @@ class EmbreeAccelerator final : public Accelerator {
   RTCScene rtcScene_ = nullptr;
   AccelStats stats_;
   std::atomic<int64_t> embreeBytes_{0}, embreePeak_{0};
+  // Ray time per thread shard, as the grid's (two clock reads per ray, summed over threads).
+  static constexpr int kTimeShards = 16;
+  struct alignas(64) TimeShard {
+    std::atomic<uint64_t> ticks{0};
+  };
+  TimeShard rayTicks_[kTimeShards];
+  void addRayTime(uint64_t startTicks);
   std::mutex errorMutex_;
   RTCError firstError_ = RTC_ERROR_NONE;
   std::string errorMessage_;
@@ -196,12 +204,16 @@ void EmbreeAccelerator::tessellate(const AccelOptions& options, int threads) {
   for (const SubdivideCounters& c : counters) {
     stats_.shaderPoints += c.shaderPoints;
     displaceTicks += c.displaceTicks;
+    stats_.trianglesBeforeSimplification += c.trianglesBeforeSimplification;
+    stats_.trianglesAfterSimplification += c.trianglesAfterSimplification;
   }
   stats_.uniqueDisplacedTriangles = stats_.displacedTrianglesCreated;
   stats_.peakResidentTriangles = stats_.residentTriangles = stats_.displacedTrianglesCreated;
-  stats_.displaceSeconds = double(displaceTicks) * nanosPerTick() * 1e-9 / double(threads);
+  // Thread-summed, as the grid's fill times: the threads' wall time less their time in shaders.
+  stats_.displaceSeconds = double(displaceTicks) * nanosPerTick() * 1e-9;
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  stats_.subdivideSeconds = std::max(0.0, wall - stats_.displaceSeconds);
+  stats_.subdivideSeconds = std::max(0.0, wall * double(threads) - stats_.displaceSeconds);
+  stats_.upFront = true;
 }
 
 void EmbreeAccelerator::build(const EmbreeOptions& embree, int threads) {
@@ -239,6 +251,22 @@ void EmbreeAccelerator::build(const EmbreeOptions& embree, int threads) {
   for (const Chunk& c : chunks_) ours += c.bytes();
   stats_.peakResidentBytes = ours + uint64_t(std::max<int64_t>(0, embreePeak_.load()));
   stats_.residentBytes = ours + uint64_t(std::max<int64_t>(0, embreeBytes_.load()));
+  // Everything is created once and kept: what was made is what is resident (Embree's BVH included).
+  stats_.createdBytes = stats_.residentBytes;
+}
+
+void EmbreeAccelerator::addRayTime(uint64_t startTicks) {
+  const uint64_t end = readTicks();
+  if (end <= startTicks) return;  // a thread moved between cores whose counters disagree
+  rayTicks_[cacheThreadShard() % kTimeShards].ticks.fetch_add(end - startTicks, std::memory_order_relaxed);
+}
+
+AccelStats EmbreeAccelerator::stats() const {
+  AccelStats s = stats_;
+  uint64_t ticks = 0;
+  for (const TimeShard& shard : rayTicks_) ticks += shard.ticks.load(std::memory_order_relaxed);
+  s.intersectSeconds = double(ticks) * nanosPerTick() * 1e-9;
+  return s;
 }
 
 bool usable(const Ray& ray) {
@@ -261,6 +289,7 @@ void setRay(const Ray& ray, RTCRay& r) {
 
 std::optional<Hit> EmbreeAccelerator::intersect(const Ray& ray) {
   if (!usable(ray)) return std::nullopt;
+  const uint64_t start = readTicks();
   RTCIntersectContext context;
   rtcInitIntersectContext(&context);
   RTCRayHit rh;
@@ -269,6 +298,7 @@ std::optional<Hit> EmbreeAccelerator::intersect(const Ray& ray) {
   rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
   rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
   rtcIntersect1(rtcScene_, &context, &rh);
+  addRayTime(start);
   if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return std::nullopt;
   const Chunk& c = chunks_[rh.hit.geomID];
   const uint32_t prim = rh.hit.primID;
@@ -312,7 +342,9 @@ bool EmbreeAccelerator::occluded(const Ray& ray) {
   rtcInitIntersectContext(&context);
   RTCRay r;
   setRay(ray, r);
+  const uint64_t start = readTicks();
   rtcOccluded1(rtcScene_, &context, &r);
+  addRayTime(start);
   return r.tfar == -std::numeric_limits<float>::infinity();
 }
 

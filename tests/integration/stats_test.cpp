@@ -233,6 +233,42 @@ TEST(Stats, RefinementSideCacheAndGridResolutionFlags) {
   }
 }
 
+// The Embree baseline displaces everything while building: its subdivision and shader times are
+// reported but are not part of the render's, which splits into ray time and shading; its bytes
+// per triangle are those of everything it holds, and simplification is counted as the grid's.
+TEST(Stats, EmbreeBaselineReportsItsOwnSplitAndBytes) {
+  const fs::path dir = scratchDir();
+  // The facade: its Displacements simplify.
+  auto run = [&](const std::string& name, const std::string& accel, StatsRun& r) {
+    const fs::path json = dir / (name + ".json"), log = dir / (name + ".log");
+    const int code = runCommand(kRelief + " " + kSource + "/examples/scenes/facade.rib --quiet --resolution 64x48 --threads 2" +
+                                    " --accel " + accel + " --stats-json " + json.string() + " -o " +
+                                    (dir / (name + ".png")).string(),
+                                log);
+    r.stats = parseFlatJson(readFile(json));
+    return std::make_pair(code, readFile(log));
+  };
+  StatsRun r, grid;
+  const auto [code, log] = run("embree", "embree", r);
+  if (code != 0 && log.find("has no Embree") != std::string::npos) GTEST_SKIP() << "built without Embree";
+  ASSERT_EQ(code, 0) << log;
+  ASSERT_EQ(run("grid", "grid", grid).first, 0);
+  EXPECT_GT(r.num("time.intersect_s"), 0);
+  EXPECT_GT(r.num("time.subdivide_s"), 0);
+  EXPECT_GT(r.num("time.displace_s"), 0);
+  EXPECT_NEAR(r.num("time.intersect_s") + r.num("time.shade_s"), r.num("time.render_s"),
+              1e-3 + 1e-3 * r.num("time.render_s"));
+  EXPECT_GE(r.num("time.build_s"), r.num("time.subdivide_s") + r.num("time.displace_s") - 1e-3);
+  EXPECT_GT(r.num("cache.bytes_per_triangle"), 20);  // indices, floats and Embree's BVH
+  EXPECT_GT(r.num("cache.created_bytes"), 0);
+  EXPECT_LE(r.num("cache.created_bytes"), r.num("cache.peak_resident_bytes"));
+  EXPECT_EQ(r.num("cache.triangles_after_simplification"), r.num("cache.displaced_triangles_created"));
+  // Every input triangle subdivided once, whole, as the grid's side cache does at an unlimited
+  // budget (which fills only the voxels the rays reach): about the same fraction saved.
+  EXPECT_GT(r.num("cache.simplification_saved_fraction"), 0.1);
+  EXPECT_NEAR(r.num("cache.simplification_saved_fraction"), grid.num("cache.simplification_saved_fraction"), 0.02);
+}
+
 // A budget holding fewer than four of the largest voxels, walked in scanline order, makes voxels
 // evict each other: relief says so after the render, naming the budget and the largest voxel. A
 // budget with room to spare says nothing.
