@@ -44,6 +44,8 @@ class ConditionParser {
     if (!expr(1, value)) return false;
     return pos_ == toks_.size();
   }
+  // Whether an evaluated operand divided by zero (as in C, `0 && 1 / 0` does not).
+  bool dividedByZero() const { return dividedByZero_; }
 
  private:
   static int precedence(Tok k) {
@@ -74,7 +76,7 @@ class ConditionParser {
       case Tok::Bang: {
         int64_t x;
         if (!primary(&x)) return false;
-        *v = t.is(Tok::Minus) ? -x : t.is(Tok::Bang) ? !x : x;
+        *v = t.is(Tok::Minus) ? int64_t(0 - uint64_t(x)) : t.is(Tok::Bang) ? !x : x;
         return true;
       }
       case Tok::LParen:
@@ -91,14 +93,29 @@ class ConditionParser {
       if (op == Tok::Question && minPrec <= 1) {
         ++pos_;
         int64_t a, b;
-        if (!expr(1, &a) || pos_ >= toks_.size() || !toks_[pos_++].is(Tok::Colon) || !expr(1, &b)) return false;
-        *v = *v ? a : b;
+        const bool first = *v != 0;
+        skip_ += !first;
+        const bool okA = expr(1, &a);
+        skip_ -= !first;
+        if (!okA || pos_ >= toks_.size() || !toks_[pos_++].is(Tok::Colon)) return false;
+        skip_ += first;
+        const bool okB = expr(1, &b);
+        skip_ -= first;
+        if (!okB) return false;
+        *v = first ? a : b;
         continue;
       }
       if (prec == 0 || prec < minPrec) return true;
       ++pos_;
       int64_t r;
-      if (!expr(prec + 1, &r)) return false;
+      const bool unevaluated = (op == Tok::AmpAmp && *v == 0) || (op == Tok::PipePipe && *v != 0);
+      skip_ += unevaluated;
+      const bool ok = expr(prec + 1, &r);
+      skip_ -= unevaluated;
+      if (!ok) return false;
+      if ((op == Tok::Slash || op == Tok::Percent) && r == 0 && skip_ == 0) dividedByZero_ = true;
+      // Wrapping arithmetic: an overflowing #if must not be undefined behaviour in the compiler.
+      auto wrap = [](uint64_t x) { return int64_t(x); };
       switch (op) {
         case Tok::PipePipe: *v = *v || r; break;
         case Tok::AmpAmp: *v = *v && r; break;
@@ -108,11 +125,11 @@ class ConditionParser {
         case Tok::LessEq: *v = *v <= r; break;
         case Tok::Greater: *v = *v > r; break;
         case Tok::GreaterEq: *v = *v >= r; break;
-        case Tok::Plus: *v = *v + r; break;
-        case Tok::Minus: *v = *v - r; break;
-        case Tok::Star: *v = *v * r; break;
-        case Tok::Slash: *v = r ? *v / r : 0; break;
-        case Tok::Percent: *v = r ? *v % r : 0; break;
+        case Tok::Plus: *v = wrap(uint64_t(*v) + uint64_t(r)); break;
+        case Tok::Minus: *v = wrap(uint64_t(*v) - uint64_t(r)); break;
+        case Tok::Star: *v = wrap(uint64_t(*v) * uint64_t(r)); break;
+        case Tok::Slash: *v = r == 0 ? 0 : r == -1 ? wrap(0 - uint64_t(*v)) : *v / r; break;
+        case Tok::Percent: *v = r == 0 || r == -1 ? 0 : *v % r; break;
         default: return false;
       }
     }
@@ -121,6 +138,8 @@ class ConditionParser {
 
   const std::vector<Token>& toks_;
   size_t pos_ = 0;
+  int skip_ = 0;  // > 0 inside an operand the value does not depend on
+  bool dividedByZero_ = false;
 };
 
 }  // namespace
@@ -493,8 +512,13 @@ bool Preprocessor::evaluateCondition(const Token& directiveName, const std::vect
   for (Token& t : expanded)
     if (isIdentifierLike(t)) t = literal(false, t);
   int64_t value = 0;
-  if (expanded.empty() || !ConditionParser(expanded).parse(&value)) {
+  ConditionParser parser(expanded);
+  if (expanded.empty() || !parser.parse(&value)) {
     diags_.report(DiagId::ErrIfExpression, directiveName.loc).arg(n).range(directiveName.range());
+    return false;
+  }
+  if (parser.dividedByZero()) {
+    diags_.report(DiagId::ErrIfDivisionByZero, directiveName.loc).arg(n).range(directiveName.range());
     return false;
   }
   return value != 0;

@@ -76,6 +76,23 @@ TEST(PreprocessorTest, DirectiveErrors) {
             "7:1: unterminated conditional directive\n");
 }
 
+// Division by zero in an evaluated operand is an error, as in C; operands the value does not
+// depend on are not evaluated; overflow wraps instead of being undefined.
+TEST(PreprocessorTest, ConditionArithmetic) {
+  auto r = preprocess("#if 1 / 0\na\n#endif\n#if 2 % (1 - 1)\nb\n#endif\n");
+  EXPECT_EQ(r->errors,
+            "1:2: division by zero in #if\n"
+            "4:2: division by zero in #if\n");
+  EXPECT_EQ(r->text, "");
+  r = preprocess("#if 0 && 1 / 0\na\n#elif 1 || 1 % 0\nb\n#endif\n#if 1 ? 2 : 3 / 0\nc\n#endif\n#if 0 ? 1 / 0 : 4\nd\n#endif\n");
+  EXPECT_EQ(r->errors, "");
+  EXPECT_EQ(r->text, "b c d");
+  r = preprocess("#define MIN (65536 * 65536 * 65536 * 32768)\n#if MIN < 0 && -MIN < 0 && MIN / -1 < 0 && MIN % -1 == 0\n"
+                 "wraps\n#endif\n");
+  EXPECT_EQ(r->errors, "");
+  EXPECT_EQ(r->text, "wraps");
+}
+
 TEST(PreprocessorTest, MacroArgumentCountIsChecked) {
   auto r = preprocess("#define F(a, b) a\nF(1)\n");
   EXPECT_EQ(r->errors, "2:1: macro 'F' expects 2 arguments, but was given 1\n");
