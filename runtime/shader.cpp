@@ -63,15 +63,20 @@ ShaderInstance::ShaderInstance(std::shared_ptr<const CompiledShader> shader)
   }
 }
 
-void ShaderInstance::storeNumbers(const ParamInfo& info, std::span<const float> numbers) {
+void ShaderInstance::storeNumbers(const ParamInfo& info, std::span<const double> numbers) {
   const size_t count = size_t(std::max(info.arrayLength, 1)) * paramComponents(info.type);
   std::byte* dst = block_.data() + info.offset;
   for (size_t i = 0; i < count; ++i) {
-    const float f = i < numbers.size() ? numbers[i] : 0.0f;
+    const double d = i < numbers.size() ? numbers[i] : 0.0;
     if (info.type == ParamType::Int) {
-      const int32_t v = std::isfinite(f) ? int32_t(f) : 0;
+      // Toward zero, as C's conversion; saturated, since beyond int32 the conversion is undefined.
+      const int32_t v = !std::isfinite(d) ? 0
+                        : d >= 2147483647.0 ? INT32_MAX
+                        : d <= -2147483648.0 ? INT32_MIN
+                                             : int32_t(d);
       std::memcpy(dst + 4 * i, &v, 4);
     } else {
+      const float f = float(d);
       std::memcpy(dst + 4 * i, &f, 4);
     }
   }
@@ -136,11 +141,11 @@ bool ShaderInstance::bindValue(const ParamInfo& info, const ParamValue& value, s
 
   const int components = paramComponents(info.type);
   const int given = paramComponents(value.type);
-  std::vector<float> numbers;
+  std::vector<double> numbers;
   if (given == components) {
     numbers = value.numbers;
   } else if (given == 1) {  // splat scalars into triples
-    for (float f : value.numbers)
+    for (double f : value.numbers)
       for (int c = 0; c < components; ++c) numbers.push_back(f);
   } else {
     return mismatch();

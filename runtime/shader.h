@@ -30,12 +30,13 @@ struct ParamInfo {
   int arrayLength = 0;  // 0: not an array
   bool isOutput = false;
   uint32_t offset = 0;  // byte offset in the block
-  // Default value, flattened: arrayLength*components numbers (ints stored as floats), or strings.
+  // Default value, flattened: arrayLength*components numbers, or strings. Doubles, so that an int
+  // keeps all its 32 bits (a float holds integers exactly only up to 2^24).
   // A default that reads coordinate spaces (`point "shader" (0, 0, 0)`) or another parameter is
   // reported as its value with every space the identity and the other parameters at their
   // defaults; the shader evaluates it at shading time, with the batch's spaces and the bound
   // values, unless the parameter is bound itself.
-  std::vector<float> defaultNumbers;
+  std::vector<double> defaultNumbers;
   std::vector<std::string> defaultStrings;
   // Byte offset in the block of the int32 "bound" flag of such a parameter (bind sets it to 1),
   // or -1: the default is the value in the block.
@@ -70,7 +71,7 @@ class CompiledShader {
 struct ParamValue {
   std::string name;
   ParamType type = ParamType::Float;
-  std::vector<float> numbers;
+  std::vector<double> numbers;  // doubles: an int parameter takes any 32-bit value
   std::vector<std::string> strings;
 };
 
@@ -101,7 +102,7 @@ class ShaderInstance {
 
  private:
   bool bindValue(const ParamInfo& info, const ParamValue& value, std::string* error);
-  void storeNumbers(const ParamInfo& info, std::span<const float> numbers);
+  void storeNumbers(const ParamInfo& info, std::span<const double> numbers);
   void storeStrings(const ParamInfo& info, std::span<const std::string> strings);
 
   std::shared_ptr<const CompiledShader> shader_;

@@ -35,7 +35,7 @@ void reflectDefaults(std::vector<ParamInfo>& params, uint32_t blockSize, void (*
       if (p.type == ParamType::Int) {
         int32_t v;
         std::memcpy(&v, bytes + p.offset + 4 * k, 4);
-        p.defaultNumbers.push_back(float(v));
+        p.defaultNumbers.push_back(double(v));
       } else {
         float v;
         std::memcpy(&v, bytes + p.offset + 4 * k, 4);

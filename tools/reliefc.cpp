@@ -111,16 +111,18 @@ int usageError(const std::string& message) {
 }
 
 // Parses "x", "(x,y,z)" or "x y z" into numbers; false if any is not a number.
-bool parseNumbers(std::string text, std::vector<float>* out) {
+bool parseNumbers(std::string text, std::vector<double>* out) {
   for (char& c : text)
     if (c == '(' || c == ')' || c == ',') c = ' ';
   std::istringstream in(text);
   std::string word;
   while (in >> word) {
     char* end = nullptr;
-    const float f = std::strtof(word.c_str(), &end);
-    if (!end || *end || !std::isfinite(f)) return false;  // 1e39, inf and nan are not float values
-    out->push_back(f);
+    // Read as a double, so that an int parameter gets all its digits; 1e39, inf and nan are
+    // not values of either type.
+    const double d = std::strtod(word.c_str(), &end);
+    if (!end || *end || !std::isfinite(d) || !std::isfinite(float(d))) return false;
+    out->push_back(d);
   }
   return !out->empty();
 }
@@ -147,7 +149,7 @@ int evaluate(const Args& args, const CompileResult& result) {
                (pv.numbers.size() == 16 || pv.numbers.size() == 1)) {
       // 16 numbers row-major, or one number for the diagonal (as the language's matrix(f)).
       if (pv.numbers.size() == 1) {
-        const float f = pv.numbers[0];
+        const double f = pv.numbers[0];
         pv.numbers.assign(16, 0.0f);
         for (int k = 0; k < 4; ++k) pv.numbers[size_t(k) * 5] = f;
       }
@@ -183,13 +185,13 @@ int evaluate(const Args& args, const CompileResult& result) {
       if (end == std::string::npos) end = spec.size();
     }
     const std::string value = spec.substr(eq + 1, end - eq - 1);
-    std::vector<float> numbers;
+    std::vector<double> numbers;
     auto it = at.find(key);
     if (it == at.end()) return usageError("unknown --at name '" + key + "'");
     const size_t want = (key == "P" || key == "N" || key == "Ng" || key == "dPdu" || key == "dPdv") ? 3 : 1;
     if (!parseNumbers(value, &numbers) || numbers.size() != want)
       return usageError("bad --at value '" + value + "' for '" + key + "'");
-    it->second = numbers;
+    it->second.assign(numbers.begin(), numbers.end());
     i = end;
   }
   if (at["Ng"].empty()) at["Ng"] = at["N"];

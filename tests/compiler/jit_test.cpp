@@ -508,17 +508,17 @@ displacement p(float Km = 0.5, freq = Km * 4; point c = point(1, 2, 3), color k 
   auto params = shader->params();
   ASSERT_EQ(params.size(), 6u);
   EXPECT_EQ(params[0].name, "Km");
-  EXPECT_EQ(params[0].defaultNumbers, std::vector<float>{0.5f});
-  EXPECT_EQ(params[1].defaultNumbers, std::vector<float>{2.0f});
+  EXPECT_EQ(params[0].defaultNumbers, std::vector<double>{0.5f});
+  EXPECT_EQ(params[1].defaultNumbers, std::vector<double>{2.0f});
   EXPECT_EQ(params[2].type, runtime::ParamType::Point);
-  EXPECT_EQ(params[2].defaultNumbers, (std::vector<float>{1, 2, 3}));
+  EXPECT_EQ(params[2].defaultNumbers, (std::vector<double>{1, 2, 3}));
   EXPECT_EQ(params[3].type, runtime::ParamType::Color);
-  EXPECT_EQ(params[3].defaultNumbers, (std::vector<float>{0.25f, 0.25f, 0.25f}));
+  EXPECT_EQ(params[3].defaultNumbers, (std::vector<double>{0.25f, 0.25f, 0.25f}));
   EXPECT_EQ(params[4].type, runtime::ParamType::String);
   EXPECT_EQ(params[4].defaultStrings, std::vector<std::string>{"hello"});
   EXPECT_EQ(params[4].offset % 8, 0u);
   EXPECT_EQ(params[5].type, runtime::ParamType::Int);
-  EXPECT_EQ(params[5].defaultNumbers, std::vector<float>{6});
+  EXPECT_EQ(params[5].defaultNumbers, std::vector<double>{6});
 
   // Binding a string parameter changes behavior.
   runtime::ShaderInstance instance(shader);
@@ -533,6 +533,39 @@ displacement p(float Km = 0.5, freq = Km * 4; point c = point(1, 2, 3), color k 
   EXPECT_EQ(b.Pout[0][0], 1);
   EXPECT_EQ(b.Pout[1][0], 2);
   EXPECT_EQ(b.Pout[2][0], 3);
+}
+
+// An int parameter holds every 32-bit value, as a default, reflected, and bound (it was kept as a
+// float: 123456789 became 123456792 and 2147483647 became -2147483648). The shader's P.x receives
+// the difference from the expected value, in ints, so any lost bit shows.
+TEST(JitTest, IntParametersKeepAll32Bits) {
+  CompileResult r = compileSource("ints.disp", R"(
+displacement ints(int seed = 123456789; int big = 2147483647; int a[2] = {16777217, -2147483647})
+{
+    P = point(seed - 123456789, big - 2147483647, (a[0] - 16777217) + (a[1] + 2147483647));
+})");
+  ASSERT_TRUE(r.success()) << renderDiagnostics(r);
+  auto shader = r.find("ints");
+  ASSERT_TRUE(shader);
+  EXPECT_EQ(shader->findParam("seed")->defaultNumbers, std::vector<double>{123456789});
+  EXPECT_EQ(shader->findParam("big")->defaultNumbers, std::vector<double>{2147483647});
+  EXPECT_EQ(shader->findParam("a")->defaultNumbers, (std::vector<double>{16777217, -2147483647}));
+  runtime::ShaderInstance defaults(shader);
+  TestBatch b(1);
+  evaluateAtSpherePoint(defaults, b, 0.1, 0.5);
+  EXPECT_EQ(b.Pout[0][0], 0);
+  EXPECT_EQ(b.Pout[1][0], 0);
+  EXPECT_EQ(b.Pout[2][0], 0);
+  // Bound: the same values as the defaults' plus one, and a value beyond int32 saturates.
+  runtime::ShaderInstance bound(shader);
+  std::string error;
+  ASSERT_TRUE(bound.bind({"seed", runtime::ParamType::Int, {123456790}, {}}, &error)) << error;
+  ASSERT_TRUE(bound.bind({"big", runtime::ParamType::Float, {3e10}, {}}, &error)) << error;
+  ASSERT_TRUE(bound.bind({"a", runtime::ParamType::Int, {16777218, -2147483646}, {}}, &error)) << error;
+  evaluateAtSpherePoint(bound, b, 0.1, 0.5);
+  EXPECT_EQ(b.Pout[0][0], 1);
+  EXPECT_EQ(b.Pout[1][0], 0);
+  EXPECT_EQ(b.Pout[2][0], 2);
 }
 
 // PI is a constant, so a default that uses only it is not evaluated again at shading time: the
@@ -719,8 +752,8 @@ displacement arr(float k[4] = {1, 2, 3}; point corners[2] = {point(1, 2, 3), 4};
   const runtime::ParamInfo* k = shader->findParam("k");
   ASSERT_TRUE(k);
   EXPECT_EQ(k->arrayLength, 4);
-  EXPECT_EQ(k->defaultNumbers, (std::vector<float>{1, 2, 3, 0}));
-  EXPECT_EQ(shader->findParam("corners")->defaultNumbers, (std::vector<float>{1, 2, 3, 4, 4, 4}));
+  EXPECT_EQ(k->defaultNumbers, (std::vector<double>{1, 2, 3, 0}));
+  EXPECT_EQ(shader->findParam("corners")->defaultNumbers, (std::vector<double>{1, 2, 3, 4, 4, 4}));
   runtime::ShaderInstance instance(shader);
   TestBatch b(1);
   fillSphere(b, 0, 0.3, 0.3);
@@ -976,7 +1009,7 @@ TEST(ShaderLibraryTest, FindsCompilesAndCaches) {
   ASSERT_TRUE(a) << error;
   EXPECT_EQ(a->name(), "bumps");
   ASSERT_TRUE(a->findParam("Km"));
-  EXPECT_EQ(a->findParam("Km")->defaultNumbers, std::vector<float>{0.05f});
+  EXPECT_EQ(a->findParam("Km")->defaultNumbers, std::vector<double>{0.05f});
   EXPECT_EQ(library.find("bumps", path, &error), a);  // cached
   EXPECT_FALSE(library.find("nosuchshader", path, &error));
   EXPECT_NE(error.find("nosuchshader"), std::string::npos);

@@ -525,7 +525,7 @@ displacement d(float Km = 1; point c = point "shader" (1, 0, 0); vector w = vect
   const auto& shader = r.shaders.front();
   const runtime::ParamInfo* c = shader->findParam("c");
   ASSERT_NE(c, nullptr);
-  EXPECT_EQ(c->defaultNumbers, (std::vector<float>{1, 0, 0}));
+  EXPECT_EQ(c->defaultNumbers, (std::vector<double>{1, 0, 0}));
   EXPECT_GE(c->boundFlagOffset, 0);
   EXPECT_GE(shader->findParam("c2")->boundFlagOffset, 0);  // reads c
   EXPECT_GE(shader->findParam("k")->boundFlagOffset, 0);   // reads Km

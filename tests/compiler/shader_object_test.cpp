@@ -108,7 +108,7 @@ TEST(ShaderBundle, MalformedBundlesAndForbiddenCallsAreErrors) {
   std::string error;
   ASSERT_TRUE(runtime::loadShaderBundle(bundle, &loaded, &error)) << error;
   ASSERT_EQ(loaded.size(), 1u);
-  EXPECT_EQ(loaded[0]->params()[0].defaultNumbers, std::vector<float>{0.1f});
+  EXPECT_EQ(loaded[0]->params()[0].defaultNumbers, std::vector<double>{0.1f});
 
   // Every truncation is refused, none crashes.
   for (size_t n = 0; n < bundle.size(); n += std::max<size_t>(1, bundle.size() / 97)) {
