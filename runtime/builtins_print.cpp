@@ -9,11 +9,25 @@
 
 namespace {
 
+// snprintf of one conversion into `out`, at any length (a fixed buffer cut long strings short).
+template <typename T>
+void appendFormatted(std::string& out, const std::string& spec, T value) {
+  char small[128];
+  const int n = std::snprintf(small, sizeof small, spec.c_str(), value);
+  if (n < 0) return;
+  if (size_t(n) < sizeof small) {
+    out.append(small, size_t(n));
+    return;
+  }
+  std::string big(size_t(n) + 1, '\0');
+  std::snprintf(big.data(), big.size(), spec.c_str(), value);
+  out.append(big.data(), size_t(n));
+}
+
 std::string formatText(const char* format, const int32_t* kinds, int32_t count, const float* floats,
                        const int32_t* ints, const char* const* strings) {
   std::string out;
   int arg = 0, fi = 0, ii = 0, si = 0;
-  char buf[128];
   for (const char* p = format; *p; ++p) {
     if (*p != '%') {
       out += *p;
@@ -36,31 +50,42 @@ std::string formatText(const char* format, const int32_t* kinds, int32_t count, 
       continue;
     }
     const int kind = kinds[arg++];
-    if (conv == 's' && kind == kRlfPrintString) {
-      std::snprintf(buf, sizeof buf, (spec + 's').c_str(), strings[si] ? strings[si] : "");
-      ++si;
-      out += buf;
+    const int n = kind == kRlfPrintTriple ? 3 : kind == kRlfPrintMatrix ? 16 : kind == kRlfPrintString ? 0 : 1;
+    // The argument's own text, whatever the conversion asked for: a string as it is, numbers as
+    // %g (components separated by spaces). A mismatch (which the compiler warns about where the
+    // format is a literal) prints the value rather than whatever memory the conversion would read.
+    auto plain = [&] {
+      std::string text;
+      if (kind == kRlfPrintString) return std::string(strings[si] ? strings[si] : "");
+      for (int k = 0; k < n; ++k) {
+        if (k) text += ' ';
+        if (kind == kRlfPrintInt) appendFormatted(text, "%d", ints[ii]);
+        else appendFormatted(text, "%g", double(floats[fi + k]));
+      }
+      return text;
+    };
+    const bool numeric = conv == 'f' || conv == 'g' || conv == 'e' || conv == 'd' || conv == 'i' ||
+                         conv == 'p' || conv == 'c' || conv == 'm';
+    if (conv == 's') {
+      appendFormatted(out, spec + 's', plain().c_str());
     } else if ((conv == 'd' || conv == 'i') && kind == kRlfPrintInt) {
-      std::snprintf(buf, sizeof buf, (spec + 'd').c_str(), ints[ii++]);
-      out += buf;
-    } else if (conv == 'f' || conv == 'g' || conv == 'e' || conv == 'd' || conv == 'i' || conv == 'p' ||
-               conv == 'c' || conv == 'm') {
+      appendFormatted(out, spec + 'd', ints[ii]);
+    } else if (numeric && kind != kRlfPrintString) {
       // RSL's %p (point), %c (color) and %m (matrix) print every component as %f does.
       const char c = (conv == 'd' || conv == 'i') ? 'g' : (conv == 'p' || conv == 'c' || conv == 'm') ? 'f' : conv;
-      const int n = kind == kRlfPrintTriple ? 3 : kind == kRlfPrintMatrix ? 16 : 1;
       for (int k = 0; k < n; ++k) {
-        double v = kind == kRlfPrintInt ? double(ints[ii]) : double(floats[fi + k]);
-        std::snprintf(buf, sizeof buf, (spec + c).c_str(), v);
+        const double v = kind == kRlfPrintInt ? double(ints[ii]) : double(floats[fi + k]);
         if (k) out += ' ';
-        out += buf;
+        appendFormatted(out, spec + c, v);
       }
-      if (kind == kRlfPrintInt) ++ii; else if (kind != kRlfPrintString) fi += n; else ++si;
+    } else if (numeric) {
+      out += plain();  // a string for a number
     } else {
-      out += spec + conv;
-      if (kind == kRlfPrintInt) ++ii;
-      else if (kind == kRlfPrintString) ++si;
-      else fi += kind == kRlfPrintTriple ? 3 : kind == kRlfPrintMatrix ? 16 : 1;
+      out += spec + conv;  // not a conversion we know: as written
     }
+    if (kind == kRlfPrintInt) ++ii;
+    else if (kind == kRlfPrintString) ++si;
+    else fi += n;
   }
   return out;
 }

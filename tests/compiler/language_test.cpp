@@ -201,6 +201,24 @@ displacement pf()
             "1.500000\n");
 }
 
+// A conversion that does not fit its argument prints the argument itself (a string as it is,
+// numbers as %g), the same every time: a string given to %f read whatever memory followed the
+// float arguments, and through format() that could change P. Long strings print whole.
+TEST(PrintfTest, MismatchedConversionsPrintTheArgument) {
+  const std::string longText(300, 'x');
+  const std::string source = R"(
+displacement pm(string fmt = "%d|%f|%s")
+{
+    printf("%f|%s|%s|%5.1s|%d|%s\n", "abc", 1.5, point(1, 2, 3), "xyz", 7, ")" + longText + R"(");
+    printf(concat(fmt, "\n"), "a", "b", 4);
+    if (format("%g", "x") != "x") P += N;
+})";
+  TestBatch b(1);
+  for (int run = 0; run < 2; ++run)
+    EXPECT_EQ(evaluate(source, b), "abc|1.5|1 2 3|    x|7|" + longText + "\na|b|4\n");
+  EXPECT_EQ(b.Pout[2][0], b.P[2][0]);
+}
+
 // §2.2: an RSL tuple takes its type from context as a noise call does (§6.1), on either side
 // of an operator: before, a tuple left of `+ - * /` was a point, so a color could not take it.
 TEST(TupleTest, TypedByContextOnEitherSideOfAnOperator) {
