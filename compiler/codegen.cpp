@@ -2372,8 +2372,12 @@ class ShaderCodegen {
           if (e.operands[i]->text == "width") widthScale = &args[i + 1];
         Dual lo, hi;
         if (hasX2) {
-          lo = x;
-          hi = toFloatScalar(args[2]).c[0];
+          // The interval between the two values, in either order (RSL's filterstep(e, s1, s2)
+          // filters a quantity that may decrease across the pixel).
+          const Dual x2 = toFloatScalar(args[2]).c[0];
+          Value* ordered = b_.CreateFCmpOLE(x.v, x2.v);
+          lo = dselect(ordered, x, x2);
+          hi = dselect(ordered, x2, x);
         } else {
           const Val du = load(slotFor(globals_[size_t(GlobalId::du)]));
           const Val dv = load(slotFor(globals_[size_t(GlobalId::dv)]));

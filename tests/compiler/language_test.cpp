@@ -201,6 +201,22 @@ displacement pf()
             "1.500000\n");
 }
 
+// filterstep(e, x, x2) filters over the interval between x and x2 in either order (it ignored a
+// reversed interval: 1 instead of 0.5 below), and its derivative follows the interval's ends.
+TEST(FilterstepTest, TwoValuesInEitherOrder) {
+  TestBatch b(1);  // u = 0.25, du = 0.01
+  const std::string printed = evaluate(R"(
+displacement f()
+{
+    printf("%.3f %.3f %.3f %.3f\n", filterstep(0.3, 0.4, 0.2), filterstep(0.3, 0.2, 0.4),
+           filterstep(0.1, 0.4, 0.2), filterstep(0.5, 0.4, 0.2));
+    printf("%.3f %.3f\n", Du(filterstep(0.3, 0.6 - u, 0.2)), Du(filterstep(0.3, 0.2, 0.6 - u)));
+})",
+                                       b);
+  // d/du of (hi - e) / (hi - lo) with hi = 0.6 - u = 0.35, lo = 0.2: -(e - lo) / (hi - lo)^2.
+  EXPECT_EQ(printed, "0.500 0.500 1.000 0.000\n-4.444 -4.444\n");
+}
+
 // A conversion that does not fit its argument prints the argument itself (a string as it is,
 // numbers as %g), the same every time: a string given to %f read whatever memory followed the
 // float arguments, and through format() that could change P. Long strings print whole.
