@@ -746,27 +746,44 @@ StmtPtr Parser::parseFor() {
     return nullptr;
   }
   const Token open = consume();
+  // A header in error (`for (a = 0, b = 10; ...)`: there is no comma operator) is reported once:
+  // the rest of it is skipped to its ')', and the body is parsed for its own errors and dropped,
+  // rather than the header's remains being read as statements.
+  auto abandon = [&]() -> StmtPtr {
+    if (stopped_) return nullptr;
+    int depth = 0;
+    while (!tok().is(Tok::Eof) && !tok().is(Tok::LBrace) && !tok().is(Tok::RBrace) && !atShaderHeader()) {
+      if (tok().is(Tok::LParen)) ++depth;
+      if (tok().is(Tok::RParen) && depth-- == 0) break;
+      consume();
+    }
+    if (!accept(Tok::RParen)) return nullptr;
+    if (!parseStatement()) recovering_ = true;
+    auto empty = std::make_unique<Stmt>(StmtKind::Block, kw.range());
+    empty->range.end = prev().end();
+    return empty;
+  };
   if (startsDeclaration()) {
     s->init = parseDeclaration();
-    if (!s->init) return nullptr;
+    if (!s->init) return abandon();
   } else if (!tok().is(Tok::Semi)) {
     const SourceLoc start = tok().loc;
     ExprPtr e = parseExpression();
-    if (!e) return nullptr;
+    if (!e) return abandon();
     s->init = std::make_unique<Stmt>(StmtKind::ExprStmt, join(start, prev().end()));
     s->init->expr = std::move(e);
   }
-  if (!expectAfterPrev(Tok::Semi)) return nullptr;
+  if (!expectAfterPrev(Tok::Semi)) return abandon();
   if (!tok().is(Tok::Semi)) {
     s->cond = parseExpression();
-    if (!s->cond) return nullptr;
+    if (!s->cond) return abandon();
   }
-  if (!expectAfterPrev(Tok::Semi)) return nullptr;
+  if (!expectAfterPrev(Tok::Semi)) return abandon();
   if (!tok().is(Tok::RParen)) {
     s->step = parseExpression();
-    if (!s->step) return nullptr;
+    if (!s->step) return abandon();
   }
-  if (!expectClosing(Tok::RParen, open)) return nullptr;
+  if (!expectClosing(Tok::RParen, open)) return abandon();
   s->body = parseStatement();
   if (!s->body) return nullptr;
   s->range.end = prev().end();

@@ -144,6 +144,19 @@ TEST(ParserTest, SeveralErrorsAreReportedInOneRun) {
             "8:26: expected ';' after expression\n");
 }
 
+// A for header in error gives one error: its remains are not read as statements (the comma,
+// which the language does not have, once gave three), and a syntax error in the body still shows.
+TEST(ParserTest, ForHeaderErrorsAreReportedOnce) {
+  EXPECT_EQ(errorsOf("displacement d()\n{\n  float a, b;\n  for (a = 0, b = 10; a < 3; a += 1) ;\n"
+                     "  for (a = 0; a < 3 a += 1) { b += 1; }\n  for (a = 0; (a < 3; a += ) { b = ; }\n"
+                     "  P += b * N;\n}\n"),
+            "4:13: expected ';'\n"
+            "5:20: expected ';'\n"
+            "6:21: expected ')'\n"
+            "6:28: expected expression\n"
+            "6:36: expected expression\n");
+}
+
 TEST(ParserTest, OnlyDisplacementShadersAndNoReservedIdentifiers) {
   EXPECT_EQ(errorsOf("light l() {}\ndisplacement d() { float solar = 1; P += N; }\n"),
             "1:1: only displacement shaders are supported, not 'light' shaders\n"
