@@ -126,6 +126,10 @@ struct Stmt {
   StmtPtr body;
   std::unique_ptr<FunctionDecl> function;
   int levels = 1;  // break/continue: RSL's `break n` leaves the n-th enclosing loop
+  // A declaration or expression that stopped short of its ';' mid-line (`float g = a.5;` is
+  // `a` `.5`): its expressions are what the parser made of a syntax error, so they are checked
+  // without diagnostics (language.md §8: one error per mistake).
+  bool unterminated = false;
 
   Stmt(StmtKind k, SourceRange r) : kind(k), range(r), keywordLoc(r.begin) {}
 };

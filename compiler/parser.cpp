@@ -610,7 +610,7 @@ StmtPtr Parser::parseStatement() {
     const Token typeWord = consume();
     auto s = std::make_unique<Stmt>(StmtKind::Decl, typeWord.range());
     if (!parseDeclarators(s->decls, Type(TypeKind::Error), false, false, Storage::Local)) return nullptr;
-    if (!expectAfterPrev(Tok::Semi, "declaration") && !missingSemiAtLineEnd()) recovering_ = true;
+    if (!expectAfterPrev(Tok::Semi, "declaration") && !missingSemiAtLineEnd()) recovering_ = s->unterminated = true;
     s->range.end = prev().end();
     return s;
   }
@@ -619,16 +619,18 @@ StmtPtr Parser::parseStatement() {
     if (!s) return nullptr;
     if (recovering_) return s;
     // Without its ';' the declaration is still complete: keep it, resync unless at a line end.
-    if (!expectAfterPrev(Tok::Semi, "declaration") && !missingSemiAtLineEnd()) recovering_ = true;
+    if (!expectAfterPrev(Tok::Semi, "declaration") && !missingSemiAtLineEnd()) recovering_ = s->unterminated = true;
     s->range.end = prev().end();
     return s;
   }
   const SourceLoc start = t.loc;
   ExprPtr e = parseExpression();
   if (!e) return nullptr;
-  if (!expectAfterPrev(Tok::Semi, "expression") && !missingSemiAtLineEnd()) recovering_ = true;
+  const bool unterminated = !expectAfterPrev(Tok::Semi, "expression") && !missingSemiAtLineEnd();
+  if (unterminated) recovering_ = true;
   auto s = std::make_unique<Stmt>(StmtKind::ExprStmt, join(start, prev().end()));
   s->expr = std::move(e);
+  s->unterminated = unterminated;
   return s;
 }
 

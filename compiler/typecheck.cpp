@@ -508,22 +508,26 @@ class Checker {
             // Only real errors make the variable invalid: a warning promoted by -Werror leaves it
             // a variable like any other (still reported if unused).
             const unsigned errorsBefore = diags_.numHardErrors();
+            suppress_ += s.unterminated;
             initializing_ = d.get();
             checkInit(*d);
             initializing_ = nullptr;
             if (d->isUniform && d->init->isVarying && !d->init->type.isError())
               report(DiagId::ErrUniformFromVarying, d->init->range.begin).arg(d->name).range(d->init->range);
-            if (diags_.numHardErrors() != errorsBefore) d->invalid = true;
+            suppress_ -= s.unterminated;
+            if (diags_.numHardErrors() != errorsBefore || s.unterminated) d->invalid = true;
           }
           declare(*d);
         }
         break;
       case StmtKind::ExprStmt: {
         Expr& e = *s.expr;
+        suppress_ += s.unterminated;
         const Type t = checkExpr(e, kError);
+        suppress_ -= s.unterminated;
         const bool effect = e.kind == ExprKind::Assign || e.kind == ExprKind::PreIncDec ||
                             e.kind == ExprKind::PostIncDec || e.kind == ExprKind::Call;
-        if (!effect && !t.isError()) report(DiagId::ErrUnusedResult, e.range.begin).range(e.range);
+        if (!effect && !t.isError() && !s.unterminated) report(DiagId::ErrUnusedResult, e.range.begin).range(e.range);
         break;
       }
       case StmtKind::If:

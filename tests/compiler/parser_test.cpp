@@ -157,6 +157,17 @@ TEST(ParserTest, ForHeaderErrorsAreReportedOnce) {
             "6:36: expected expression\n");
 }
 
+// `a.5` is `a` `.5` (language.md §1), a syntax error, and only that: what the parser made of
+// the statement before the missing ';' is not type-checked into more errors or warnings, and
+// the variable it declares is not reported again where it is used.
+TEST(ParserTest, StatementCutShortMidLineGivesOnlyTheSyntaxError) {
+  EXPECT_EQ(errorsOf("displacement d()\n{\n  vector w = N;\n  float g = w.5;\n  float h;\n  h = w.5;\n"
+                     "  w .5;\n  P += (g + h) * N;\n}\n"),
+            "4:14: expected ';' after declaration\n"
+            "6:8: expected ';' after expression\n"
+            "7:4: expected ';' after expression\n");
+}
+
 TEST(ParserTest, OnlyDisplacementShadersAndNoReservedIdentifiers) {
   EXPECT_EQ(errorsOf("light l() {}\ndisplacement d() { float solar = 1; P += N; }\n"),
             "1:1: only displacement shaders are supported, not 'light' shaders\n"
