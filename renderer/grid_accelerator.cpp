@@ -707,16 +707,18 @@ GridAccelerator::GridAccelerator(const Scene& scene, const AccelOptions& options
 
 float GridAccelerator::choosePositionStep() const {
   // Vertices are snapped to a lattice fine against the micro-triangles (1/1024 of the smallest
-  // target edge length) and the voxels (1/16384 of a voxel, so a voxel's vertices, overhanging
-  // neighbours included, usually span fewer than 2^19 steps and pack; VoxelGeometry::P), and no
-  // coarser than the grid's padding: a snapped triangle then reaches at most half the padding
-  // beyond the unsnapped one, so every voxel it enters holds it (the voxel boxes and the
-  // contributor lists are grown by the padding). Where the lattice is finer than the floats
-  // (far from the origin), snapping leaves a coordinate as it is (snapToLattice).
+  // target edge length) and no coarser than half the grid's padding (about 2^-18 of the scene's
+  // reach): a snapped triangle then reaches at most a quarter of the padding beyond the unsnapped
+  // one, so every voxel it enters holds it (the voxel boxes and the contributor lists are grown
+  // by the padding). The step must not depend on the voxel size: the image would then change
+  // with --grid-resolution (it did, from 17 voxels across on the sphere). A voxel of a grid up
+  // to 2^19 / 2^18 = 2 voxels across spans fewer than 2^19 steps and packs (VoxelGeometry::P).
+  // Where the lattice is finer than the floats (far from the origin), snapping leaves a
+  // coordinate as it is (snapToLattice).
   // Undisplaced scenes keep their input positions: their sparse voxels are tested straight from
   // the input meshes, and every form of a triangle must be the same bits.
   if (!grid_.anyDisplaced()) return 0.0f;
-  float wanted = std::min(grid_.voxelSize() / 16384.0f, grid_.padding());
+  float wanted = 0.5f * grid_.padding();
   for (uint32_t m = 0; m < scene_.meshes.size(); ++m)
     if (const Displacement* d = grid_.displacement(m); d && d->shader && d->edgeLength > 0.0f)
       wanted = std::min(wanted, d->edgeLength / 1024.0f);

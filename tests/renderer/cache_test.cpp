@@ -481,8 +481,8 @@ TEST(VoxelStorage, SnappingIsAPureFunctionOntoThePowerOfTwoLattice) {
   EXPECT_TRUE(std::isnan(snapToLattice(glm::vec3(std::nanf("")), step).x));
 }
 
-// The lattice the accelerator chooses: a power of two fine against the micro-triangles, and
-// none for an undisplaced scene.
+// The lattice the accelerator chooses: a power of two fine against the micro-triangles, the same
+// for every grid resolution, and none for an undisplaced scene.
 TEST(GridAccelerator, PositionStepIsAPowerOfTwoFineAgainstTheEdgeLength) {
   SphereOptions o = cacheOptions();
   const Scene scene = makeSphereScene(o);
@@ -491,9 +491,15 @@ TEST(GridAccelerator, PositionStepIsAPowerOfTwoFineAgainstTheEdgeLength) {
   ASSERT_GT(step, 0.0f);
   int e = 0;
   EXPECT_EQ(std::frexp(step, &e), 0.5f);
-  const float wanted = std::min({o.edgeLength / 1024.0f, accel.grid().voxelSize() / 16384.0f, accel.grid().padding()});
+  const float wanted = std::min(o.edgeLength / 1024.0f, 0.5f * accel.grid().padding());
   EXPECT_LE(step, wanted);
   EXPECT_GT(step, 0.5f * wanted);
+  // Whatever the grid: the voxel size is no part of it.
+  for (int resolution : {2, 40}) {
+    AccelOptions gridded;
+    gridded.gridResolution = resolution;
+    EXPECT_EQ(GridAccelerator(scene, gridded).positionStep(), step) << resolution;
+  }
   AccelOptions flat;
   flat.displace = false;
   EXPECT_EQ(GridAccelerator(scene, flat).positionStep(), 0.0f);
