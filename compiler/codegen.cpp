@@ -302,10 +302,40 @@ class ShaderCodegen {
                       dsub(dmul(a.c[2], b.c[0]), dmul(a.c[0], b.c[2])),
                       dsub(dmul(a.c[0], b.c[1]), dmul(a.c[1], b.c[0])));
   }
-  Val normalize3(const Val& a) {
+  // A power of two bringing a triple whose largest component lies beyond 2^60 or below 2^-60
+  // near 1, so that its squared length neither overflows nor underflows; 1 in between, where
+  // results keep their bits (scaling by a power of two is exact). Without it the normal of a
+  // surface 1e9 units across, a cross product of 1e19, normalized to zero.
+  Value* tripleScale(const Val& a) {
+    Value* m = nullptr;
+    for (int k = 0; k < 3; ++k) {
+      Value* c = intrinsic(llvm::Intrinsic::fabs, {a.c[k].v});
+      m = m ? intrinsic(llvm::Intrinsic::maxnum, {m, c}) : c;
+    }
+    Value* big = b_.CreateFCmpOGT(m, cf(0x1p60f));
+    Value* small = b_.CreateFCmpOLT(m, cf(0x1p-60f));
+    return b_.CreateSelect(big, cf(0x1p-100f), b_.CreateSelect(small, cf(0x1p100f), cf(1)));
+  }
+  Val scaled(const Val& a, Value* s) {
+    Val r = a;
+    for (int k = 0; k < numComponents(a.type); ++k) {
+      auto mul = [&](Value* x) -> Value* { return x ? b_.CreateFMul(x, s) : nullptr; };
+      r.c[k] = {mul(a.c[k].v), mul(a.c[k].du), mul(a.c[k].dv)};
+    }
+    return r;
+  }
+  Dual length3(const Val& a) {
+    Value* s = tripleScale(a);
+    const Dual len = dsqrtSafe(dot3(scaled(a, s), scaled(a, s)));
+    Value* back = b_.CreateFDiv(cf(1), s);  // exact: s is a power of two
+    auto mul = [&](Value* x) -> Value* { return x ? b_.CreateFMul(x, back) : nullptr; };
+    return {mul(len.v), mul(len.du), mul(len.dv)};
+  }
+  Val normalize3(const Val& unscaled) {
     // One reciprocal r of the length for the three components and their lanes, by the quotient
     // rule d(a/len) = (da - (a/len) dlen) r, which needs no r² (that overflows for lengths below
-    // 2^-64). A zero vector stays zero, lanes included.
+    // 2^-64). A zero vector stays zero, lanes included. a/len is the same for a scaled a.
+    const Val a = scaled(unscaled, tripleScale(unscaled));
     const Dual len = dsqrtSafe(dot3(a, a));
     Value* zero = b_.CreateFCmpOEQ(len.v, cf(0));
     Value* r = b_.CreateSelect(zero, cf(0), b_.CreateFDiv(cf(1), b_.CreateSelect(zero, cf(1), len.v)));
@@ -2194,7 +2224,7 @@ class ShaderCodegen {
       }
       case BuiltinShape::Dot: return makeFloat(dot3(args[0], args[1]));
       case BuiltinShape::Cross: return cross3(args[0], args[1]);
-      case BuiltinShape::Length: return makeFloat(dsqrtSafe(dot3(args[0], args[0])));
+      case BuiltinShape::Length: return makeFloat(length3(args[0]));
       case BuiltinShape::Normalize: return normalize3(args[0]);
       case BuiltinShape::Comp:
         if (args[0].type.kind == TypeKind::Matrix)

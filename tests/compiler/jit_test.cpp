@@ -337,6 +337,42 @@ TEST(JitTest, CalculateNormalOfUndisplacedSphereIsItsNormal) {
     }
 }
 
+// A sphere 1e9 across has a calculatenormal of 1e19 per component, whose squared length
+// overflows a float; one of 1e-25 underflows. normalize() and length() scale such triples first.
+TEST(JitTest, NormalizeAndLengthHoldAtAnyScale) {
+  auto normal = compileOne("displacement d() { N = normalize(calculatenormal(P)); }");
+  auto length = compileOne(
+      "displacement d() {\n"
+      "  float big = length(P * 1e30) * 1e-30, tiny = length(P * 1e-30) * 1e30;\n"
+      "  P += (big - 1) * N + (tiny - 1) * N;\n"
+      "}");
+  ASSERT_TRUE(normal && length);
+  for (float scale : {1.0f, 1e9f, 1e-25f}) {
+    SCOPED_TRACE(scale);
+    for (bool lengths : {false, true}) {
+      if (lengths && scale != 1.0f) continue;
+      runtime::ShaderInstance instance(lengths ? length : normal);
+      TestBatch b(50);
+      for (size_t i = 0; i < 50; ++i) {
+        fillSphere(b, i, 0.02 * double(i) + 0.01, 0.35);
+        for (int k = 0; k < 3; ++k) b.P[k][i] *= scale, b.dPdu[k][i] *= scale, b.dPdv[k][i] *= scale;
+      }
+      RlfStatus status{};
+      RlfShadingBatch view = b.all();
+      instance.evaluate(view, status);
+      EXPECT_EQ(status.badNormal, 0u);
+      EXPECT_EQ(status.nonFinite, 0u);
+      for (size_t i = 0; i < 50; ++i)
+        for (int k = 0; k < 3; ++k) {
+          EXPECT_NEAR(b.Nout[k][i], b.P[k][i] / scale, 1e-5) << "point " << i;
+          if (lengths) {
+            EXPECT_NEAR(b.Pout[k][i], b.P[k][i], 1e-5) << "point " << i;
+          }
+        }
+    }
+  }
+}
+
 TEST(JitTest, HostContractAppendsNormalWhenOnlyPIsAssigned) {
   auto withN = compileOne(
       "displacement d(float Km = 0.05) { P += Km * sin(20 * u) * normalize(N); N = normalize(calculatenormal(P)); }");
