@@ -1259,7 +1259,7 @@ void GridAccelerator::traverse(const Ray& ray, Best& best) {
     outside_.forEach(ray, std::max(ray.tMin, 0.0f), limit,
                      [&](uint32_t id, const glm::vec3& a, const glm::vec3& b, const glm::vec3& c) {
                        TriangleHit h;
-                       if (!intersectTriangle(wr, a, b, c, ray.tMin, limit(), h) ||
+                       if (!intersectTriangleDouble(ray, wr, a, b, c, ray.tMin, limit(), h) ||
                            !best.better(h.t, id, kWholeTriangleId))
                          return false;
                        best.found = true, best.t = h.t, best.triangleId = id;
@@ -1297,9 +1297,7 @@ std::optional<Hit> GridAccelerator::intersect(const Ray& ray) {
   Hit hit;
   hit.t = best.t;
   hit.P = ray.origin + best.t * ray.direction;
-  const glm::vec3 ng = glm::cross(best.p[1] - best.p[0], best.p[2] - best.p[0]);
-  const float len = glm::length(ng);
-  hit.Ng = len > 0.0f && std::isfinite(len) ? ng / len : -glm::normalize(ray.direction);
+  if (!faceNormal(best.p[0], best.p[1], best.p[2], &hit.Ng)) hit.Ng = -glm::normalize(ray.direction);
   const auto [m, t] = grid_.split(best.triangleId);
   const Mesh& mesh = scene_.meshes[m];
   const glm::vec2 b = best.hit.b0 * best.bary[0] + best.hit.b1 * best.bary[1] + best.hit.b2 * best.bary[2];

@@ -69,6 +69,20 @@ inline bool intersectTriangle(const WatertightRay& ray, const glm::vec3& a, cons
   return true;
 }
 
+// intersectTriangle in double precision, for huge triangles: a ground plane reaching 1e8 units
+// leaves float edge functions and depths nothing of the ray origin's position (its ulp is 8 units),
+// so the plane tore and vanished around a unit sphere. Differences of floats are exact in double
+// and the products keep 53 bits, so such a triangle is hit to float precision at the hit point.
+// Watertight as the float test: a shared edge's function comes from the same sheared vertices.
+bool intersectTriangleDouble(const Ray& ray, const WatertightRay& wr, const glm::vec3& a,
+                             const glm::vec3& b, const glm::vec3& c, float tMin, float tMax,
+                             TriangleHit& hit);
+
+// The unit normal of triangle (a, b, c) along (b - a) x (c - a), computed in double so that
+// triangles of any size (edges of 1e20, whose cross product overflows a float) and any thinness
+// get one; false for a degenerate or non-finite triangle.
+bool faceNormal(const glm::vec3& a, const glm::vec3& b, const glm::vec3& c, glm::vec3* n);
+
 // Four triangles' hits, lane k for the k-th triangle (valid where intersectTriangles4's mask says).
 struct TriangleHits4 {
   float t[4], b0[4], b1[4], b2[4];

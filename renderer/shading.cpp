@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numeric>
 
 #include "renderer/subdivide.h"
@@ -59,6 +60,7 @@ struct Integrator::Surface {
   glm::vec3 Nf{0};   // shading normal turned toward the viewer
   glm::vec3 Ngf{0};  // geometric normal turned toward the viewer
   glm::vec3 V{0};    // unit, toward the viewer
+  float epsilon = 0;  // offset clearing the float error in P (Integrator::epsilonAt)
   bool front = true;  // the ray arrived on the outward side
   glm::vec3 Cs{1.0f}, Os{1.0f};
 };
@@ -109,9 +111,15 @@ Integrator::Integrator(const Scene& scene, Accelerator& accel, const ShadingOpti
       bound = std::max(bound, scene.displacements[mesh.displacementIndex].boundWorld);
   }
   const float extent = hi.x >= lo.x ? glm::length(hi - lo) + 2.0f * bound : 1.0f;
-  // Large enough to clear float error in the hit point of a scene this size, small against any
-  // feature a displacement shader can make.
-  epsilon_ = std::max(extent, 1e-3f) * 2e-5f;
+  sceneEpsilon_ = std::max(extent, 1e-3f) * 2e-5f;
+  if (!std::isfinite(sceneEpsilon_)) sceneEpsilon_ = std::numeric_limits<float>::max();
+}
+
+float Integrator::epsilonAt(const glm::vec3& P, const glm::vec3& origin) const {
+  const glm::vec3 a = glm::max(glm::abs(P), glm::abs(origin));
+  const float local = std::max({a.x, a.y, a.z});
+  if (!std::isfinite(local)) return sceneEpsilon_;
+  return std::max(local * 0x1p-19f, std::min(sceneEpsilon_, local * 0x1p-13f));
 }
 
 glm::vec3 Integrator::surfaceColor(const Mesh& mesh, const Material& material, const Hit& hit) {
@@ -152,6 +160,7 @@ bool Integrator::resolve(const Ray& ray, const Hit& hit, Surface* s) const {
   s->material = &material;
   s->hit = &hit;
   s->P = hit.P;
+  s->epsilon = epsilonAt(hit.P, ray.origin);
   s->Ng = hit.Ng;
   s->N = hit.Ng;
   // Displaced surfaces shade with the micro-triangle's face normal (as in the paper): it carries
@@ -211,7 +220,7 @@ std::optional<Hit> Integrator::findHit(Ray ray) const {
     if (!hit) return hit;
     Surface s;
     if (resolve(ray, *hit, &s)) return hit;
-    ray.tMin = hit->t + epsilon_ / dirLength;
+    ray.tMin = hit->t + s.epsilon / dirLength;
   }
   return std::nullopt;
 }
@@ -246,7 +255,7 @@ glm::vec3 Integrator::transmittance(const Ray& ray, RenderStats* stats) const {
       }
       if (isBlack(through)) return glm::vec3(0.0f);
     }
-    r.tMin = hit->t + epsilon_ / dirLength;
+    r.tMin = hit->t + epsilonAt(hit->P, r.origin) / dirLength;
     if (!(r.tMin < r.tMax)) return through;
   }
   return glm::vec3(0.0f);
@@ -274,10 +283,10 @@ void Integrator::illuminate(const Surface& s, uint64_t seed, RenderStats* stats,
     }
     const float side = glm::dot(s.Ng, L) >= 0.0f ? 1.0f : -1.0f;
     Ray r;
-    r.origin = s.P + side * epsilon_ * s.Ng;
+    r.origin = s.P + side * s.epsilon * s.Ng;
     r.direction = L;
     r.tMin = 0.0f;
-    r.tMax = distance - epsilon_;
+    r.tMax = distance - s.epsilon;
     if (!(r.tMax > 0.0f)) return;
     const glm::vec3 through = transmittance(r, stats);
     if (!isBlack(through)) out->push_back({L, Cl * through});
@@ -401,7 +410,7 @@ glm::vec3 Integrator::shade(const Ray& ray, const Surface& s, int depth, uint64_
   const glm::vec3 I = -s.V;
   const glm::vec3 R = glm::normalize(I - 2.0f * glm::dot(I, s.Nf) * s.Nf);
   // Reflection rays leave from the viewer's side of the true surface.
-  const glm::vec3 above = s.P + epsilon_ * s.Ngf;
+  const glm::vec3 above = s.P + s.epsilon * s.Ngf;
 
   glm::vec3 Ci(0.0f);
   switch (m.type) {
@@ -432,7 +441,7 @@ glm::vec3 Integrator::shade(const Ray& ray, const Surface& s, int depth, uint64_
       glm::vec3 T;
       const float through = m.Kt * (1.0f - kr) * largest(filter);
       if (m.Kt * (1.0f - kr) > 0.0f && worth(through) && refract(I, s.Nf, etaRatio, &T))
-        transmitted = trace(s.P - epsilon_ * s.Ngf, T, &stats->refractionRays, through);
+        transmitted = trace(s.P - s.epsilon * s.Ngf, T, &stats->refractionRays, through);
       // As the classic glass shader: a faint ambient/diffuse body (Kd defaults to 0), highlights,
       // and Fresnel-weighted traced reflection and refraction.
       Ci = s.Cs * (m.Ka * ambient(s) + m.Kd * diffuse()) + m.Ks * m.specularColor * specular() +
@@ -448,7 +457,7 @@ glm::vec3 Integrator::shade(const Ray& ray, const Surface& s, int depth, uint64_
   if (s.Os != glm::vec3(1.0f) && worth(largest(glm::vec3(1.0f) - s.Os))) {
     // Partly transparent: composite what lies behind, continuing the same ray.
     Ray behind = ray;
-    behind.tMin = s.hit->t + epsilon_ / glm::length(ray.direction);
+    behind.tMin = s.hit->t + s.epsilon / glm::length(ray.direction);
     Ci += (glm::vec3(1.0f) - s.Os) * radianceAt(behind, depth + 1, mix64(seed + 0x51ull), stats, nullptr,
                                                 weight * largest(glm::vec3(1.0f) - s.Os));
   }

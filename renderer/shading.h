@@ -6,6 +6,8 @@
 // Accelerator. Used by the render loop (render.*) and tests.
 #pragma once
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <optional>
 #include <vector>
@@ -84,8 +86,14 @@ class Integrator {
   // opaque surface, the transmit colour through glass, 1 - Os through partly transparent surfaces.
   glm::vec3 transmittance(const Ray& ray, RenderStats* stats) const;
 
-  // Distance a secondary ray starts off the surface, scaled to the scene's extent.
-  float shadowEpsilon() const { return epsilon_; }
+  // Distance a secondary ray starts off a surface hit at P by a ray from `origin`. Large enough
+  // to clear the float error of the hit point (16 ulps of the larger coordinate of P and origin
+  // at least), small against any feature a displacement shader can make: 2e-5 of the scene's
+  // extent, as long as that is at most 2^-13 (1024 ulps) of the local scale. A fraction of the
+  // extent alone pushed shadow rays 56 units off a unit sphere standing on a 1e6-unit ground
+  // plane, and its shadow vanished; 16 ulps alone left speckles of self-shadowing on the
+  // facade's micro-triangles.
+  float epsilonAt(const glm::vec3& P, const glm::vec3& origin) const;
 
   // The lights in use: Scene::lights, or for readers that only fill the older fields, distant
   // lights and one ambient light made from Scene::distantLights and ambientColor.
@@ -138,7 +146,7 @@ class Integrator {
   ShadingOptions options_;
   std::vector<Light> lights_;
   std::vector<uint32_t> allLights_;  // 0 .. lights_.size() - 1: for meshes without a light list
-  float epsilon_;
+  float sceneEpsilon_ = 0;  // 2e-5 of the extent of the scene's geometry (epsilonAt)
   bool throughShadows_ = false;  // some surface lets shadow rays through (glass, Os < 1, Sides 1)
   bool anyOneSided_ = false;     // some surface is culled from behind (Sides 1, not glass)
 };

@@ -122,6 +122,12 @@ class BruteForce {
       }
     }
   }
+  // The accelerator intersects the triangles outside its grid (huge ones) in double precision;
+  // so does this reference for the triangles marked here.
+  void intersectInDouble(uint32_t mesh, uint32_t triangle) {
+    for (Entry& e : meshes_)
+      if (e.mesh == mesh && e.triangle == triangle) e.inDouble = true;
+  }
   struct Result {
     float t;
     uint32_t mesh, triangle, micro;
@@ -134,9 +140,11 @@ class BruteForce {
       for (uint32_t i = 0; i < e.micro.numTriangles(); ++i) {
         const uint32_t* tri = &e.micro.indices[3 * size_t(i)];
         TriangleHit h;
-        if (!intersectTriangle(wr, e.micro.P[tri[0]], e.micro.P[tri[1]], e.micro.P[tri[2]], ray.tMin,
-                               ray.tMax, h))
-          continue;
+        const bool hit = e.inDouble ? intersectTriangleDouble(ray, wr, e.micro.P[tri[0]], e.micro.P[tri[1]],
+                                                              e.micro.P[tri[2]], ray.tMin, ray.tMax, h)
+                                    : intersectTriangle(wr, e.micro.P[tri[0]], e.micro.P[tri[1]],
+                                                        e.micro.P[tri[2]], ray.tMin, ray.tMax, h);
+        if (!hit) continue;
         if (!best || h.t < best->t ||
             (h.t == best->t && std::tie(e.mesh, e.triangle, e.micro.ids[i]) <
                                    std::tie(best->mesh, best->triangle, best->micro)))
@@ -156,6 +164,7 @@ class BruteForce {
   struct Entry {
     uint32_t mesh, triangle;
     MicroMesh micro;
+    bool inDouble = false;
   };
   std::vector<Entry> meshes_;
 };

@@ -119,3 +119,54 @@ TEST(Intersect4, NonFiniteCornersAndLimitsNeverHit) {
 }  // namespace
 }  // namespace relief
 #endif  // __SSE2__ (without it the grid accelerator tests one triangle at a time)
+
+// The double-precision test for huge triangles and the face normal, on every machine.
+namespace relief {
+namespace {
+
+// A ground plane at y = -1.06 reaching 1e8 units, split along its diagonal: rays from near the
+// origin find it at the analytic distance (float edge functions lose the origin's position, whose
+// ulp is 8 units there) and exactly one of the two halves owns each ray, the diagonal included.
+TEST(IntersectDouble, HugeTriangleIsHitWhereItIs) {
+  const float h = 1e8f;
+  const glm::vec3 p0(-h, -1.06f, -h), p1(-h, -1.06f, h), p2(h, -1.06f, h), p3(h, -1.06f, -h);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> dir(-1.0f, 1.0f);
+  int hits = 0;
+  for (int i = 0; i < 2000; ++i) {
+    Ray ray{{0.3f, 2.7f, 5.9f}, glm::normalize(glm::vec3(dir(rng), -0.2f - 0.8f * std::fabs(dir(rng)), dir(rng))), 0.0f, 1e30f};
+    if (i % 100 == 0) ray.direction = glm::normalize(glm::vec3(-0.3f, -3.76f, -5.9f) + glm::vec3(0.1f * float(i / 100), 0, 0.1f * float(i / 100)));
+    const WatertightRay wr(ray);
+    TriangleHit a{}, b{};
+    const bool hitA = intersectTriangleDouble(ray, wr, p0, p1, p2, 0.0f, 1e30f, a);
+    const bool hitB = intersectTriangleDouble(ray, wr, p0, p2, p3, 0.0f, 1e30f, b);
+    ASSERT_TRUE(hitA || hitB) << i;
+    const double expected = (-1.06 - 2.7) / double(ray.direction.y);
+    const TriangleHit& hit = hitA ? a : b;
+    EXPECT_NEAR(hit.t, expected, 1e-5 * expected) << i;
+    EXPECT_NEAR(hit.b0 + hit.b1 + hit.b2, 1.0f, 1e-6f);
+    hits += hitA + hitB;
+  }
+  EXPECT_EQ(hits, 2000);  // never both: no double hits along the shared diagonal
+  // The limits hold after rounding t to float.
+  const Ray down{{0.0f, 0.0f, 0.0f}, {0.0f, -1.0f, 0.0f}, 0.0f, 1e30f};
+  const WatertightRay wr(down);
+  TriangleHit hit{};
+  EXPECT_TRUE(intersectTriangleDouble(down, wr, p0, p1, p2, 0.0f, 1.07f, hit));
+  EXPECT_EQ(hit.t, 1.06f);
+  EXPECT_FALSE(intersectTriangleDouble(down, wr, p0, p1, p2, 0.0f, 1.06f, hit));
+  EXPECT_FALSE(intersectTriangleDouble(down, wr, p0, p1, p2, 1.06f, 2.0f, hit));
+}
+
+TEST(IntersectDouble, FaceNormalOfAnySize) {
+  glm::vec3 n;
+  for (float s : {1e-30f, 1.0f, 1e20f, 1e37f}) {
+    ASSERT_TRUE(faceNormal(glm::vec3(0.0f), glm::vec3(s, 0.0f, 0.0f), glm::vec3(0.0f, s, 0.0f), &n)) << s;
+    EXPECT_EQ(n, glm::vec3(0.0f, 0.0f, 1.0f)) << s;
+  }
+  EXPECT_FALSE(faceNormal(glm::vec3(0.0f), glm::vec3(1.0f), glm::vec3(2.0f), &n));
+  EXPECT_FALSE(faceNormal(glm::vec3(0.0f), glm::vec3(INFINITY, 0.0f, 0.0f), glm::vec3(0.0f, 1.0f, 0.0f), &n));
+}
+
+}  // namespace
+}  // namespace relief

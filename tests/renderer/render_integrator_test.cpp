@@ -1,6 +1,7 @@
 // Tests of the integrator and render loop on small scenes read from RIB and intersected by the
 // brute-force stand-in: Lambert shading, back lighting, shadow rays, and images that are
 // bit-identical across pixel orders, thread counts and runs.
+#include <cmath>
 #include <sstream>
 
 #include <gtest/gtest.h>
@@ -227,6 +228,57 @@ TEST(RenderIntegrator, GridAcceleratorImageIsIdenticalAcrossOrdersThreadsAndBudg
   const Film small = renderWith(PixelOrder::Bucket, 2, 2000);
   EXPECT_GT(lastStats.capacityMisses, 0u);  // the budget really forced evictions
   EXPECT_TRUE(small.data() == reference.data());
+}
+
+// A displaced sphere on a ground plane of half-size 4 and on one of 1e6 and 1e8 (left out of the
+// grid as outside triangles): wherever the small plane or the sphere shows, the pictures agree.
+// The huge planes used to lose the sphere's shadow (shadow rays started 2e-5 of the scene's
+// extent off the surface, 56 units for the 1e6 plane) and to tear and vanish (float edge
+// functions of a triangle reaching 1e8 units).
+TEST(RenderIntegrator, HugeGroundPlaneKeepsTheShadowAndStaysWhole) {
+  test::TestShaderProvider shaders;
+  RibReadOptions options;
+  options.shaders = &shaders;
+  auto renderFloor = [&](const std::string& half) {
+    SceneError error;
+    std::optional<Scene> scene = readRibString(
+        "Format 48 36 1\nProjection \"perspective\" \"fov\" [40]\n"
+        "Translate 0 0 5\nRotate -20 1 0 0\nWorldBegin\n"
+        "LightSource \"distantlight\" 1 \"from\" [-2 3 -1.5] \"to\" [0 0 0]\n"
+        "LightSource \"ambientlight\" 2 \"intensity\" [0.1]\n"
+        "AttributeBegin\nAttribute \"displacementbound\" \"float sphere\" [0.2]\n"
+        "Attribute \"relief\" \"float edgelength\" [0.05]\n"
+        "Displacement \"push\" \"Km\" [0.15]\nSphere 1 -1 1 360\nAttributeEnd\n"
+        "Polygon \"P\" [-" + half + " -1.3 -" + half + "  -" + half + " -1.3 " + half + "  " + half +
+            " -1.3 " + half + "  " + half + " -1.3 -" + half + "]\nWorldEnd\n",
+        "floor.rib", options, &error);
+    EXPECT_TRUE(scene) << error.format();
+    Film film(48, 36);
+    if (!scene) return film;
+    std::unique_ptr<Accelerator> accel = makeGridAccelerator(*scene, AccelOptions{});
+    RenderOptions renderOptions;
+    renderOptions.threads = 1;
+    render(*scene, *accel, renderOptions, &film);
+    return film;
+  };
+  const Film small = renderFloor("4");
+  int shown = 0, shadowed = 0;
+  for (int y = 0; y < 36; ++y)
+    for (int x = 0; x < 48; ++x) {
+      shown += small.pixel(x, y).r > 0.0f;
+      shadowed += small.pixel(x, y).r > 0.0f && small.pixel(x, y).r < 0.12f;
+    }
+  ASSERT_GT(shown, 800);
+  ASSERT_GT(shadowed, 20);  // the sphere's shadow on the floor
+  for (const char* half : {"1e6", "1e8"}) {
+    SCOPED_TRACE(half);
+    const Film huge = renderFloor(half);
+    int differ = 0;
+    for (int y = 0; y < 36; ++y)
+      for (int x = 0; x < 48; ++x)
+        if (small.pixel(x, y).r > 0.0f && std::fabs(huge.pixel(x, y).r - small.pixel(x, y).r) > 0.02f) ++differ;
+    EXPECT_LE(differ, 5);
+  }
 }
 
 // The undisplaced sphere through the grid accelerator agrees with brute force nearly everywhere
