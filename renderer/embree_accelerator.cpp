@@ -16,6 +16,7 @@
 
 #include "renderer/atomic_max.h"
 #include "renderer/geometry_cache.h"  // cacheThreadShard
+#include "renderer/intersect.h"    // faceNormal
 #include "renderer/subdivide.h"
 #include "renderer/ticks.h"
 
@@ -313,9 +314,7 @@ std::optional<Hit> EmbreeAccelerator::intersect(const Ray& ray) {
   Hit hit;
   hit.t = rh.ray.tfar;
   hit.P = ray.origin + hit.t * ray.direction;
-  const glm::vec3 ng = glm::cross(p[1] - p[0], p[2] - p[0]);
-  const float len = glm::length(ng);
-  hit.Ng = len > 0.0f && std::isfinite(len) ? ng / len : -glm::normalize(ray.direction);
+  if (!faceNormal(p[0], p[1], p[2], &hit.Ng)) hit.Ng = -glm::normalize(ray.direction);
   // Embree's (u, v) weigh corners 1 and 2 of the micro-triangle, like intersect.h's b1, b2.
   const float u = rh.hit.u, v = rh.hit.v;
   hit.bary = (1.0f - u - v) * b[0] + u * b[1] + v * b[2];
