@@ -1237,6 +1237,7 @@ bool RibParser::executeCamera(const Call& call, bool* handled) {
     if (!parseParams(call, 1, &params)) return false;
     if (type == "perspective") {
       scene_.camera.perspective = true;
+      scene_.camera.fovDegrees = 90.0f;  // RI default: each Projection starts afresh
       if (!floatParam(call, params, "fov", &scene_.camera.fovDegrees)) return false;
       if (!(scene_.camera.fovDegrees > 0 && scene_.camera.fovDegrees < 180))
         return fail(call.line, "'Projection': 'fov' must be in (0, 180) degrees");

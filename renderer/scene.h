@@ -25,7 +25,7 @@ struct Camera {
   // Format's pixel aspect ratio: without a ScreenWindow or FrameAspectRatio, the frame's aspect
   // ratio is width * pixelAspect / height (RI spec), for whatever resolution is finally rendered.
   float pixelAspect = 1.0f;
-  float nearClip = 1e-4f, farClip = 1e30f;
+  float nearClip = 1e-10f, farClip = 1e30f;  // RI_EPSILON and RI_INFINITY (RI spec defaults)
 };
 
 struct DistantLight {

@@ -281,6 +281,49 @@ TEST(RenderIntegrator, HugeGroundPlaneKeepsTheShadowAndStaysWhole) {
   }
 }
 
+// The same scene built at 1e-6 and 1e6 of its size (camera included) renders the same picture:
+// no absolute tolerance hides in the camera's near plane (1e-4 by default until it became the RI
+// default RI_EPSILON; the 1e-6 scene was black), the ray offsets or the grid.
+TEST(RenderIntegrator, SceneScaleChangesNothing) {
+  test::TestShaderProvider shaders;
+  RibReadOptions options;
+  options.shaders = &shaders;
+  auto renderAt = [&](const std::string& k) {
+    SceneError error;
+    std::optional<Scene> scene = readRibString(
+        "Format 40 30 1\nProjection \"perspective\" \"fov\" [40]\n"
+        "Translate 0 0 5" + k + "\nRotate -20 1 0 0\nWorldBegin\nScale 1" + k + " 1" + k + " 1" + k + "\n"
+        "LightSource \"distantlight\" 1 \"from\" [-2 3 -1.5] \"to\" [0 0 0]\n"
+        "LightSource \"ambientlight\" 2 \"intensity\" [0.1]\n"
+        "AttributeBegin\nAttribute \"displacementbound\" \"float sphere\" [0.2] \"string coordinatesystem\" [\"object\"]\n"
+        "Attribute \"relief\" \"float edgelength\" [0.05" + k + "]\n"
+        "Displacement \"push\" \"Km\" [0]\nSphere 1 -1 1 360\nAttributeEnd\n"
+        "Polygon \"P\" [-4 -1.3 -4  -4 -1.3 4  4 -1.3 4  4 -1.3 -4]\nWorldEnd\n",
+        "scaled.rib", options, &error);
+    EXPECT_TRUE(scene) << error.format();
+    Film film(40, 30);
+    if (!scene) return film;
+    std::unique_ptr<Accelerator> accel = makeGridAccelerator(*scene, AccelOptions{});
+    RenderOptions renderOptions;
+    renderOptions.threads = 1;
+    render(*scene, *accel, renderOptions, &film);
+    return film;
+  };
+  const Film unit = renderAt("");
+  int lit = 0;
+  for (int y = 0; y < 30; ++y)
+    for (int x = 0; x < 40; ++x) lit += unit.pixel(x, y).r > 0.2f;
+  ASSERT_GT(lit, 300);
+  for (const char* k : {"e-6", "e6"}) {
+    SCOPED_TRACE(k);
+    const Film scaled = renderAt(k);
+    int differ = 0;
+    for (int y = 0; y < 30; ++y)
+      for (int x = 0; x < 40; ++x) differ += std::fabs(scaled.pixel(x, y).r - unit.pixel(x, y).r) > 0.02f;
+    EXPECT_LE(differ, 6);
+  }
+}
+
 // The undisplaced sphere through the grid accelerator agrees with brute force nearly everywhere
 // (edge pixels may differ where the two triangle tests round differently).
 TEST(RenderIntegrator, GridAcceleratorAgreesWithBruteForce) {

@@ -117,6 +117,18 @@ TEST(RibReader, ReadsImageAndCameraOptions) {
   EXPECT_EQ(r.warnings, "");
 }
 
+// A Projection replaces the one before it whole: without "fov", the RI default of 90 degrees.
+TEST(RibReader, ProjectionWithoutFovIsNinetyDegrees) {
+  ReadResult r = read("Projection \"perspective\" \"fov\" [35]\nProjection \"perspective\"\n" + world(""));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  EXPECT_FLOAT_EQ(r.scene->camera.fovDegrees, 90.0f);
+  r = read("Projection \"perspective\" \"fov\" [35]\nProjection \"orthographic\"\nProjection \"perspective\"\n" +
+           world(""));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  EXPECT_TRUE(r.scene->camera.perspective);
+  EXPECT_FLOAT_EQ(r.scene->camera.fovDegrees, 90.0f);
+}
+
 // RI spec: options are frozen at WorldBegin. One inside the world block is a warning naming its
 // line and the WorldBegin, and changes nothing.
 TEST(RibReader, OptionsInsideTheWorldBlockAreIgnoredWithAWarning) {
