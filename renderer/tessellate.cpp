@@ -30,6 +30,10 @@ Mesh tessellateSphere(float radius, float zmin, float zmax, float thetamaxDeg, i
   const glm::mat3 normalFromObject = glm::transpose(glm::inverse(linear));
   const bool flip = glm::determinant(linear) < 0.0f;
 
+  // RI spec, Quadrics: "giving a negative thetamax ... will turn the quadric inside-out". The
+  // normal is dP/du x dP/dv, which a clockwise sweep turns inward, as for the other quadrics.
+  const bool insideOut = thetamax < 0.0f;
+
   const int rowLength = nu + 1;
   mesh.P.reserve(size_t(rowLength) * (nv + 1));
   for (int j = 0; j <= nv; ++j) {
@@ -49,32 +53,26 @@ Mesh tessellateSphere(float radius, float zmin, float zmax, float thetamaxDeg, i
         const float phi = u * thetamax;
         const glm::vec3 pObject(r * cosLat * std::cos(phi), r * cosLat * std::sin(phi), z);
         mesh.P.push_back(glm::vec3(worldFromObject * glm::vec4(pObject, 1.0f)));
-        mesh.N.push_back(glm::normalize(normalFromObject * (pObject / r)));
+        mesh.N.push_back(glm::normalize(normalFromObject * (pObject / (insideOut ? -r : r))));
       }
       mesh.uv.emplace_back(u, v);
     }
   }
   mesh.st = mesh.uv;
 
-  // Winding: dP/du x dP/dv points outward, so (00, 10, 11) and (00, 11, 01) face out in object
-  // space; a mirroring worldFromObject reverses the winding, which the flip undoes.
+  // Winding: dP/du x dP/dv, so (00, 10, 11) and (00, 11, 01) face out in object space (in for a
+  // negative sweep); a mirroring worldFromObject reverses the winding, which the flip undoes.
   auto addTriangle = [&](uint32_t a, uint32_t b, uint32_t c) {
     mesh.indices.push_back(a);
     mesh.indices.push_back(flip ? c : b);
     mesh.indices.push_back(flip ? b : c);
   };
-  const bool reversed = thetamax < 0.0f;  // a negative sweep runs clockwise: swap to stay outward
   for (int j = 0; j < nv; ++j) {
     for (int i = 0; i < nu; ++i) {
       const uint32_t v00 = uint32_t(j * rowLength + i), v10 = v00 + 1;
       const uint32_t v01 = v00 + uint32_t(rowLength), v11 = v01 + 1;
-      if (!reversed) {
-        addTriangle(v00, v10, v11);
-        addTriangle(v00, v11, v01);
-      } else {
-        addTriangle(v00, v11, v10);
-        addTriangle(v00, v01, v11);
-      }
+      addTriangle(v00, v10, v11);
+      addTriangle(v00, v11, v01);
     }
   }
   return mesh;

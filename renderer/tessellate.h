@@ -9,7 +9,7 @@
 namespace relief {
 
 // RenderMan Sphere radius zmin zmax thetamax (degrees), tessellated into nu x nv quads split into
-// triangles, with per-vertex P, N (outward), uv = (phi/thetamax, (theta-thetamin)/(thetamax-thetamin))
+// triangles, with per-vertex P, N (outward; inward for a negative thetamax, RI's inside-out sphere), uv = (phi/thetamax, (theta-thetamin)/(thetamax-thetamin))
 // as RenderMan's parametric u,v, st = uv; seam vertices duplicated; poles handled without
 // degenerate-triangle NaNs. Positions transformed by worldFromObject (normals by its inverse
 // transpose).

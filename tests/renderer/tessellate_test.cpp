@@ -47,6 +47,24 @@ TEST(TessellateSphere, MirroringTransformKeepsOutwardWinding) {
   }
 }
 
+// RI spec, Quadrics: a negative thetamax turns the quadric inside-out, as dP/du x dP/dv says
+// (and as Cylinder, Cone, Disk and the rest do): normals and winding face the centre.
+TEST(TessellateSphere, NegativeSweepTurnsItInsideOut) {
+  Mesh mesh = tessellateSphere(1.0f, -1.0f, 1.0f, -360.0f, 12, 6, glm::mat4(1.0f));
+  for (size_t i = 0; i < mesh.P.size(); ++i) EXPECT_LT(glm::dot(mesh.N[i], mesh.P[i]), -0.99f);
+  int inward = 0;
+  for (uint32_t t = 0; t < mesh.numTriangles(); ++t) {
+    glm::vec3 a = mesh.P[mesh.indices[3 * t]], b = mesh.P[mesh.indices[3 * t + 1]],
+              c = mesh.P[mesh.indices[3 * t + 2]];
+    glm::vec3 ng = glm::cross(b - a, c - a);
+    if (glm::length(ng) > 0.0f) {
+      EXPECT_LT(glm::dot(ng, a + b + c), 0.0f) << "triangle " << t;
+      ++inward;
+    }
+  }
+  EXPECT_GT(inward, 100);
+}
+
 TEST(TessellateSphere, ParametersSpanUnitSquare) {
   Mesh mesh = tessellateSphere(1.0f, -0.5f, 0.8f, 270.0f, 12, 5, glm::mat4(1.0f));
   float uMin = 1, uMax = 0, vMin = 1, vMax = 0;
