@@ -8,6 +8,8 @@ namespace relief {
 
 CameraRays::CameraRays(const Camera& camera, int width, int height)
     : worldFromCamera_(camera.worldFromCamera),
+      projectedFromScreen_(glm::inverse(camera.screenFromProjected)),
+      screenTransformed_(camera.screenFromProjected != glm::mat4(1.0f)),
       originWorld_(camera.worldFromCamera * glm::vec4(0, 0, 0, 1)),
       perspective_(camera.perspective),
       tanHalfFov_(std::tan(glm::radians(camera.fovDegrees) * 0.5f)),
@@ -29,8 +31,12 @@ CameraRays::CameraRays(const Camera& camera, int width, int height)
 }
 
 Ray CameraRays::generate(float rasterX, float rasterY) const {
-  const float sx = window_[0] + (window_[1] - window_[0]) * (rasterX / width_);
-  const float sy = window_[3] - (window_[3] - window_[2]) * (rasterY / height_);
+  float sx = window_[0] + (window_[1] - window_[0]) * (rasterX / width_);
+  float sy = window_[3] - (window_[3] - window_[2]) * (rasterY / height_);
+  if (screenTransformed_) {
+    const glm::vec4 q = projectedFromScreen_ * glm::vec4(sx, sy, 0.0f, 1.0f);
+    if (q.w != 0.0f) sx = q.x / q.w, sy = q.y / q.w;
+  }
   Ray ray;
   if (perspective_) {
     ray.origin = originWorld_;

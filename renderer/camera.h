@@ -23,6 +23,8 @@ class CameraRays {
 
  private:
   glm::mat4 worldFromCamera_;
+  glm::mat4 projectedFromScreen_;  // inverse of Camera::screenFromProjected
+  bool screenTransformed_;
   glm::vec3 originWorld_;
   bool perspective_;
   float tanHalfFov_;

@@ -1227,6 +1227,15 @@ bool RibParser::executeCamera(const Call& call, bool* handled) {
   } else if (n == "Projection") {
     std::string type;
     if (!positionalString(call, 0, &type)) return false;
+    // RI spec: the transforms given before Projection act on screen space (after projecting), and
+    // the current transform starts again from the identity for the camera transform. Only their
+    // part within the screen plane changes a ray tracer's picture (a z scale only reorders depth).
+    const glm::mat4& m = attr_.ctm;
+    if (m[2][0] != 0.0f || m[2][1] != 0.0f || m[0][3] != 0.0f || m[1][3] != 0.0f || m[2][3] != 0.0f)
+      warn(call.line, "'Projection': the transforms before it act on screen space; only their part "
+                      "within the screen plane is used");
+    scene_.camera.screenFromProjected = m;
+    attr_.ctm = glm::mat4(1.0f);
     if (type != "perspective" && type != "orthographic") {
       warnOnce(call.line, "projection/" + type,
                "unsupported projection '" + type + "'; using orthographic");

@@ -26,6 +26,9 @@ struct Camera {
   // ratio is width * pixelAspect / height (RI spec), for whatever resolution is finally rendered.
   float pixelAspect = 1.0f;
   float nearClip = 1e-10f, farClip = 1e30f;  // RI_EPSILON and RI_INFINITY (RI spec defaults)
+  // The transforms given before Projection (RI spec: they act on screen space, after the
+  // projection): screen coordinates from projected ones, within the screen plane.
+  glm::mat4 screenFromProjected{1.0f};
 };
 
 struct DistantLight {

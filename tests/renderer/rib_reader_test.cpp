@@ -129,6 +129,33 @@ TEST(RibReader, ProjectionWithoutFovIsNinetyDegrees) {
   EXPECT_FLOAT_EQ(r.scene->camera.fovDegrees, 90.0f);
 }
 
+// RI spec: the transforms before Projection act on screen space and the current transform starts
+// again from the identity, so a z flip there does not turn the camera round (it only reorders
+// depth), and a rotation about z turns the picture, not the view.
+TEST(RibReader, TransformsBeforeProjectionActOnScreenSpace) {
+  ReadResult r = read("Format 64 48 1\nScale 1 1 -1\nProjection \"perspective\" \"fov\" [60]\n"
+                      "Translate 0 0 5\n" + world(""));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  EXPECT_EQ(r.warnings, "");
+  CameraRays rays(r.scene->camera, 64, 48);
+  Ray centre = rays.generate(32, 24);
+  EXPECT_EQ(centre.origin, glm::vec3(0.0f, 0.0f, -5.0f));
+  EXPECT_GT(centre.direction.z, 0.0f);  // still looking down +z, at the world's origin
+  r = read("Format 64 48 1\nRotate 90 0 0 1\nProjection \"perspective\" \"fov\" [60]\n" + world(""));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  CameraRays turned(r.scene->camera, 64, 48);
+  centre = turned.generate(32, 24);
+  EXPECT_NEAR(centre.direction.x, 0.0f, 1e-6f);
+  EXPECT_NEAR(centre.direction.y, 0.0f, 1e-6f);
+  // The right edge's ray of the turned screen is a vertical one of the plain screen.
+  const Ray right = turned.generate(64, 24);
+  EXPECT_NEAR(right.direction.x, 0.0f, 1e-5f);
+  EXPECT_GT(std::fabs(right.direction.y), 0.5f);
+  r = read("ConcatTransform [1 0 0 0  0 1 0 0  0.5 0 1 0  0 0 0 1]\nProjection \"perspective\"\n" + world(""));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  EXPECT_NE(r.warnings.find("act on screen space"), std::string::npos) << r.warnings;
+}
+
 // RI spec: options are frozen at WorldBegin. One inside the world block is a warning naming its
 // line and the WorldBegin, and changes nothing.
 TEST(RibReader, OptionsInsideTheWorldBlockAreIgnoredWithAWarning) {
