@@ -1352,6 +1352,13 @@ bool RibParser::executeCamera(const Call& call, bool* handled) {
                                                                      : "TransformBegin") +
                                  "' (line " + std::to_string(stack_.back().line) + ")");
     if (singular(attr_.ctm)) return fail(call.line, "the camera transform is singular");
+    {
+      const glm::mat4 inverse = glm::inverse(attr_.ctm);
+      bool finite = true;
+      for (int c = 0; c < 4; ++c)
+        for (int r = 0; r < 4; ++r) finite = finite && std::isfinite(attr_.ctm[c][r]) && std::isfinite(inverse[c][r]);
+      if (!finite) return fail(call.line, "the camera transform has non-finite entries");
+    }
     inWorld_ = true;
     worldLine_ = call.line;
     scene_.camera.worldFromCamera = glm::inverse(attr_.ctm);
@@ -1406,7 +1413,13 @@ bool RibParser::executeTransform(const Call& call, bool* handled) {
   } else if (n == "Transform" || n == "ConcatTransform") {
     if (!positionalNumbers(call, 16, &v, &next)) return false;
     // A singular matrix is kept: geometry under it is skipped (see executeGeometry).
-    const glm::mat4 m = glm::make_mat4(v.data());
+    glm::mat4 m = glm::make_mat4(v.data());
+    // RI matrices are homogeneous: [2 0 0 0 0 2 0 0 0 0 2 0 0 0 0 2] is the identity. A uniform
+    // w is divided out; a projective matrix, which would bend straight edges, is refused.
+    if (m[0][3] != 0.0f || m[1][3] != 0.0f || m[2][3] != 0.0f || !(m[3][3] != 0.0f))
+      return fail(call.line, "'" + n + "': projective matrices (a last column other than [0 0 0 w], "
+                             "w nonzero) are not supported");
+    if (m[3][3] != 1.0f) m *= 1.0f / m[3][3];
     attr_.ctm = n == "Transform" ? m : attr_.ctm * m;
   } else if (n == "Translate") {
     if (!positionalNumbers(call, 3, &v, &next)) return false;

@@ -156,6 +156,24 @@ TEST(RibReader, TransformsBeforeProjectionActOnScreenSpace) {
   EXPECT_NE(r.warnings.find("act on screen space"), std::string::npos) << r.warnings;
 }
 
+// RI matrices are homogeneous: a uniform w divides out; projective ones and cameras that overflow
+// are errors at their line, not silently wrong or black pictures.
+TEST(RibReader, HomogeneousMatricesAndNonFiniteCameras) {
+  ReadResult a = read(world("ConcatTransform [2 0 0 0  0 2 0 0  0 0 2 0  0 0 0 2]\nPolygon \"P\" [0 0 0 1 0 0 1 1 0]"));
+  ReadResult b = read(world("Polygon \"P\" [0 0 0 1 0 0 1 1 0]"));
+  ASSERT_TRUE(a.scene && b.scene) << a.error.format();
+  EXPECT_EQ(a.scene->meshes.at(0).P, b.scene->meshes.at(0).P);
+  ReadResult c = read(world("Transform [1 0 0 0  0 1 0 0  0 0 1 0  0 0 0 0.5]\nPolygon \"P\" [0 0 0 1 0 0 1 1 0]"));
+  ASSERT_TRUE(c.scene) << c.error.format();
+  EXPECT_EQ(c.scene->meshes.at(0).P.at(1), glm::vec3(2.0f, 0.0f, 0.0f));
+  ReadResult d = read(world("ConcatTransform [1 0 0 0.5  0 1 0 0  0 0 1 0  0 0 0 1]\nPolygon \"P\" [0 0 0 1 0 0 1 1 0]"));
+  EXPECT_FALSE(d.scene);
+  EXPECT_NE(d.error.message.find("projective"), std::string::npos) << d.error.message;
+  ReadResult e = read("Translate 0 0 5\nScale 1e30 1e30 1e30\nTranslate 1e30 0 0\n" + world(""));
+  EXPECT_FALSE(e.scene);
+  EXPECT_NE(e.error.message.find("non-finite"), std::string::npos) << e.error.message;
+}
+
 // RI spec: options are frozen at WorldBegin. One inside the world block is a warning naming its
 // line and the WorldBegin, and changes nothing.
 TEST(RibReader, OptionsInsideTheWorldBlockAreIgnoredWithAWarning) {
