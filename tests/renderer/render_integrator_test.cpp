@@ -230,18 +230,32 @@ TEST(RenderIntegrator, GridAcceleratorImageIsIdenticalAcrossOrdersThreadsAndBudg
   EXPECT_TRUE(small.data() == reference.data());
 }
 
+// Reads `rib` (with the "push" test shader) and renders it with the grid accelerator on one thread;
+// a blank film of the given size when the scene does not load.
+Film renderGridScene(const std::string& rib, int width, int height) {
+  test::TestShaderProvider shaders;
+  RibReadOptions options;
+  options.shaders = &shaders;
+  SceneError error;
+  std::optional<Scene> scene = readRibString(rib, "scene.rib", options, &error);
+  EXPECT_TRUE(scene) << error.format();
+  Film film(width, height);
+  if (!scene) return film;
+  std::unique_ptr<Accelerator> accel = makeGridAccelerator(*scene, AccelOptions{});
+  RenderOptions renderOptions;
+  renderOptions.threads = 1;
+  render(*scene, *accel, renderOptions, &film);
+  return film;
+}
+
 // A displaced sphere on a ground plane of half-size 4 and on one of 1e6 and 1e8 (left out of the
 // grid as outside triangles): wherever the small plane or the sphere shows, the pictures agree.
 // The huge planes used to lose the sphere's shadow (shadow rays started 2e-5 of the scene's
 // extent off the surface, 56 units for the 1e6 plane) and to tear and vanish (float edge
 // functions of a triangle reaching 1e8 units).
 TEST(RenderIntegrator, HugeGroundPlaneKeepsTheShadowAndStaysWhole) {
-  test::TestShaderProvider shaders;
-  RibReadOptions options;
-  options.shaders = &shaders;
   auto renderFloor = [&](const std::string& half) {
-    SceneError error;
-    std::optional<Scene> scene = readRibString(
+    return renderGridScene(
         "Format 48 36 1\nProjection \"perspective\" \"fov\" [40]\n"
         "Translate 0 0 5\nRotate -20 1 0 0\nWorldBegin\n"
         "LightSource \"distantlight\" 1 \"from\" [-2 3 -1.5] \"to\" [0 0 0]\n"
@@ -251,15 +265,7 @@ TEST(RenderIntegrator, HugeGroundPlaneKeepsTheShadowAndStaysWhole) {
         "Displacement \"push\" \"Km\" [0.15]\nSphere 1 -1 1 360\nAttributeEnd\n"
         "Polygon \"P\" [-" + half + " -1.3 -" + half + "  -" + half + " -1.3 " + half + "  " + half +
             " -1.3 " + half + "  " + half + " -1.3 -" + half + "]\nWorldEnd\n",
-        "floor.rib", options, &error);
-    EXPECT_TRUE(scene) << error.format();
-    Film film(48, 36);
-    if (!scene) return film;
-    std::unique_ptr<Accelerator> accel = makeGridAccelerator(*scene, AccelOptions{});
-    RenderOptions renderOptions;
-    renderOptions.threads = 1;
-    render(*scene, *accel, renderOptions, &film);
-    return film;
+        48, 36);
   };
   const Film small = renderFloor("4");
   int shown = 0, shadowed = 0;
@@ -285,12 +291,8 @@ TEST(RenderIntegrator, HugeGroundPlaneKeepsTheShadowAndStaysWhole) {
 // no absolute tolerance hides in the camera's near plane (1e-4 by default until it became the RI
 // default RI_EPSILON; the 1e-6 scene was black), the ray offsets or the grid.
 TEST(RenderIntegrator, SceneScaleChangesNothing) {
-  test::TestShaderProvider shaders;
-  RibReadOptions options;
-  options.shaders = &shaders;
   auto renderAt = [&](const std::string& k) {
-    SceneError error;
-    std::optional<Scene> scene = readRibString(
+    return renderGridScene(
         "Format 40 30 1\nProjection \"perspective\" \"fov\" [40]\n"
         "Translate 0 0 5" + k + "\nRotate -20 1 0 0\nWorldBegin\nScale 1" + k + " 1" + k + " 1" + k + "\n"
         "LightSource \"distantlight\" 1 \"from\" [-2 3 -1.5] \"to\" [0 0 0]\n"
@@ -299,15 +301,7 @@ TEST(RenderIntegrator, SceneScaleChangesNothing) {
         "Attribute \"relief\" \"float edgelength\" [0.05" + k + "]\n"
         "Displacement \"push\" \"Km\" [0]\nSphere 1 -1 1 360\nAttributeEnd\n"
         "Polygon \"P\" [-4 -1.3 -4  -4 -1.3 4  4 -1.3 4  4 -1.3 -4]\nWorldEnd\n",
-        "scaled.rib", options, &error);
-    EXPECT_TRUE(scene) << error.format();
-    Film film(40, 30);
-    if (!scene) return film;
-    std::unique_ptr<Accelerator> accel = makeGridAccelerator(*scene, AccelOptions{});
-    RenderOptions renderOptions;
-    renderOptions.threads = 1;
-    render(*scene, *accel, renderOptions, &film);
-    return film;
+        40, 30);
   };
   const Film unit = renderAt("");
   int lit = 0;
