@@ -2129,8 +2129,9 @@ bool RibParser::doSphere(const Call& call) {
   std::vector<Primvar> vars;
   if (!quadricPrimvars(call, params, &vars)) return false;
   const float radius = v[0];
-  float zmin = std::clamp(std::min(v[1], v[2]), -std::fabs(radius), std::fabs(radius));
-  float zmax = std::clamp(std::max(v[1], v[2]), -std::fabs(radius), std::fabs(radius));
+  // In the order given: swapped bounds run v downward and turn the sphere inside-out (RI).
+  float zmin = std::clamp(v[1], -std::fabs(radius), std::fabs(radius));
+  float zmax = std::clamp(v[2], -std::fabs(radius), std::fabs(radius));
   const float thetamax = std::clamp(v[3], -360.0f, 360.0f);
   if (radius == 0 || zmin == zmax || thetamax == 0) {
     warn(call.line, "degenerate 'Sphere' skipped");
@@ -2145,7 +2146,7 @@ bool RibParser::doSphere(const Call& call) {
   const int minU = 256, minV = 128;
   const float sweep = std::fabs(thetamax) / 360.0f;
   const float vFraction =
-      (std::acos(zmin / std::fabs(radius)) - std::acos(zmax / std::fabs(radius))) / float(M_PI);
+      std::fabs(std::acos(zmin / std::fabs(radius)) - std::acos(zmax / std::fabs(radius))) / float(M_PI);
   const float arcU = 2.0f * float(M_PI) * worldRadius * sweep;
   const float arcV = float(M_PI) * worldRadius * std::fabs(vFraction);
   const int nu = std::clamp(int(std::ceil(arcU / target)), std::max(4, int(float(minU) * sweep)), 1024);

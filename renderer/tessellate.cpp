@@ -22,9 +22,11 @@ Mesh tessellateSphere(float radius, float zmin, float zmax, float thetamaxDeg, i
     if (z >= r) return std::numbers::pi_v<float> / 2;
     return std::asin(z / r);
   };
-  float latMin = latitude(std::min(zmin, zmax)), latMax = latitude(std::max(zmin, zmax));
-  const bool southPole = latMin == -std::numbers::pi_v<float> / 2;
-  const bool northPole = latMax == std::numbers::pi_v<float> / 2;
+  // v runs from zmin to zmax as given (RI: phi from asin(zmin/r) to asin(zmax/r)); swapped bounds
+  // run it downward, which turns the sphere inside-out like the other quadrics.
+  const float lat0 = latitude(zmin), lat1 = latitude(zmax);
+  constexpr float kHalfPi = std::numbers::pi_v<float> / 2;
+  const bool pole0 = std::fabs(lat0) == kHalfPi, pole1 = std::fabs(lat1) == kHalfPi;
 
   const glm::mat3 linear(worldFromObject);
   const glm::mat3 normalFromObject = glm::transpose(glm::inverse(linear));
@@ -32,16 +34,16 @@ Mesh tessellateSphere(float radius, float zmin, float zmax, float thetamaxDeg, i
 
   // RI spec, Quadrics: "giving a negative thetamax ... will turn the quadric inside-out". The
   // normal is dP/du x dP/dv, which a clockwise sweep turns inward, as for the other quadrics.
-  const bool insideOut = thetamax < 0.0f;
+  const bool insideOut = (thetamax < 0.0f) != (lat0 > lat1);
 
   const int rowLength = nu + 1;
   mesh.P.reserve(size_t(rowLength) * (nv + 1));
   for (int j = 0; j <= nv; ++j) {
     const float v = float(j) / float(nv);
-    const float lat = j == 0 ? latMin : j == nv ? latMax : latMin + v * (latMax - latMin);
-    const bool pole = (j == 0 && southPole) || (j == nv && northPole);
+    const float lat = j == 0 ? lat0 : j == nv ? lat1 : lat0 + v * (lat1 - lat0);
+    const bool pole = (j == 0 && pole0) || (j == nv && pole1);
     const float cosLat = pole ? 0.0f : std::cos(lat);
-    const float z = pole ? (j == 0 ? -r : r) : r * std::sin(lat);
+    const float z = pole ? (lat > 0.0f ? r : -r) : r * std::sin(lat);
     for (int i = 0; i <= nu; ++i) {
       const float u = float(i) / float(nu);
       const size_t seamSource = size_t(j) * rowLength;  // i == 0 of this row

@@ -49,7 +49,15 @@ TEST(TessellateSphere, MirroringTransformKeepsOutwardWinding) {
 
 // RI spec, Quadrics: a negative thetamax turns the quadric inside-out, as dP/du x dP/dv says
 // (and as Cylinder, Cone, Disk and the rest do): normals and winding face the centre.
+// Swapped z bounds run v downward (RI: from asin(zmin/r) to asin(zmax/r)) and turn it inside-out
+// too; both together cancel.
 TEST(TessellateSphere, NegativeSweepTurnsItInsideOut) {
+  Mesh swapped = tessellateSphere(1.0f, 0.8f, -0.5f, 360.0f, 12, 6, glm::mat4(1.0f));
+  EXPECT_NEAR(swapped.P.front().z, 0.8f, 1e-6f);  // v = 0 at zmin as given
+  EXPECT_NEAR(swapped.P.back().z, -0.5f, 1e-6f);
+  for (size_t i = 0; i < swapped.P.size(); ++i) EXPECT_LT(glm::dot(swapped.N[i], swapped.P[i]), -0.99f);
+  Mesh both = tessellateSphere(1.0f, 1.0f, -1.0f, -360.0f, 12, 6, glm::mat4(1.0f));
+  for (size_t i = 0; i < both.P.size(); ++i) EXPECT_GT(glm::dot(both.N[i], both.P[i]), 0.99f);
   Mesh mesh = tessellateSphere(1.0f, -1.0f, 1.0f, -360.0f, 12, 6, glm::mat4(1.0f));
   for (size_t i = 0; i < mesh.P.size(); ++i) EXPECT_LT(glm::dot(mesh.N[i], mesh.P[i]), -0.99f);
   int inward = 0;
