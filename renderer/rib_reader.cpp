@@ -1027,6 +1027,11 @@ bool RibParser::execute(const Call& call) {
   // are followed, so that all are numbered and each must be closed.
   if (skipping_ || frameDone_) {
     if (name == "FrameBegin") return beginFrame(call);
+    // A world block after the last frame block would be a further image; reading past it in
+    // silence hid it and every error inside it.
+    if (name == "WorldBegin" && frameDepth_ == 0)
+      return fail(call.line, "'WorldBegin' outside 'FrameBegin'/'FrameEnd' in a file of frame blocks: "
+                             "put this image in a frame block of its own");
     if (name == "FrameEnd") {
       if (frameDepth_ == 0) return fail(call.line, "'FrameEnd' without 'FrameBegin'");
       --frameDepth_;

@@ -174,6 +174,15 @@ TEST(RibReader, HomogeneousMatricesAndNonFiniteCameras) {
   EXPECT_NE(e.error.message.find("non-finite"), std::string::npos) << e.error.message;
 }
 
+// A world block after the last FrameEnd is a further image: an error at its line, not skipped with
+// every error inside it.
+TEST(RibReader, WorldAfterTheLastFrameIsAnError) {
+  ReadResult r = read("FrameBegin 1\n" + world("") + "FrameEnd\nWorldBegin\nReadArchive \"missing.rib\"\nWorldEnd\n");
+  EXPECT_FALSE(r.scene);
+  EXPECT_EQ(r.error.line, 6);  // the second WorldBegin
+  EXPECT_NE(r.error.message.find("frame block"), std::string::npos) << r.error.message;
+}
+
 // RI spec: options are frozen at WorldBegin. One inside the world block is a warning naming its
 // line and the WorldBegin, and changes nothing.
 TEST(RibReader, OptionsInsideTheWorldBlockAreIgnoredWithAWarning) {
