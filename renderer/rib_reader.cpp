@@ -1357,16 +1357,14 @@ bool RibParser::executeCamera(const Call& call, bool* handled) {
                                                                      : "TransformBegin") +
                                  "' (line " + std::to_string(stack_.back().line) + ")");
     if (singular(attr_.ctm)) return fail(call.line, "the camera transform is singular");
-    {
-      const glm::mat4 inverse = glm::inverse(attr_.ctm);
-      bool finite = true;
-      for (int c = 0; c < 4; ++c)
-        for (int r = 0; r < 4; ++r) finite = finite && std::isfinite(attr_.ctm[c][r]) && std::isfinite(inverse[c][r]);
-      if (!finite) return fail(call.line, "the camera transform has non-finite entries");
-    }
+    const glm::mat4 worldFromCamera = glm::inverse(attr_.ctm);
+    for (int c = 0; c < 4; ++c)
+      for (int r = 0; r < 4; ++r)
+        if (!std::isfinite(attr_.ctm[c][r]) || !std::isfinite(worldFromCamera[c][r]))
+          return fail(call.line, "the camera transform has non-finite entries");
     inWorld_ = true;
     worldLine_ = call.line;
-    scene_.camera.worldFromCamera = glm::inverse(attr_.ctm);
+    scene_.camera.worldFromCamera = worldFromCamera;
     attr_.ctm = glm::mat4(1.0f);
     const glm::mat4& w = scene_.camera.worldFromCamera;
     for (size_t index : lightsBeforeWorld_) {

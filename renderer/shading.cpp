@@ -255,7 +255,7 @@ glm::vec3 Integrator::transmittance(const Ray& ray, RenderStats* stats) const {
       }
       if (isBlack(through)) return glm::vec3(0.0f);
     }
-    r.tMin = hit->t + epsilonAt(hit->P, r.origin) / dirLength;
+    r.tMin = hit->t + s.epsilon / dirLength;
     if (!(r.tMin < r.tMax)) return through;
   }
   return glm::vec3(0.0f);
