@@ -336,6 +336,7 @@ struct StackEntry {
   AttributeState state;
   bool attribute = true;  // AttributeBegin (else TransformBegin)
   int line = 0;
+  std::string file;  // where the block opened: an archive's blocks may be left open
   // ScopedCoordinateSystem names defined in this attribute block, with what they meant before
   // (nothing: undefined), restored at its AttributeEnd.
   std::vector<std::pair<std::string, std::optional<glm::mat4>>> scopedSpaces;
@@ -366,21 +367,21 @@ class RibParser {
     }
     const int eofLine = tokens_.back().line;
     if (motionLine_ > 0) {
-      fail(eofLine, "unexpected end of file: 'MotionBegin' at line " +
-                        std::to_string(motionLine_) + " has no 'MotionEnd'");
+      fail(eofLine, "unexpected end of file: 'MotionBegin' at " +
+                        lineRef(motionLine_, motionFile_) + " has no 'MotionEnd'");
     } else if (!stack_.empty()) {
       const StackEntry& e = stack_.back();
       fail(eofLine, std::string("unexpected end of file: '") +
-                        (e.attribute ? "AttributeBegin" : "TransformBegin") + "' at line " +
-                        std::to_string(e.line) + " has no '" +
+                        (e.attribute ? "AttributeBegin" : "TransformBegin") + "' at " +
+                        lineRef(e.line, e.file) + " has no '" +
                         (e.attribute ? "AttributeEnd" : "TransformEnd") + "'");
     } else if (recording_) {
       fail(eofLine, "unexpected end of file: " + unclosedRecording());
     } else if (inWorld_) {
-      fail(eofLine, "unexpected end of file: 'WorldBegin' at line " + std::to_string(worldLine_) +
+      fail(eofLine, "unexpected end of file: 'WorldBegin' at " + lineRef(worldLine_, worldFile_) +
                         " has no 'WorldEnd'");
     } else if (frameDepth_ > 0) {
-      fail(eofLine, "unexpected end of file: 'FrameBegin' at line " + std::to_string(frameLine_) +
+      fail(eofLine, "unexpected end of file: 'FrameBegin' at " + lineRef(frameLine_, frameFile_) +
                         " has no 'FrameEnd'");
     } else if (listFrames_) {
       // Frames are numbered, not read: there is no world to ask for.
@@ -421,6 +422,7 @@ class RibParser {
     if (frameDepth_ > 0) return fail(call.line, "nested 'FrameBegin'");
     ++frameDepth_;
     frameLine_ = call.line;
+    frameFile_ = fileName_;
     const int index = int(scene_.frameNumbers.size());
     scene_.frameNumbers.push_back(frameNumber(call));
     skipping_ = index != selectedFrame_;
@@ -789,9 +791,13 @@ class RibParser {
   bool doObjectInstance(const Call& call);
   bool readArchive(const Call& call, const std::string& name);
   // "'ObjectBegin' at line N has no 'ObjectEnd'" (or ArchiveBegin's) for the open recording.
+  // "line N", and the file too when the block opened in another one (an archive).
+  std::string lineRef(int line, const std::string& file) const {
+    return "line " + std::to_string(line) + (file != fileName_ ? " of '" + file + "'" : "");
+  }
   std::string unclosedRecording() const {
     const char* what = recordingArchive_ ? "Archive" : "Object";
-    return std::string("'") + what + "Begin' at line " + std::to_string(recordingLine_) + " has no '" + what + "End'";
+    return std::string("'") + what + "Begin' at " + lineRef(recordingLine_, recordingFile_) + " has no '" + what + "End'";
   }
   struct RecordedCall;
   bool replay(const std::vector<RecordedCall>& calls);
@@ -989,6 +995,7 @@ class RibParser {
   std::map<std::string, std::vector<RecordedCall>> inlineArchives_;  // ArchiveBegin/End, for ReadArchive
   std::string recordingName_;
   int recordingLine_ = 0;
+  std::string recordingFile_;
   std::vector<std::pair<std::string, int>> recordingBlocks_;  // blocks open in the object (name, line)
   int instanceDepth_ = 0;
   // Budgets on what a scene expands to (execute, addMesh), past which reading stops with an error.
@@ -997,16 +1004,19 @@ class RibParser {
   uint64_t executedCalls_ = 0, inputTriangles_ = 0;
   int frameDepth_ = 0;
   int frameLine_ = 0;
+  std::string frameFile_;
   const bool listFrames_;
   const int selectedFrame_;     // index into scene_.frameNumbers; -1: none (listFrames_)
   int selectedFrameLine_ = 0;   // its FrameBegin
   bool skipping_ = false;       // inside a frame block other than the selected one
   bool frameDone_ = false;      // the selected frame and its world have ended
   int motionLine_ = 0;     // line of the open MotionBegin; 0: outside motion blocks
+  std::string motionFile_;
   bool motionSampleTaken_ = false;  // the open motion block's first sample has run
   std::set<std::string> warnedKeys_;
   bool inWorld_ = false, worldDone_ = false;
   int worldLine_ = 0;
+  std::string worldFile_;
   int archiveDepth_ = 0;
   // name -> worldFromNamed; before WorldBegin, cameraFromNamed for the names in
   // spacesBeforeWorld_ (the world is not placed yet), made world-relative at WorldBegin.
@@ -1092,6 +1102,7 @@ bool RibParser::execute(const Call& call) {
     recordingArchive_ = true;
     recordingName_ = archive;
     recordingLine_ = call.line;
+    recordingFile_ = fileName_;
     return true;
   }
   if (name == "ArchiveEnd") return fail(call.line, "'ArchiveEnd' without 'ArchiveBegin'");
@@ -1103,6 +1114,7 @@ bool RibParser::execute(const Call& call) {
     recording_->clear();
     recordingName_ = handle;
     recordingLine_ = call.line;
+    recordingFile_ = fileName_;
     recordingBlocks_.clear();
     return true;
   }
@@ -1110,11 +1122,12 @@ bool RibParser::execute(const Call& call) {
   // Without motion blur the scene is the one at the first time, so only the first call counts.
   if (name == "MotionBegin") {
     if (motionLine_ > 0)
-      return fail(call.line, "nested 'MotionBegin' (the block at line " +
-                                 std::to_string(motionLine_) + " is still open)");
+      return fail(call.line, "nested 'MotionBegin' (the block at " +
+                                 lineRef(motionLine_, motionFile_) + " is still open)");
     warnOnce(call.line, "motion",
              "motion blur is not supported; each motion block uses its first sample");
     motionLine_ = call.line;
+    motionFile_ = fileName_;
     motionSampleTaken_ = false;
     return true;
   }
@@ -1133,8 +1146,8 @@ bool RibParser::execute(const Call& call) {
   if (name == "FrameEnd") {
     if (frameDepth_ == 0) return fail(call.line, "'FrameEnd' without 'FrameBegin'");
     if (inWorld_)
-      return fail(call.line, "'FrameEnd' inside the world block (line " +
-                                 std::to_string(worldLine_) + ")");
+      return fail(call.line, "'FrameEnd' inside the world block (" +
+                                 lineRef(worldLine_, worldFile_) + ")");
     --frameDepth_;
     // Only the selected frame's FrameEnd gets here. Calls after it would come after its image in
     // RenderMan; a frame whose world follows the block (not RIB, but accepted) keeps reading.
@@ -1164,7 +1177,7 @@ bool RibParser::executeCamera(const Call& call, bool* handled) {
                                          "Shutter"};
   if (inWorld_ && std::find(std::begin(kOptions), std::end(kOptions), n) != std::end(kOptions)) {
     warnOnce(call.line, "inworld/" + fileName_ + ":" + std::to_string(call.line) + "/" + n,
-             "'" + n + "' inside the world block (WorldBegin at line " + std::to_string(worldLine_) +
+             "'" + n + "' inside the world block (WorldBegin at " + lineRef(worldLine_, worldFile_) +
                  ") is ignored: options must come before WorldBegin");
     return true;
   }
@@ -1355,7 +1368,7 @@ bool RibParser::executeCamera(const Call& call, bool* handled) {
       return fail(call.line, "'WorldBegin' inside an unclosed '" +
                                  std::string(stack_.back().attribute ? "AttributeBegin"
                                                                      : "TransformBegin") +
-                                 "' (line " + std::to_string(stack_.back().line) + ")");
+                                 "' (" + lineRef(stack_.back().line, stack_.back().file) + ")");
     if (singular(attr_.ctm)) return fail(call.line, "the camera transform is singular");
     const glm::mat4 worldFromCamera = glm::inverse(attr_.ctm);
     for (int c = 0; c < 4; ++c)
@@ -1364,6 +1377,7 @@ bool RibParser::executeCamera(const Call& call, bool* handled) {
           return fail(call.line, "the camera transform has non-finite entries");
     inWorld_ = true;
     worldLine_ = call.line;
+    worldFile_ = fileName_;
     scene_.camera.worldFromCamera = worldFromCamera;
     attr_.ctm = glm::mat4(1.0f);
     const glm::mat4& w = scene_.camera.worldFromCamera;
@@ -1397,7 +1411,7 @@ bool RibParser::executeCamera(const Call& call, bool* handled) {
       return fail(call.line, "'WorldEnd' inside an unclosed '" +
                                  std::string(stack_.back().attribute ? "AttributeBegin"
                                                                      : "TransformBegin") +
-                                 "' (line " + std::to_string(stack_.back().line) + ")");
+                                 "' (" + lineRef(stack_.back().line, stack_.back().file) + ")");
     inWorld_ = false;
     worldDone_ = true;
   } else {
@@ -1469,7 +1483,7 @@ bool RibParser::executeTransform(const Call& call, bool* handled) {
       return fail(call.line, "unknown coordinate system '" + name + "'");
     }
   } else if (n == "TransformBegin" || n == "AttributeBegin") {
-    stack_.push_back(StackEntry{attr_, n == "AttributeBegin", call.line, {}});
+    stack_.push_back(StackEntry{attr_, n == "AttributeBegin", call.line, fileName_, {}});
   } else if (n == "TransformEnd" || n == "AttributeEnd") {
     const bool attribute = n == "AttributeEnd";
     if (stack_.empty())
@@ -1478,7 +1492,7 @@ bool RibParser::executeTransform(const Call& call, bool* handled) {
     if (stack_.back().attribute != attribute)
       return fail(call.line, "'" + n + "' closes '" +
                                  (attribute ? "TransformBegin" : "AttributeBegin") +
-                                 "' at line " + std::to_string(stack_.back().line));
+                                 "' at " + lineRef(stack_.back().line, stack_.back().file));
     if (attribute)
       attr_ = stack_.back().state;
     else
@@ -2542,23 +2556,6 @@ bool RibParser::buildPatchMesh(const Call& call, bool bicubic, int nu, bool uPer
   const float target = (attr_.displacement ? 16.0f : 4.0f) * attr_.edgeLength;
   int samples = std::clamp(int(std::ceil(hull * scale * (bicubic ? 3.0f : 1.0f) / target)),
                            bicubic ? 8 : 16, 32);
-  if (!bicubic) {
-    bool flat = true;
-    for (int pv = 0; pv < nvPatches && flat; ++pv)
-      for (int pu = 0; pu < nuPatches && flat; ++pu) {
-        const glm::vec3 p0 = controlPoint(pu, pv), p1 = controlPoint((pu + 1) % nu, pv);
-        const glm::vec3 p2 = controlPoint(pu, (pv + 1) % nv);
-        const glm::vec3 p3 = controlPoint((pu + 1) % nu, (pv + 1) % nv);
-        const float warp = std::fabs(glm::dot(p3 - p0, glm::cross(p1 - p0, p2 - p0)));
-        const float size = std::max(glm::length(p3 - p0), glm::length(p2 - p1));
-        flat = !(warp > 1e-6f * size * size * size);
-      }
-    if (flat) samples = 1;
-  }
-  const int columns = nuPatches * samples + 1, rows = nvPatches * samples + 1;
-  if (size_t(columns) * size_t(rows) > (size_t(1) << 24))
-    return fail(call.line, "'" + call.name + "' is too large to tessellate");
-
   // Control point indices and weights of one direction at parameter `local` in [0, 1] of patch
   // `patch`.
   struct Span {
@@ -2656,6 +2653,44 @@ bool RibParser::buildPatchMesh(const Call& call, bool bicubic, int nu, bool uPer
   };
   const bool perPatch = perPatchClass(st) || perPatchClass(s) || perPatchClass(t) || perPatchClass(Cs) ||
                         perPatchClass(N);
+  // Two triangles per bilinear patch are exact only where the bilinear map is affine: the
+  // positions a parallelogram (a flat but skewed quad is not: its isoparametric lines bend) and
+  // every interpolated primvar with c00 + c11 = c10 + c01. Any other patch is sampled like a
+  // curved one, or st, Cs and N would follow the diagonal instead of the patch.
+  if (!bicubic) {
+    auto affine = [](const float* c00, const float* c10, const float* c01, const float* c11,
+                     int components) {
+      for (int k = 0; k < components; ++k) {
+        const float scale = std::max({std::fabs(c00[k]), std::fabs(c10[k]), std::fabs(c01[k]),
+                                      std::fabs(c11[k])});
+        if (!(std::fabs((c00[k] + c11[k]) - (c10[k] + c01[k])) <= 1e-5f * scale)) return false;
+      }
+      return true;
+    };
+    bool flat = true;
+    for (int pv = 0; pv < nvPatches && flat; ++pv)
+      for (int pu = 0; pu < nuPatches && flat; ++pu) {
+        const glm::vec3 p00 = controlPoint(pu, pv), p10 = controlPoint((pu + 1) % nu, pv);
+        const glm::vec3 p01 = controlPoint(pu, (pv + 1) % nv);
+        const glm::vec3 p11 = controlPoint((pu + 1) % nu, (pv + 1) % nv);
+        flat = affine(&p00[0], &p10[0], &p01[0], &p11[0], 3);
+        const Span u0 = spanAt(pu, 0.0f, nu, ub), u1 = spanAt(pu, 1.0f, nu, ub);
+        const Span v0 = spanAt(pv, 0.0f, nv, vb), v1 = spanAt(pv, 1.0f, nv, vb);
+        for (const Primvar* v : {st, s, t, Cs, N}) {
+          if (!flat || !v || v->storage == PrimvarClass::Constant || v->storage == PrimvarClass::Uniform)
+            continue;
+          float c00[16], c10[16], c01[16], c11[16];
+          varyingValue(*v, u0, v0, c00), varyingValue(*v, u1, v0, c10);
+          varyingValue(*v, u0, v1, c01), varyingValue(*v, u1, v1, c11);
+          flat = affine(c00, c10, c01, c11, std::min(v->components, 16));
+        }
+      }
+    if (flat) samples = 1;
+  }
+  const int columns = nuPatches * samples + 1, rows = nvPatches * samples + 1;
+  if (size_t(columns) * size_t(rows) > (size_t(1) << 24))
+    return fail(call.line, "'" + call.name + "' is too large to tessellate");
+
   // The values of primvars `st`, `s`, `t`, `Cs` at spans su, sv, over `stValue` (uv by default).
   auto stAt = [&](const Span& su, const Span& sv, bool discontinuous, glm::vec2& stValue) {
     float value[3];

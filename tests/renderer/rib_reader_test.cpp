@@ -880,6 +880,29 @@ TEST(RibReader, InlineArchivesSurviveRedefinitionAndCloseInTheirFile) {
   std::filesystem::remove_all(dir);
 }
 
+// A block an archive opens and leaves open is reported at the end of the main file, naming the
+// archive and its line: the archive's line number alone would point into the wrong file.
+TEST(RibReader, BlocksLeftOpenByAnArchiveNameTheArchive) {
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("relief-open-blocks-" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  std::ofstream(dir / "opens.rib") << "# an archive\n\nAttributeBegin\n";
+  std::ofstream(dir / "main.rib") << "WorldBegin\nReadArchive \"opens.rib\"\nWorldEnd\n";
+  SceneError error;
+  EXPECT_FALSE(readRibFile((dir / "main.rib").string(), RibReadOptions{}, &error));
+  EXPECT_EQ(error.file, (dir / "main.rib").string());
+  EXPECT_EQ(error.line, 3);
+  EXPECT_NE(error.message.find("'AttributeBegin' (line 3 of '" + (dir / "opens.rib").string() + "')"),
+            std::string::npos)
+      << error.message;
+  std::ofstream(dir / "main.rib") << "WorldBegin\nAttributeBegin\nReadArchive \"opens.rib\"\n";
+  EXPECT_FALSE(readRibFile((dir / "main.rib").string(), RibReadOptions{}, &error));
+  EXPECT_NE(error.message.find("'AttributeBegin' at line 3 of '" + (dir / "opens.rib").string() + "' has no"),
+            std::string::npos)
+      << error.message;
+  std::filesystem::remove_all(dir);
+}
+
 TEST(RibReader, MissingFileIsAnErrorNamingIt) {
   SceneError error;
   EXPECT_FALSE(readRibFile("/nonexistent/scene.rib", RibReadOptions{}, &error));

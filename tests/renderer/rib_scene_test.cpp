@@ -823,16 +823,48 @@ TEST(RibPatches, PatchMeshBasesAndWrapping) {
     }
   }
   EXPECT_GT(seamPairs, 2);
+  // Flat patches, but Cs is not affine over them (c00 + c11 != c10 + c01): two triangles each
+  // would interpolate it along a diagonal, so they are sampled, and the centre of the first patch
+  // has the bilinear average of its corners.
   const Mesh& flat = r.scene->meshes[1];
-  EXPECT_EQ(flat.numTriangles(), 4u);  // 2 flat bilinear patches
+  EXPECT_GT(flat.numTriangles(), 4u);
   ASSERT_EQ(flat.Cs.size(), flat.P.size());
-  expectNear(flat.Cs[1], glm::vec3(0, 1, 0));
+  int centres = 0;
+  for (size_t i = 0; i < flat.P.size(); ++i) {
+    if (flat.uv[i] == glm::vec2(0.5f, 0.0f)) expectNear(flat.Cs[i], glm::vec3(0, 1, 0));
+    if (flat.uv[i] == glm::vec2(0.25f, 0.5f)) {
+      expectNear(flat.Cs[i], glm::vec3(0.75f, 0.75f, 0.5f));
+      expectNear(flat.P[i], glm::vec3(0.5f, 0.5f, 0));
+      ++centres;
+    }
+  }
+  EXPECT_EQ(centres, 1);
   EXPECT_FALSE(read(world("PatchMesh \"bicubic\" 5 \"nonperiodic\" 4 \"nonperiodic\" \"P\" [" +
                           std::string(60 * 2, ' ') + "]")).scene);
   EXPECT_FALSE(read(world("Basis \"nurbs\" 1 \"bezier\" 3")).scene);
   EXPECT_FALSE(read(world("PatchMesh \"bicubic\" 4 \"sideways\" 4 \"nonperiodic\" \"P\" [0 0 0]"))
                    .scene);
   EXPECT_FALSE(read(world("Patch \"bicubic\" \"P\" [0 0 0]")).scene);
+}
+
+TEST(RibPatches, FlatBilinearPatchesAreTwoTrianglesOnlyWhereTheMapIsAffine) {
+  // A rectangle with affine Cs: two triangles are exact. A flat trapezoid is not affine: its
+  // v = 0.5 isoline runs through the midpoints of the slanted sides, and st there must be 0.5.
+  ReadResult r = read(world("Patch \"bilinear\" \"P\" [0 0 0  2 0 0  0 1 0  2 1 0]"
+                            " \"Cs\" [0 0 0  1 0 0  0 1 0  1 1 0]\n"
+                            "Patch \"bilinear\" \"P\" [0 0 0  4 0 0  1 1 0  3 1 0]\n"));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  ASSERT_EQ(r.scene->meshes.size(), 2u);
+  EXPECT_EQ(r.scene->meshes[0].numTriangles(), 2u);
+  const Mesh& trapezoid = r.scene->meshes[1];
+  EXPECT_GT(trapezoid.numTriangles(), 2u);
+  int found = 0;
+  for (size_t i = 0; i < trapezoid.P.size(); ++i)
+    if (trapezoid.st[i] == glm::vec2(0.0f, 0.5f)) {
+      expectNear(trapezoid.P[i], glm::vec3(0.5f, 0.5f, 0));
+      ++found;
+    }
+  EXPECT_EQ(found, 1);
 }
 
 TEST(RibPatches, UniformAndFaceVaryingValuesStayInTheirPatch) {
