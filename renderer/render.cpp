@@ -388,7 +388,7 @@ RenderStats render(const Scene& scene, Accelerator& accel, const RenderOptions& 
           const SampleResult r =
               integrator.trace(ray, mix64(uint64_t(pixel) * 0x10001ull + uint64_t(s)), &stats);
           pixelSamples[s] = {r.color, r.alpha};
-          if (r.alpha > 0.0f && (nearest == 0.0f || r.depth < nearest)) {
+          if (r.hit && (nearest == 0.0f || r.depth < nearest)) {
             nearest = r.depth;
             normal = r.normal;
           }

@@ -374,8 +374,9 @@ void Integrator::illuminate(const Surface& s, uint64_t seed, RenderStats* stats,
 constexpr float kMinRayWeight = 1.0f / 1024.0f;
 
 glm::vec3 Integrator::shade(const Ray& ray, const Surface& s, int depth, uint64_t seed,
-                            RenderStats* stats, float weight) const {
+                            RenderStats* stats, float weight, glm::vec3* opacity) const {
   const Material& m = *s.material;
+  if (opacity) *opacity = m.type == SurfaceType::Glass ? glm::vec3(1.0f) : s.Os;
 
   std::vector<LightSample> lights;
   const bool needsLights = m.type != SurfaceType::Constant && (m.Kd != 0.0f || m.Ks != 0.0f);
@@ -458,24 +459,33 @@ glm::vec3 Integrator::shade(const Ray& ray, const Surface& s, int depth, uint64_
     // Partly transparent: composite what lies behind, continuing the same ray.
     Ray behind = ray;
     behind.tMin = s.hit->t + s.epsilon / glm::length(ray.direction);
+    glm::vec3 behindOpacity(0.0f);
     Ci += (glm::vec3(1.0f) - s.Os) * radianceAt(behind, depth + 1, mix64(seed + 0x51ull), stats, nullptr,
-                                                weight * largest(glm::vec3(1.0f) - s.Os));
+                                                weight * largest(glm::vec3(1.0f) - s.Os),
+                                                opacity ? &behindOpacity : nullptr);
+    if (opacity) *opacity += (glm::vec3(1.0f) - s.Os) * behindOpacity;
   }
   return Ci;
 }
 
 glm::vec3 Integrator::radianceAt(const Ray& ray, int depth, uint64_t seed, RenderStats* stats,
-                                 SampleResult* first, float weight) const {
+                                 SampleResult* first, float weight, glm::vec3* opacity) const {
+  if (opacity) *opacity = glm::vec3(0.0f);
   const std::optional<Hit> hit = findHit(ray);
   if (!hit) return glm::vec3(0.0f);
   Surface s;
   resolve(ray, *hit, &s);
+  glm::vec3 own(1.0f);
   if (first) {
-    first->alpha = 1.0f;
     first->depth = hit->t;
     first->normal = s.N;
+    opacity = opacity ? opacity : &own;
   }
-  const glm::vec3 c = shade(ray, s, depth, seed, stats, weight);
+  const glm::vec3 c = shade(ray, s, depth, seed, stats, weight, opacity);
+  if (first) {
+    first->hit = true;
+    first->alpha = std::clamp((opacity->r + opacity->g + opacity->b) / 3.0f, 0.0f, 1.0f);
+  }
   // A NaN from a degenerate input would otherwise spread through the filter to whole neighbourhoods.
   return std::isfinite(c.r) && std::isfinite(c.g) && std::isfinite(c.b) ? c : glm::vec3(0.0f);
 }
@@ -483,13 +493,13 @@ glm::vec3 Integrator::radianceAt(const Ray& ray, int depth, uint64_t seed, Rende
 SampleResult Integrator::trace(const Ray& ray, uint64_t seed, RenderStats* stats) const {
   SampleResult result;
   result.color = radianceAt(ray, 0, seed, stats, &result);
-  if (result.alpha > 0.0f) ++stats->cameraHits;
+  if (result.hit) ++stats->cameraHits;
   return result;
 }
 
 glm::vec3 Integrator::radiance(const Ray& ray, RenderStats* stats, bool* hit) const {
   const SampleResult r = trace(ray, 0, stats);
-  if (hit) *hit = r.alpha > 0.0f;
+  if (hit) *hit = r.hit;
   return r.color;
 }
 

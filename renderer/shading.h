@@ -62,11 +62,13 @@ struct ShadingOptions {
   bool displaced = true;
 };
 
-// What one camera ray saw: colour (premultiplied by coverage), coverage, and the first visible
+// What one camera ray saw: colour (premultiplied by alpha), alpha (coverage times the opacity
+// accumulated through partly transparent surfaces, as RenderMan's Oi), and the first visible
 // surface's camera-ray parameter (camera-space depth) and world normal for the AOVs.
 struct SampleResult {
   glm::vec3 color{0.0f};
   float alpha = 0.0f;
+  bool hit = false;         // a surface was hit, even a fully transparent one
   float depth = 0.0f;       // 0 where nothing was hit
   glm::vec3 normal{0.0f};   // outward shading normal; 0 where nothing was hit
 };
@@ -125,10 +127,12 @@ class Integrator {
   bool resolve(const Ray& ray, const Hit& hit, Surface* s) const;
   // `weight`: the largest factor by which what this ray returns reaches the pixel (1 for a camera
   // ray). Secondary rays whose weight would fall below kMinRayWeight are not traced.
+  // `opacity` (may be null) receives the opacity accumulated along the ray through partly
+  // transparent surfaces (0 where it hits nothing): the camera sample's alpha is its mean.
   glm::vec3 radianceAt(const Ray& ray, int depth, uint64_t seed, RenderStats* stats,
-                       SampleResult* first, float weight = 1.0f) const;
+                       SampleResult* first, float weight = 1.0f, glm::vec3* opacity = nullptr) const;
   glm::vec3 shade(const Ray& ray, const Surface& s, int depth, uint64_t seed,
-                  RenderStats* stats, float weight) const;
+                  RenderStats* stats, float weight, glm::vec3* opacity) const;
   // Ambient light reaching the surface (unshadowed) and shadowed samples of every other light
   // whose direction lies in the hemisphere around Nf.
   glm::vec3 ambient(const Surface& s) const;

@@ -288,9 +288,33 @@ TEST(RenderMaterial, OpacityCompositesWhatIsBehind) {
   const uint32_t b = test::addMaterial(&scene, test::constant({0, 0, 1}));
   scene.meshes.push_back(wall(f, -1.0f));
   scene.meshes.push_back(wall(b, 0.0f));
-  const glm::vec3 c = test::renderWith(scene).pixel(4, 4);
+  const Film both = test::renderWith(scene);
+  const glm::vec3 c = both.pixel(4, 4);
   EXPECT_NEAR(c.r, 0.25f, 1e-6f);
   EXPECT_NEAR(c.b, 0.75f, 1e-6f);
+  EXPECT_NEAR(both.alpha(4, 4), 1.0f, 1e-6f);
+}
+
+TEST(RenderMaterial, AlphaIsTheOpacityAccumulatedAlongTheRay) {
+  // As RenderMan's Oi: one wall of opacity 0.25 over nothing gives alpha 0.25 (colour
+  // premultiplied by it), two give 1 - 0.75^2, a fully transparent one gives 0. Coloured opacity
+  // counts by its mean.
+  Scene scene = test::orthoScene(8, 1.0f);
+  Material front = test::constant({1, 1, 1});
+  front.opacity = glm::vec3(0.25f);
+  const uint32_t f = test::addMaterial(&scene, front);
+  scene.meshes.push_back(wall(f, -1.0f));
+  Film film = test::renderWith(scene);
+  EXPECT_NEAR(film.alpha(4, 4), 0.25f, 1e-6f);
+  EXPECT_NEAR(film.pixel(4, 4).r, 0.25f, 1e-6f);
+  scene.meshes.push_back(wall(f, 0.0f));
+  film = test::renderWith(scene);
+  EXPECT_NEAR(film.alpha(4, 4), 1.0f - 0.75f * 0.75f, 1e-6f);
+  scene.meshes.pop_back();
+  scene.materials[f].opacity = glm::vec3(0.0f);
+  EXPECT_EQ(test::renderWith(scene).alpha(4, 4), 0.0f);
+  scene.materials[f].opacity = glm::vec3(1.0f, 0.5f, 0.0f);
+  EXPECT_NEAR(test::renderWith(scene).alpha(4, 4), 0.5f, 1e-6f);
 }
 
 TEST(RenderMaterial, OneSidedSurfacesAreInvisibleFromBehind) {
