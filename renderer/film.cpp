@@ -111,7 +111,7 @@ bool canWriteFormat(const std::string& path, bool alpha, std::string* error) {
   const RlfImageLibrary* library = runtime::imageLibrary(&why);
   char message[1024];
   message[0] = 0;
-  if (library && library->canWrite(path.c_str(), message, sizeof message)) return true;
+  if (library && library->canWrite(path.c_str(), alpha ? 1 : 0, message, sizeof message)) return true;
   *error = "cannot write '" + path + "': " + (library ? std::string(message) : why);
   return false;
 }

@@ -16,7 +16,7 @@ extern "C" {
 #endif
 
 // Bumped whenever the table changes; a plugin of another version is refused (a stale build).
-#define RLF_IMAGE_LIBRARY_VERSION 2
+#define RLF_IMAGE_LIBRARY_VERSION 3
 
 typedef struct RlfImageLibrary {
   uint32_t version;  // RLF_IMAGE_LIBRARY_VERSION
@@ -36,9 +36,10 @@ typedef struct RlfImageLibrary {
                         const void* pixels, int32_t alphaChannel, int32_t unassociatedAlpha, const char* colorSpace,
                         const char* const* channelNames, const char* const* metadata, char* error,
                         size_t errorSize);
-  // Whether an image format writer exists for `path`'s extension (nothing is created). Returns 0
-  // with the reason in error[0..errorSize) if not.
-  int32_t (*canWrite)(const char* path, char* error, size_t errorSize);
+  // Whether an image format writer exists for `path`'s extension (nothing is created) and, if
+  // `alpha`, whether that format stores an alpha channel. Returns 0 with the reason in
+  // error[0..errorSize) if not.
+  int32_t (*canWrite)(const char* path, int32_t alpha, char* error, size_t errorSize);
 } RlfImageLibrary;
 
 // The plugin's one exported symbol.

@@ -108,11 +108,21 @@ int32_t writeImage(const char* path, int32_t width, int32_t height, int32_t chan
   });
 }
 
-int32_t canWrite(const char* path, char* error, size_t errorSize) {
+int32_t canWrite(const char* path, int32_t alpha, char* error, size_t errorSize) {
   return guarded(error, errorSize, [&]() -> int32_t {
-    if (OIIO::ImageOutput::create(path)) return 1;
-    copyMessage(OIIO::geterror(), error, errorSize);
-    return 0;
+    auto out = OIIO::ImageOutput::create(path);
+    if (!out) {
+      copyMessage(OIIO::geterror(), error, errorSize);
+      return 0;
+    }
+    // A JPEG asked for rgba would be written as rgb in silence.
+    if (alpha && !out->supports("alpha")) {
+      copyMessage(std::string("the ") + out->format_name() +
+                      " format has no alpha channel (use png, tif or exr for \"rgba\")",
+                  error, errorSize);
+      return 0;
+    }
+    return 1;
   });
 }
 

@@ -884,6 +884,12 @@ TEST(Relief, AnUnwritableFormatFailsBeforeTheRender) {
   EXPECT_EQ(r.exitCode, 1);
   EXPECT_NE(r.err.find("PNM has no alpha channel"), std::string::npos) << r.err;
   EXPECT_EQ(r.err.find("rendering"), std::string::npos) << r.err;
+  // Nor has JPEG: rgba to a .jpg is refused, not written as rgb in silence.
+  const fs::path jpeg = smallScene(dir, "Display \"" + (dir / "a.jpg").string() + "\" \"file\" \"rgba\"\n");
+  r = run(kRelief + " " + jpeg.string());
+  EXPECT_EQ(r.exitCode, 1);
+  EXPECT_NE(r.err.find("has no alpha channel"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir / "a.jpg"));
   // So is a place nothing can be written to, image or statistics; a missing directory is made
   // for either, and an empty name is a usage error.
   writeFile(dir / "plainfile", "x");
