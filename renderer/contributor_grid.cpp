@@ -124,15 +124,17 @@ ContributorGrid::ContributorGrid(const Scene& scene, const AccelOptions& options
     n = std::clamp(std::max(n, byMicro), 1, kMaxAutoGridResolution);
   }
   n = std::clamp(n, 1, kMaxGridResolution);
-  voxelSize_ = (longest + 4 * padding_) / float(n);
-  for (int a = 0; a < 3; ++a) {
-    const float span = bounds_.hi[a] - bounds_.lo[a];
-    resolution_[a] = std::clamp(int(std::ceil(span / voxelSize_)), 1, n);
-    bounds_.hi[a] = bounds_.lo[a] + float(resolution_[a]) * voxelSize_;
-  }
-
-  const size_t numVoxels = size_t(resolution_.x) * resolution_.y * resolution_.z;
-  offsets_.assign(numVoxels + 1, 0);
+  const Bounds3 reach = bounds_;
+  auto layOut = [&](int along) {
+    bounds_ = reach;
+    voxelSize_ = (longest + 4 * padding_) / float(along);
+    for (int a = 0; a < 3; ++a) {
+      const float span = bounds_.hi[a] - bounds_.lo[a];
+      resolution_[a] = std::clamp(int(std::ceil(span / voxelSize_)), 1, along);
+      bounds_.hi[a] = bounds_.lo[a] + float(resolution_[a]) * voxelSize_;
+    }
+  };
+  layOut(n);
   auto cellRange = [&](const Bounds3& box, glm::ivec3& lo, glm::ivec3& hi) {
     const glm::vec3 a = (box.lo - glm::vec3(padding_) - bounds_.lo) / voxelSize_;
     const glm::vec3 b = (box.hi + glm::vec3(padding_) - bounds_.lo) / voxelSize_;
@@ -179,14 +181,30 @@ ContributorGrid::ContributorGrid(const Scene& scene, const AccelOptions& options
     }
   };
   // The (voxel, triangle) pairs in triangle order, then a counting sort by voxel: each voxel's
-  // row lists its triangles in id order.
+  // row lists its triangles in id order. An automatic resolution is halved while the pairs
+  // exceed kMaxEntriesPerTriangle per triangle (and kMinEntryLimit): big triangles stacked on one
+  // another (30,000 copies of one quad) otherwise list each in thousands of voxels, a grid
+  // quadratic in time and memory (19 s and 724 MB for those copies; 300,000 ran out of memory).
+  // Finding that out costs at most one limit's worth of pairs per halving.
+  const size_t entryLimit = std::max(kMinEntryLimit, size_t(kMaxEntriesPerTriangle) * inGrid);
   std::vector<std::pair<uint32_t, uint32_t>> pairs;
-  for (uint32_t id = 0; id < numTriangles(); ++id) {
-    if (boxes[id].empty()) continue;
-    glm::ivec3 lo, hi;
-    cellRange(boxes[id], lo, hi);
-    forEachVoxel(id, lo, hi, [&](glm::ivec3 cell) { pairs.emplace_back(voxelIndex(cell), id); });
+  for (;;) {
+    pairs.clear();
+    bool over = false;
+    for (uint32_t id = 0; id < numTriangles() && !over; ++id) {
+      if (boxes[id].empty()) continue;
+      glm::ivec3 lo, hi;
+      cellRange(boxes[id], lo, hi);
+      forEachVoxel(id, lo, hi, [&](glm::ivec3 cell) { pairs.emplace_back(voxelIndex(cell), id); });
+      over = options.gridResolution <= 0 && n > 1 && pairs.size() > entryLimit;
+    }
+    if (!over) break;
+    n = std::max(1, n / 2);
+    layOut(n);
+    ++coarsenings_;
   }
+  const size_t numVoxels = size_t(resolution_.x) * resolution_.y * resolution_.z;
+  offsets_.assign(numVoxels + 1, 0);
   for (const auto& [v, id] : pairs) ++offsets_[v + 1];
   for (size_t v = 0; v < numVoxels; ++v) offsets_[v + 1] += offsets_[v];
   ids_.resize(offsets_[numVoxels]);

@@ -62,6 +62,10 @@ constexpr float kMinVoxelBounds = 2.0f;
 constexpr int kMaxAutoGridResolution = 128;
 // Explicit resolutions are clamped too: beyond this the per-voxel arrays alone exceed memory.
 constexpr int kMaxGridResolution = 1024;
+// An automatic resolution is halved until the grid lists at most this many entries per
+// triangle on average, or kMinEntryLimit in all (a few big triangles may cover many voxels).
+constexpr int kMaxEntriesPerTriangle = 64;
+constexpr size_t kMinEntryLimit = size_t(1) << 22;
 
 // Undisplaced triangles outside the displaced geometry. A scene with displaced geometry gets a
 // grid over the displaced triangles' neighbourhood: their reach grown on every side by
@@ -100,6 +104,8 @@ class ContributorGrid {
   Bounds3 voxelBounds(uint32_t voxel) const;
   // Slack added to every overlap test: absorbs the rounding of boxes and of the traversal.
   float padding() const { return padding_; }
+  // Times the automatic resolution was halved to keep the entries in bounds (kMaxEntriesPerTriangle).
+  int coarsenings() const { return coarsenings_; }
   // The voxel's contributors, less those refinement dropped. Reading the ids (not just the size)
   // while another thread may refine the voxel is a race: only the voxel's filler (which the
   // geometry cache makes exclusive) and single-threaded callers may do it.
@@ -134,6 +140,7 @@ class ContributorGrid {
   std::vector<uint32_t> offsets_;  // numVoxels + 1, into ids_ (compressed rows)
   std::vector<uint32_t> ids_;
   std::vector<uint32_t> outside_;
+  int coarsenings_ = 0;
   // Per voxel: how many of its row's ids are live (refinement shrinks it).
   std::unique_ptr<std::atomic<uint32_t>[]> live_;
 };

@@ -297,6 +297,40 @@ TEST(ContributorGrid, FineDisplacementGetsVoxelsForItsMicroTriangles) {
   EXPECT_LT(capped.voxelSize(), kVoxelsPerBound * o.km);
 }
 
+// Big triangles stacked on one another would each be listed in thousands of voxels of a
+// resolution chosen by their count: the automatic resolution is halved until the entries are
+// bounded, and the coarser grid still finds them.
+TEST(ContributorGrid, StackedBigTrianglesKeepTheEntriesBounded) {
+  SphereOptions o;
+  o.nu = 8, o.nv = 4;
+  o.km = 0.001f;  // a bound too small to cap the resolution
+  Scene scene = makeSphereScene(o);
+  Mesh stack;
+  constexpr uint32_t kCopies = 10000;
+  stack.P = {{-1, -1, 0}, {1, -1, 0}, {1, 1, 0}, {-1, 1, 0}};
+  for (uint32_t k = 0; k < kCopies; ++k) stack.indices.insert(stack.indices.end(), {0, 1, 2, 0, 2, 3});
+  scene.meshes.push_back(stack);
+  const uint32_t triangles = scene.meshes[0].numTriangles() + 2 * kCopies;
+  const ContributorGrid grid(scene, AccelOptions{});
+  EXPECT_GT(grid.coarsenings(), 0);
+  size_t entries = 0;
+  for (uint32_t v = 0; v < grid.numVoxels(); ++v) entries += grid.contributors(v).size();
+  EXPECT_LE(entries, std::max(kMinEntryLimit, size_t(kMaxEntriesPerTriangle) * triangles));
+  EXPECT_GT(entries, size_t(2 * kCopies));  // each copy is still listed, in several voxels
+  // An explicit resolution is the user's to choose: it is kept.
+  AccelOptions fine;
+  fine.gridResolution = 8;
+  const ContributorGrid kept(scene, fine);
+  EXPECT_EQ(kept.coarsenings(), 0);
+  EXPECT_EQ(std::max({kept.resolution().x, kept.resolution().y, kept.resolution().z}), 8);
+  // And the stack is found through the coarse grid, from inside the sphere.
+  auto accel = makeGridAccelerator(scene, AccelOptions{});
+  const std::optional<Hit> hit = accel->intersect(Ray{{0.3f, 0.2f, -0.5f}, {0, 0, 1}, 0.0f, 1e30f});
+  ASSERT_TRUE(hit);
+  EXPECT_EQ(hit->meshIndex, 1u);
+  EXPECT_NEAR(hit->t, 0.5f, 1e-5f);
+}
+
 TEST(GridAccelerator, EmptySceneNeverHits) {
   Scene scene;
   auto accel = makeGridAccelerator(scene, AccelOptions{});
