@@ -173,6 +173,10 @@ struct FunctionDecl {
   bool bodyHadErrors = false;  // parse errors in the body: its paths are not judged (no follow-ons)
   // Expression nodes a call expands to once inlined (its body plus its callees', transitively).
   uint64_t inlineCost = 0;
+  // The call in its body (and its callee) that first took inlineCost past the compiler's limit:
+  // where a too-large expansion is explained.
+  SourceRange overLimitCall;
+  const FunctionDecl* overLimitCallee = nullptr;
 };
 
 struct TranslationUnit {

@@ -1861,6 +1861,10 @@ class ShaderCodegen {
       const Expr& arg = *e.operands[i];
       if (!f.params[i]->isOutput) {
         values[i] = convert(gen(arg), f.params[i]->type);
+        // A read-only array is copied, as values are: sharing the argument's storage would let
+        // the body see its own writes through an output parameter or an extern naming that same
+        // array. The copy is taken now, before a later argument's call can change the array.
+        if (values[i].array) values[i].array = &copyArray(*values[i].array, f.params[i]->name);
       } else if (arg.kind != ExprKind::Identifier) {
         places[i] = resolvePlace(arg);
         values[i] = readPlace(places[i]);
@@ -1875,8 +1879,7 @@ class ShaderCodegen {
         const Slot target = slotFor(e.operands[i]->decl);
         slots_[p] = target;
       } else if (p->type.isArray()) {
-        // Non-output parameters are read-only, so an array argument can be shared, not copied.
-        slots_[p] = *values[i].array;
+        slots_[p] = *values[i].array;  // this call's own copy, made above
       } else {
         store(slotFor(p), values[i]);
       }
@@ -1904,6 +1907,19 @@ class ShaderCodegen {
     Val r;
     r.type = Type(TypeKind::Void);
     return r;
+  }
+
+  // Fresh storage per call (a nested call of the same function must not share it) holding a copy.
+  const Slot& copyArray(const Slot& from, const std::string& name) {
+    temps_.push_back(std::make_unique<VarDecl>());
+    temps_.back()->name = name + ".copy";
+    temps_.back()->type = from.type;
+    const Slot& s = slotFor(temps_.back().get());
+    Val v;
+    v.type = from.type;
+    v.array = &from;
+    store(s, v);
+    return s;
   }
 
   // texture(): the footprint is (Du(s)·du, Du(t)·du, Dv(s)·dv, Dv(t)·dv) (§6.7), and the result's

@@ -312,7 +312,7 @@ std::unique_ptr<FunctionDecl> Parser::parseFunction() {
   return f;
 }
 
-// extern := "extern" ["uniform"|"varying"] type IDENT { "," IDENT } ";"
+// extern := "extern" ["uniform"|"varying"] type IDENT ["[" [int-const] "]"] { "," IDENT ["[" [int-const] "]"] } ";"
 StmtPtr Parser::parseExtern() {
   const Token kw = consume();
   auto s = std::make_unique<Stmt>(StmtKind::Extern, kw.range());
@@ -332,6 +332,22 @@ StmtPtr Parser::parseExtern() {
     d->name = std::string(name.text);
     d->nameRange = name.range();
     d->type = type;
+    // An enclosing array: "name[n]", or "name[]" for whatever length it has.
+    if (tok().is(Tok::LBracket)) {
+      const Token open = consume();
+      d->type.arrayLength = -1;
+      if (!accept(Tok::RBracket)) {
+        ExprPtr length = parseConditional();
+        if (!length || !expectClosing(Tok::RBracket, open)) return nullptr;
+        int64_t n = 0;
+        if (!foldIntConstant(*length, &n) || n <= 0 || n > kMaxArrayLength) {
+          diags_.report(DiagId::ErrArrayLength, length->range.begin).range(length->range);
+          d->type = Type(TypeKind::Error);
+        } else {
+          d->type.arrayLength = int(n);
+        }
+      }
+    }
     s->decls.push_back(std::move(d));
     if (!accept(Tok::Comma)) break;
   }

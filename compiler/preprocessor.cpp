@@ -402,13 +402,15 @@ std::vector<Token> Preprocessor::paste(std::vector<Token> toks, const Token& at)
   for (size_t i = 0; i < toks.size(); ++i) {
     if (isPaste(toks, i) && !out.empty() && i + 2 < toks.size()) {
       const Token left = out.back();
-      out.pop_back();
-      out.push_back(synthesize(std::string(left.text) + std::string(toks[i + 2].text), at));
+      const Token& right = toks[i + 2];
+      if (left.placemarker) out.back() = right;
+      else if (!right.placemarker) out.back() = synthesize(std::string(left.text) + std::string(right.text), at);
       i += 2;
       continue;
     }
     out.push_back(toks[i]);
   }
+  std::erase_if(out, [](const Token& t) { return t.placemarker; });
   return out;
 }
 
@@ -658,6 +660,12 @@ void Preprocessor::expand(std::vector<Token> input, std::vector<Token>& out, con
         // Operands of ## use the argument unexpanded.
         const bool pasted = (bi >= 2 && isPaste(m.body, bi - 2)) || isPaste(m.body, bi + 1);
         if (pasted) {
+          if (args[k].empty()) {
+            Token mark = b;
+            mark.kind = Tok::Unknown;
+            mark.placemarker = true;
+            replacement.push_back(mark);
+          }
           replacement.insert(replacement.end(), args[k].begin(), args[k].end());
           continue;
         }

@@ -62,6 +62,9 @@ struct Token {
   // A macro name met while that macro was being expanded: it is never expanded again, wherever
   // rescanning takes it (C's "painted blue" tokens; `#define w w + 1` then `ID(w)` is `w + 1`).
   bool noExpand = false;
+  // An empty macro argument beside `##` (C's placemarker): pasting with it gives the other
+  // operand; what is left of it after pasting is dropped.
+  bool placemarker = false;
 
   bool is(Tok k) const { return kind == k; }
   SourceRange range() const { return {loc, loc.advanced(length)}; }

@@ -171,6 +171,9 @@ class UninitializedAnalysis {
     return r;
   }
   void expr(const Expr& e);
+  // Analyses a condition: the states where it is true and where it is false. `k > 0 && (r = 1)`
+  // assigns r where it is true, though not where it is false.
+  void cond(const Expr& e, State* whenTrue, State* whenFalse);
   void readIndices(const Expr& target);
   void assignTarget(const Expr& target);
 
@@ -614,6 +617,9 @@ class Checker {
             scopes_.back()[d->name] = d.get();
             continue;
           }
+          // "name[]" takes the enclosing array's length.
+          if (d->type.arrayLength == -1 && target->type.isArray() && target->type.kind == d->type.kind)
+            d->type = target->type;
           if (!(target->type == d->type)) {
             report(DiagId::ErrExternType, d->nameRange.begin)
                 .arg(d->name)
@@ -1325,11 +1331,24 @@ class Checker {
       }
     }
     markWrites(f->writesP, f->writesN, f->writesOwnN);
-    // User functions are inlined at every call: bound the code a call chain may expand to.
+    // User functions are inlined at every call: bound the code a call chain may expand to. Only
+    // the shader's own body is generated, so a function's cost is an error only where the shader
+    // (or a function it calls) calls it: a library of functions never called costs nothing.
     inlineCost_ = std::min<uint64_t>(inlineCost_ + std::min<uint64_t>(f->inlineCost, 1ull << 40), 1ull << 40);
-    if (inlineCost_ > kMaxInlineCost && !inlineReported_) {
+    if (inlineCost_ > kMaxInlineCost && !functionStack_.empty() && function_ && !function_->overLimitCallee) {
+      function_->overLimitCall = e.opRange;
+      function_->overLimitCallee = f;
+    }
+    if (inlineCost_ > kMaxInlineCost && !inlineReported_ && functionStack_.empty()) {
       inlineReported_ = true;
-      report(DiagId::ErrInlineTooLarge, e.range.begin).arg(e.text).arg(static_cast<long long>(kMaxInlineCost)).range(e.opRange);
+      // The deepest function whose own body passes the limit: where the growth is.
+      const FunctionDecl* grows = f->overLimitCallee ? f : nullptr;
+      while (grows && grows->overLimitCallee->overLimitCallee) grows = grows->overLimitCallee;
+      auto builder = report(DiagId::ErrInlineTooLarge, e.range.begin);
+      builder.arg(e.text).arg(static_cast<long long>(kMaxInlineCost)).range(e.opRange);
+      if (grows)
+        builder.note(DiagId::NoteInlineGrowth, grows->overLimitCall.begin,
+                     {grows->name, grows->overLimitCallee->name}, grows->overLimitCall);
       return set(e, kError);
     }
     e.function = f;
@@ -1946,20 +1965,19 @@ void UninitializedAnalysis::expr(const Expr& e) {
     }
     case ExprKind::Binary:
       if (e.op == Tok::AmpAmp || e.op == Tok::PipePipe) {
-        expr(*e.operands[0]);
-        State saved = state_;
-        expr(*e.operands[1]);
-        saved.maybe.insert(state_.maybe.begin(), state_.maybe.end());  // ...or may
-        state_ = saved;  // the right operand may not run
+        State t, f;
+        cond(e, &t, &f);  // the right operand may not run
+        state_ = join(t, f);
         return;
       }
       break;
     case ExprKind::Conditional: {
-      expr(*e.operands[0]);
-      const State saved = state_;
+      State t, f;
+      cond(*e.operands[0], &t, &f);
+      state_ = std::move(t);
       expr(*e.operands[1]);
       const State a = state_;
-      state_ = saved;
+      state_ = std::move(f);
       expr(*e.operands[2]);
       state_ = join(a, state_);
       return;
@@ -1986,6 +2004,38 @@ void UninitializedAnalysis::expr(const Expr& e) {
   for (const ExprPtr& c : e.operands) expr(*c);
 }
 
+void UninitializedAnalysis::cond(const Expr& e, State* whenTrue, State* whenFalse) {
+  const bool andOr = e.kind == ExprKind::Binary && (e.op == Tok::AmpAmp || e.op == Tok::PipePipe);
+  if (andOr) {
+    const bool isAnd = e.op == Tok::AmpAmp;
+    State leftTrue, leftFalse, rightTrue, rightFalse;
+    cond(*e.operands[0], &leftTrue, &leftFalse);
+    // The right operand runs where the left one did not decide the result.
+    state_ = isAnd ? leftTrue : leftFalse;
+    cond(*e.operands[1], &rightTrue, &rightFalse);
+    if (isAnd) {
+      *whenTrue = std::move(rightTrue);
+      *whenFalse = join(leftFalse, rightFalse);
+    } else {
+      *whenTrue = join(leftTrue, rightTrue);
+      *whenFalse = std::move(rightFalse);
+    }
+    // What the right operand may set, it may have set on either outcome.
+    whenTrue->maybe.insert(rightFalse.maybe.begin(), rightFalse.maybe.end());
+    whenTrue->maybe.insert(rightTrue.maybe.begin(), rightTrue.maybe.end());
+    whenFalse->maybe.insert(whenTrue->maybe.begin(), whenTrue->maybe.end());
+    whenTrue->maybe.insert(whenFalse->maybe.begin(), whenFalse->maybe.end());
+    return;
+  }
+  if (e.kind == ExprKind::Unary && e.op == Tok::Bang) {
+    cond(*e.operands[0], whenFalse, whenTrue);
+    return;
+  }
+  expr(e);
+  *whenTrue = state_;
+  *whenFalse = state_;
+}
+
 void UninitializedAnalysis::stmt(const Stmt& s) {
   switch (s.kind) {
     case StmtKind::Block:
@@ -2006,11 +2056,12 @@ void UninitializedAnalysis::stmt(const Stmt& s) {
       return;
     case StmtKind::ExprStmt: expr(*s.expr); return;
     case StmtKind::If: {
-      expr(*s.cond);
-      const State saved = state_;
+      State t, f;
+      cond(*s.cond, &t, &f);
+      state_ = std::move(t);
       stmt(*s.then);
       const State a = state_;
-      state_ = saved;
+      state_ = std::move(f);
       if (s.otherwise) stmt(*s.otherwise);
       state_ = join(a, state_);
       return;
@@ -2034,8 +2085,12 @@ void UninitializedAnalysis::stmt(const Stmt& s) {
         state_ = before;
         state_.maybe.insert(setByBody.begin(), setByBody.end());
       }
-      if (s.cond) expr(*s.cond);
-      State saved = state_;
+      State saved = state_;  // where the loop ends: its condition false
+      if (s.cond) {
+        State t;
+        cond(*s.cond, &t, &saved);
+        state_ = std::move(t);
+      }
       breaks_.push_back(deadState()), continues_.push_back(deadState());
       stmt(*s.body);
       state_ = join(state_, continues_.back());
@@ -2050,8 +2105,12 @@ void UninitializedAnalysis::stmt(const Stmt& s) {
       breaks_.push_back(deadState()), continues_.push_back(deadState());
       stmt(*s.body);
       state_ = join(state_, continues_.back());
-      if (!state_.dead) expr(*s.cond);
-      leaveLoop(s.cond.get(), std::move(state_));
+      State whenFalse = state_;
+      if (!state_.dead) {
+        State t;
+        cond(*s.cond, &t, &whenFalse);
+      }
+      leaveLoop(s.cond.get(), std::move(whenFalse));
       return;
     }
     case StmtKind::Return:

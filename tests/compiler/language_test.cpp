@@ -478,6 +478,36 @@ displacement d()
   EXPECT_EQ(printed, "4 6 2 7 18 2 6 6 1 10\n");
 }
 
+TEST(FunctionTest, ReadOnlyArrayArgumentsAreValuesEvenWhenTheSameArrayIsWritten) {
+  // A read-only parameter is a value (§3): writing the same array through an output parameter,
+  // through an extern, or in a later argument must not change what the body reads from it.
+  TestBatch b(1);
+  const std::string printed = evaluate(R"(
+float shift(float src[3]; output float dst[3]) {
+    dst[0] = 10;
+    return src[0] + dst[0];
+}
+float bump(output float k[2]) { k[0] = 100; return 0; }
+float first(float a[2]; float unused) { return a[0]; }
+displacement d()
+{
+    float a[3] = {1, 2, 3};
+    float viaOutput = shift(a, a);
+    float e[2] = {4, 5};
+    float viaExtern(float src[2]) {
+        extern float e[];
+        e[0] = 40;
+        return src[0];
+    }
+    float seenExtern = viaExtern(e);
+    float g[2] = {7, 8};
+    float beforeLater = first(g, bump(g));
+    printf("%g %g %g %g %g %g\n", viaOutput, a[0], seenExtern, e[0], beforeLater, g[0]);
+})",
+                                       b);
+  EXPECT_EQ(printed, "11 10 4 40 7 100\n");
+}
+
 TEST(DisplaceTest, AmountInANamedSpaceScalesWithThatSpace) {
   // §6.8: displace(space, amp) moves amp * length(ntransform(space, normalize(N))) along N, so
   // 0.1 units of an object space scaled 2x (or of a shader space scaled 0.5x) are 0.2 (0.05) in

@@ -125,6 +125,12 @@ TEST(PreprocessorTest, StringizeAndPaste) {
   EXPECT_EQ(bad->errors,
             "2:1: pasting gives '+/', which is not a valid token\n"
             "3:3: invalid character '#' in source\n");
+  // An empty argument beside ## is C's placemarker: the other operand stands alone, and a chain
+  // of pastes skips it.
+  auto empty = preprocess("#define CAT(a, b) a ## b\n#define CAT3(a, b, c) a ## b ## c\n"
+                          "CAT(, x) CAT(y, ) [CAT(, )] CAT3(p, , q) CAT3(, , r) CAT(a b, c d)\n");
+  EXPECT_EQ(empty->errors, "");
+  EXPECT_EQ(empty->text, "x y [ ] pq r a bc d");
 }
 
 TEST(PreprocessorTest, CommandLineDefines) {

@@ -173,5 +173,31 @@ TEST(TypeCheckTest, Warnings) {
   EXPECT_EQ(warnings, (std::vector<std::string>{"unused-variable", "narrowing", "unreachable-code"}));
 }
 
+// Functions are inlined where the shader calls them, so the expansion limit applies to calls the
+// shader makes: a library of doubling functions it never calls (or calls only at a small depth)
+// compiles; calling the deep one is one error, at the shader's call, with a note at the function
+// whose own body passes the limit.
+TEST(TypeCheckTest, TheInlineLimitCountsOnlyWhatTheShaderCalls) {
+  std::string library = "float f0(float x) { return x * 2 + 1; }\n";
+  for (int i = 1; i < 40; ++i)
+    library += "float f" + std::to_string(i) + "(float x) { return f" + std::to_string(i - 1) + "(x) + f" +
+               std::to_string(i - 1) + "(x + 1); }\n";
+  CompileFlags flags;
+  flags.jit = false;
+  const CompileResult unused =
+      compileSource("lib.disp", library + "displacement d() { P += f3(u) * N; }\n", {}, flags);
+  EXPECT_TRUE(unused.success()) << renderDiagnostics(unused);
+  const CompileResult deep =
+      compileSource("lib.disp", library + "displacement d() { P += f39(u) * N; }\n", {}, flags);
+  ASSERT_FALSE(deep.success());
+  const std::vector<Diagnostic> d = deep.diagnostics->sorted();
+  int errors = 0;
+  for (const Diagnostic& x : d) errors += x.severity == Severity::Error;
+  EXPECT_EQ(errors, 1);
+  const std::string text = renderDiagnostics(deep);
+  EXPECT_NE(text.find("lib.disp:41:"), std::string::npos) << text;
+  EXPECT_NE(text.find("note: 'f15' alone passes the limit here, with its calls of 'f14'"), std::string::npos) << text;
+}
+
 }  // namespace
 }  // namespace relief::compiler
