@@ -1426,7 +1426,8 @@ class Checker {
           if (a->kind == ExprKind::Tuple && a->type.isTriple()) a->type = Type(kind.kind);
     }
     if (!b) {
-      if (!suppress_)
+      // Once per body, as undeclared variables: the first call says it.
+      if (!suppress_ && undeclaredReported_.insert(e.text + "()").second)
         report(DiagId::ErrUndeclaredFunction, e.range.begin).arg(e.text).range(e.opRange);
       return set(e, kError);
     }

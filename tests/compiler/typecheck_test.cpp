@@ -148,6 +148,9 @@ TEST(TypeCheckTest, CallsAreCheckedAgainstBuiltinSignatures) {
   EXPECT_EQ(check("float a = length(u);").errors,
             "3:11: no matching function for call to 'length' with arguments (float)\n");
   EXPECT_EQ(check("float a = frobnicate(u);").errors, "3:11: use of undeclared function 'frobnicate'\n");
+  // Once per body, like an undeclared variable; another name is another error.
+  EXPECT_EQ(check("float a = frobnicate(u) + frobnicate(v) + twiddle(u);").errors,
+            "3:11: use of undeclared function 'frobnicate'\n3:43: use of undeclared function 'twiddle'\n");
   EXPECT_EQ(check("float a = pow(u, 2) + mod(u, 1) + clamp(u, 0, 1) + smoothstep(0, 1, u) + max(u, v, 0.5);\n"
                   "vector d = Du(P); float e = Dv(u); vector n = calculatenormal(P);\n"
                   "P += a * d * e * n * xcomp(P) * dot(P, N) * length(cross(P, N));")
