@@ -233,9 +233,26 @@ glm::vec2 pixelSampleOffset(uint64_t pixel, int index, int count) {
 RenderStats render(const Scene& scene, Accelerator& accel, const RenderOptions& options, Film* film,
                    const AovFilms& aovs) {
   const auto start = std::chrono::steady_clock::now();
-  const int width = film->width(), height = film->height();
+  // The whole image, the crop the film holds, and the window traced: the crop grown by the
+  // filter's reach, so its border pixels gather the same neighbours as in the whole image. Pixel
+  // coordinates below are the window's (x, y), the whole image's (x + winX, y + winY).
+  const bool cropped = options.fullWidth > 0 && options.fullHeight > 0;
+  const int fullWidth = cropped ? options.fullWidth : film->width();
+  const int fullHeight = cropped ? options.fullHeight : film->height();
+  const int cropX = cropped ? options.cropX : 0, cropY = cropped ? options.cropY : 0;
+  const PixelFilter filter = PixelFilter::make(options.filter);
+  const int reach = int(std::ceil(filter.radius()));
+  const int winX = std::max(0, cropX - reach), winY = std::max(0, cropY - reach);
+  const int width = std::min(fullWidth, cropX + film->width() + reach) - winX;
+  const int height = std::min(fullHeight, cropY + film->height() + reach) - winY;
+  auto inCrop = [&](int x, int y) {
+    const int cx = x + winX - cropX, cy = y + winY - cropY;
+    return cx >= 0 && cy >= 0 && cx < film->width() && cy < film->height();
+  };
+  // Seeds and sample positions follow the pixel's place in the whole image.
+  auto imagePixel = [&](int x, int y) { return uint32_t((y + winY) * fullWidth + (x + winX)); };
   const std::vector<uint32_t> order = pixelOrder(options.order, width, height);
-  const CameraRays camera(scene.camera, width, height);
+  const CameraRays camera(scene.camera, fullWidth, fullHeight);
   ShadingOptions shading;
   shading.maxDepth = options.maxDepth >= 0 ? options.maxDepth
                      : scene.maxDepth >= 0 ? scene.maxDepth
@@ -249,8 +266,6 @@ RenderStats render(const Scene& scene, Accelerator& accel, const RenderOptions& 
   // Every sample is traced into its own slot, and an output pixel is filtered once every pixel
   // within the filter's reach is traced (TileSamples): summing samples as they arrived would make
   // a pixel's sum depend on which neighbour's samples came first.
-  const PixelFilter filter = PixelFilter::make(options.filter);
-  const int reach = int(std::ceil(filter.radius()));
   TileSamples samples(width, height, spp, reach);
   // Filters output pixels [x0, x1) x [y0, y1): each gathers the samples within the filter's
   // support in a fixed order (neighbour pixels in scanline order, samples by index), so the sum
@@ -258,11 +273,12 @@ RenderStats render(const Scene& scene, Accelerator& accel, const RenderOptions& 
   auto filterPixels = [&](int x0, int y0, int x1, int y1) {
     for (int y = y0; y < y1; ++y)
       for (int x = x0; x < x1; ++x) {
+        if (!inCrop(x, y)) continue;  // a margin pixel, traced for its neighbours only
         glm::vec3 sum(0.0f);
         float alphaSum = 0.0f, weightSum = 0.0f;
         for (int py = std::max(0, y - reach); py <= std::min(height - 1, y + reach); ++py)
           for (int px = std::max(0, x - reach); px <= std::min(width - 1, x + reach); ++px) {
-            const uint32_t pixel = uint32_t(py * width + px);
+            const uint32_t pixel = imagePixel(px, py);
             const Sample* pixelSamples = samples.samplesOf(px, py);
             for (int s = 0; s < spp; ++s) {
               const glm::vec2 offset = pixelSampleOffset(pixel, s, spp);
@@ -275,8 +291,9 @@ RenderStats render(const Scene& scene, Accelerator& accel, const RenderOptions& 
               weightSum += w;
             }
           }
+        const int fx = x + winX - cropX, fy = y + winY - cropY;
         if (weightSum > 0.0f) {
-          film->setPixel(x, y, sum / weightSum, alphaSum / weightSum);
+          film->setPixel(fx, fy, sum / weightSum, alphaSum / weightSum);
         } else {
           // A support so narrow that it misses every sample: fall back to the pixel's own mean.
           const Sample* own = samples.samplesOf(x, y);
@@ -284,7 +301,7 @@ RenderStats render(const Scene& scene, Accelerator& accel, const RenderOptions& 
             sum += own[s].color;
             alphaSum += own[s].alpha;
           }
-          film->setPixel(x, y, sum / float(spp), alphaSum / float(spp));
+          film->setPixel(fx, fy, sum / float(spp), alphaSum / float(spp));
         }
       }
   };
@@ -373,8 +390,8 @@ RenderStats render(const Scene& scene, Accelerator& accel, const RenderOptions& 
     // Traces pixel order[i]; false if it met a voxel being filled (only while deferring), in which
     // case its partial work is dropped, counters included, and `*busy` names the voxel.
     auto tracePixel = [&](size_t i, uint64_t missesSoFar, uint32_t* busy, uint64_t* misses) {
-      const uint32_t pixel = order[i];
-      const int x = int(pixel % uint32_t(width)), y = int(pixel / uint32_t(width));
+      const int x = int(order[i] % uint32_t(width)), y = int(order[i] / uint32_t(width));
+      const uint32_t pixel = imagePixel(x, y);
       const uint64_t missesBefore = threadCacheMisses();
       const RenderStats statsBefore = stats;
       float nearest = 0.0f;
@@ -383,7 +400,7 @@ RenderStats render(const Scene& scene, Accelerator& accel, const RenderOptions& 
       try {
         for (int s = 0; s < spp; ++s) {
           const glm::vec2 offset = pixelSampleOffset(pixel, s, spp);
-          const Ray ray = camera.generate(float(x) + offset.x, float(y) + offset.y);
+          const Ray ray = camera.generate(float(x + winX) + offset.x, float(y + winY) + offset.y);
           ++stats.cameraRays;
           const SampleResult r =
               integrator.trace(ray, mix64(uint64_t(pixel) * 0x10001ull + uint64_t(s)), &stats);
@@ -399,10 +416,13 @@ RenderStats render(const Scene& scene, Accelerator& accel, const RenderOptions& 
         *misses = missesSoFar + (threadCacheMisses() - missesBefore);
         return false;
       }
-      if (aovs.depth) aovs.depth->setPixel(x, y, glm::vec3(nearest), nearest > 0.0f ? 1.0f : 0.0f);
-      if (aovs.normal) aovs.normal->setPixel(x, y, normal, nearest > 0.0f ? 1.0f : 0.0f);
-      if (aovs.cacheMiss)
-        aovs.cacheMiss->setPixel(x, y, glm::vec3(float(missesSoFar + threadCacheMisses() - missesBefore)));
+      const int fx = x + winX - cropX, fy = y + winY - cropY;
+      if (inCrop(x, y)) {
+        if (aovs.depth) aovs.depth->setPixel(fx, fy, glm::vec3(nearest), nearest > 0.0f ? 1.0f : 0.0f);
+        if (aovs.normal) aovs.normal->setPixel(fx, fy, normal, nearest > 0.0f ? 1.0f : 0.0f);
+        if (aovs.cacheMiss)
+          aovs.cacheMiss->setPixel(fx, fy, glm::vec3(float(missesSoFar + threadCacheMisses() - missesBefore)));
+      }
       samples.traced(x, y, filterPixels);
       return true;
     };

@@ -43,6 +43,12 @@ struct RenderOptions {
   // thread is filling, instead of each walking its own stretch (render.cpp). No influence on
   // the image.
   bool sharedWalk = false;
+  // A crop of a larger image (RI CropWindow): the film holds pixels [cropX, cropX + film width) x
+  // [cropY, cropY + film height) of a fullWidth x fullHeight image, each exactly as the whole
+  // render gives it (the camera, the sample positions and the filter's neighbours are the whole
+  // image's). fullWidth 0: the film is the whole image.
+  int fullWidth = 0, fullHeight = 0;
+  int cropX = 0, cropY = 0;
   // Called with the percentage of pixels done whenever it grows; serialized by the render loop,
   // so it may print. Has no influence on the image.
   std::function<void(int percent)> progress;
@@ -56,7 +62,7 @@ struct AovFilms {
   Film* cacheMiss = nullptr;  // "cachemiss": geometry-cache misses while tracing the pixel
 };
 
-// Renders `scene` into `film` (whose size is the output resolution).
+// Renders `scene` into `film` (whose size is the output resolution, or the crop's: RenderOptions).
 RenderStats render(const Scene& scene, Accelerator& accel, const RenderOptions& options, Film* film,
                    const AovFilms& aovs = {});
 

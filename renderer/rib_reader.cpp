@@ -1200,6 +1200,12 @@ bool RibParser::executeCamera(const Call& call, bool* handled) {
       v[2] = 1.0f;
     }
     scene_.camera.pixelAspect = v[2];
+  } else if (n == "CropWindow") {
+    if (!positionalNumbers(call, 4, &v, &next)) return false;
+    for (float& f : v) f = std::clamp(f, 0.0f, 1.0f);
+    if (!(v[0] < v[1]) || !(v[2] < v[3]))
+      return fail(call.line, "'CropWindow' expects xmin < xmax and ymin < ymax within [0, 1]");
+    std::copy(v.begin(), v.begin() + 4, scene_.cropWindow);
   } else if (n == "Exposure") {
     if (!positionalNumbers(call, 2, &v, &next)) return false;
     if (!std::isfinite(v[0]) || v[0] < 0.0f || !std::isfinite(v[1]) || !(v[1] > 0.0f))

@@ -3,6 +3,8 @@
 // contributor grid, the cache, the integrator) reads it. Parts refer to each other by index.
 #pragma once
 
+#include <algorithm>
+#include <cmath>
 #include <atomic>
 #include <cstdint>
 #include <memory>
@@ -149,8 +151,26 @@ struct Mesh {
   uint32_t numTriangles() const { return uint32_t(indices.size() / 3); }
 };
 
+// The pixels a crop window covers in a width x height image, as the RI spec counts them: columns
+// ceil(width * xmin) to ceil(width * xmax) - 1, rows likewise. Empty (w or h 0) if it covers none.
+struct PixelRect {
+  int x = 0, y = 0, w = 0, h = 0;
+};
+inline PixelRect cropPixels(const float window[4], int width, int height) {
+  // A fraction read from text is off by a float rounding (0.3f * 480 = 144.0000048): a hundredth
+  // of a pixel is far more than that error and far less than a pixel.
+  auto edge = [](float f, int n) { return std::clamp(int(std::ceil(double(n) * double(f) - 0.01)), 0, n); };
+  PixelRect r;
+  r.x = edge(window[0], width), r.y = edge(window[2], height);
+  r.w = std::max(0, edge(window[1], width) - r.x), r.h = std::max(0, edge(window[3], height) - r.y);
+  return r;
+}
+
 struct Scene {
   int width = 640, height = 480;
+  // RI CropWindow xmin xmax ymin ymax, fractions of the image: only that part is rendered and
+  // written (cropPixels).
+  float cropWindow[4] = {0.0f, 1.0f, 0.0f, 1.0f};
   int pixelSamples = 1;
   // RI Exposure: colour outputs are (colour * gain)^(1 / gamma). A gamma other than 1 is the
   // display transfer the scene asks for, so 8-bit outputs then take it instead of sRGB.

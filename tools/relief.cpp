@@ -1092,19 +1092,31 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
   Progress progress(*accel, ::isatty(STDERR_FILENO) != 0);
   if (!cl.quiet) renderOptions.progress = [&progress](int percent) { progress.update(percent); };
 
-  relief::Film film(scene.width, scene.height);
+  // RI CropWindow: the film and the images written hold the crop only.
+  const relief::PixelRect crop = relief::cropPixels(scene.cropWindow, scene.width, scene.height);
+  if (crop.w == 0 || crop.h == 0) {
+    std::cerr << "relief: error: " << cl.scene << ": the 'CropWindow' covers no pixel of the "
+              << scene.width << "x" << scene.height << " image\n";
+    return 1;
+  }
+  const bool cropped = crop.w != scene.width || crop.h != scene.height;
+  if (cropped) {
+    renderOptions.fullWidth = scene.width, renderOptions.fullHeight = scene.height;
+    renderOptions.cropX = crop.x, renderOptions.cropY = crop.y;
+  }
+  relief::Film film(crop.w, crop.h);
   std::optional<relief::Film> depth, normal, cacheMiss;
   relief::AovFilms aovs;
   for (const std::string& mode : modes) {
     switch (outputKind(mode)) {
       case OutputKind::Depth:
-        if (!depth) depth.emplace(scene.width, scene.height), aovs.depth = &*depth;
+        if (!depth) depth.emplace(crop.w, crop.h), aovs.depth = &*depth;
         break;
       case OutputKind::Normal:
-        if (!normal) normal.emplace(scene.width, scene.height), aovs.normal = &*normal;
+        if (!normal) normal.emplace(crop.w, crop.h), aovs.normal = &*normal;
         break;
       case OutputKind::CacheMiss:
-        if (!cacheMiss) cacheMiss.emplace(scene.width, scene.height), aovs.cacheMiss = &*cacheMiss;
+        if (!cacheMiss) cacheMiss.emplace(crop.w, crop.h), aovs.cacheMiss = &*cacheMiss;
         break;
       case OutputKind::Colour:
         break;
@@ -1145,6 +1157,10 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
       {"relief:displacedTrianglesCreated", std::to_string(finalStats.displacedTrianglesCreated)},
   };
   if (numbered) metadata.emplace_back("relief:frame", std::to_string(frameNumber));
+  // Where the crop lies in the whole image: formats with a data window (EXR, TIFF) record it.
+  if (cropped)
+    metadata.emplace_back("relief:dataWindow", std::to_string(crop.x) + " " + std::to_string(crop.y) + " " +
+                                                   std::to_string(scene.width) + " " + std::to_string(scene.height));
 
   // Every image is staged under a temporary name first and renamed into place only when all were
   // written: a failed display must not leave the others behind, looking like a finished render.

@@ -87,7 +87,17 @@ int32_t writeImage(const char* path, int32_t width, int32_t height, int32_t chan
     OIIO::ImageSpec spec(width, height, channels, format);
     spec.attribute("oiio:ColorSpace", colorSpace ? colorSpace : "sRGB");
     spec.attribute("Software", "relief");
-    for (const char* const* m = metadata; m && m[0]; m += 2) spec.attribute(m[0], m[1] ? m[1] : "");
+    for (const char* const* m = metadata; m && m[0]; m += 2) {
+      spec.attribute(m[0], m[1] ? m[1] : "");
+      // "x y fullWidth fullHeight": the image is that crop of a larger one (RI CropWindow).
+      int x = 0, y = 0, fullWidth = 0, fullHeight = 0;
+      if (std::string_view(m[0]) == "relief:dataWindow" && m[1] &&
+          std::sscanf(m[1], "%d %d %d %d", &x, &y, &fullWidth, &fullHeight) == 4) {
+        spec.x = x, spec.y = y;
+        spec.full_x = 0, spec.full_y = 0;
+        spec.full_width = fullWidth, spec.full_height = fullHeight;
+      }
+    }
     if (channelNames) spec.channelnames.assign(channelNames, channelNames + channels);
     if (alphaChannel >= 0) {
       spec.alpha_channel = alphaChannel;

@@ -545,6 +545,31 @@ TEST(Relief, ExrHasRenderMetadata) {
   EXPECT_EQ(spec.format, OIIO::TypeDesc::FLOAT);
 }
 
+// RI CropWindow: the image written is the crop, and EXR records where it lies in the whole image
+// (its data window); a window that covers no pixel or is reversed is an error.
+TEST(Relief, CropWindowWritesTheCropWithItsDataWindow) {
+  const fs::path dir = scratchDir();
+  const fs::path scene = smallScene(dir, "CropWindow 0.25 0.75 0.5 1\n");
+  const fs::path image = dir / "c.exr";
+  RunResult r = run(kRelief + " " + scene.string() + " --quiet -o " + image.string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  auto in = OIIO::ImageInput::open(image.string());
+  ASSERT_TRUE(in);
+  const OIIO::ImageSpec& spec = in->spec();
+  EXPECT_EQ(spec.width, 8);
+  EXPECT_EQ(spec.height, 6);
+  EXPECT_EQ(spec.x, 4);
+  EXPECT_EQ(spec.y, 6);
+  EXPECT_EQ(spec.full_width, 16);
+  EXPECT_EQ(spec.full_height, 12);
+  r = run(kRelief + " " + smallScene(dir, "CropWindow 0.5 0.5 0 1\n").string() + " --quiet -o " + image.string());
+  EXPECT_EQ(r.exitCode, 1);
+  EXPECT_NE(r.err.find("small.rib:2: error: 'CropWindow' expects xmin < xmax"), std::string::npos) << r.err;
+  r = run(kRelief + " " + smallScene(dir, "CropWindow 0.01 0.02 0 1\n").string() + " --quiet -o " + image.string());
+  EXPECT_EQ(r.exitCode, 1);
+  EXPECT_NE(r.err.find("'CropWindow' covers no pixel of the 16x12 image"), std::string::npos) << r.err;
+}
+
 // -I directories come before RELIEF_SHADER_PATH, which comes before the scene's directory: a
 // broken shader of the same name later in the path is never seen.
 TEST(Relief, ShaderPathPrecedence) {

@@ -162,6 +162,47 @@ TEST(RenderIntegrator, ProgressRisesToOneHundred) {
   EXPECT_TRUE(film.data() == renderScene(scene).data());
 }
 
+// RI CropWindow: the crop's pixels are bit for bit the whole render's, its border pixels too
+// (their filter reaches pixels outside the crop), on any thread count and order, and the AOVs
+// follow the crop.
+TEST(RenderIntegrator, CropWindowRendersExactlyThoseOfTheWholeImage) {
+  const Scene scene =
+      load("Format 40 30 1\nPixelSamples 2 2\nCropWindow 0.3 0.62 0.25 0.5\n"
+           "Projection \"perspective\" \"fov\" [40]\nTranslate 0 0 5\nWorldBegin\n"
+           "LightSource \"distantlight\" 1 \"from\" [-1 1 -1] \"to\" [0 0 0]\n"
+           "Surface \"plastic\"\nSphere 1.2 -1.2 1.2 360\n"
+           "Polygon \"P\" [-4 -1.2 -4  4 -1.2 -4  4 -1.2 4  -4 -1.2 4]\nWorldEnd\n");
+  const PixelRect crop = cropPixels(scene.cropWindow, scene.width, scene.height);
+  EXPECT_EQ(crop.x, 12);  // ceil(40 * 0.3), not 13 for 0.3f * 40 = 12.0000005
+  EXPECT_EQ(crop.w, 13);  // ceil(40 * 0.62) - 12
+  EXPECT_EQ(crop.y, 8);
+  EXPECT_EQ(crop.h, 7);
+  const Film whole = renderScene(scene);
+  for (int threads : {1, 2})
+    for (PixelOrder order : {PixelOrder::Scanline, PixelOrder::Hilbert}) {
+      test::BruteForceAccelerator accel(scene);
+      Film film(crop.w, crop.h), depth(crop.w, crop.h);
+      RenderOptions options;
+      options.threads = threads;
+      options.order = order;
+      options.fullWidth = scene.width, options.fullHeight = scene.height;
+      options.cropX = crop.x, options.cropY = crop.y;
+      AovFilms aovs;
+      aovs.depth = &depth;
+      const RenderStats stats = render(scene, accel, options, &film, aovs);
+      EXPECT_LT(stats.cameraRays, uint64_t(scene.width * scene.height * 4) / 4);  // the crop and a margin only
+      int different = 0, hits = 0;
+      for (int y = 0; y < crop.h; ++y)
+        for (int x = 0; x < crop.w; ++x) {
+          different += film.pixel(x, y) != whole.pixel(crop.x + x, crop.y + y) ||
+                       film.alpha(x, y) != whole.alpha(crop.x + x, crop.y + y);
+          hits += depth.alpha(x, y) > 0.0f;
+        }
+      EXPECT_EQ(different, 0) << threads << " threads";
+      EXPECT_GT(hits, 0);
+    }
+}
+
 TEST(RenderIntegrator, SamplesJitterInsideThePixel) {
   // A vertical edge through the middle of pixel column 2: one centred sample sees all or nothing,
   // 16 jittered samples see about half (box filter: no sample of a neighbour counts).
