@@ -49,6 +49,13 @@ bool isFloatFormat(const std::string& path) {
   return extension == ".exr" || extension == ".hdr";
 }
 
+Film alphaForDisplay(const Film& film) {
+  Film out(film.width(), film.height());
+  for (int y = 0; y < film.height(); ++y)
+    for (int x = 0; x < film.width(); ++x) out.setPixel(x, y, glm::vec3(film.alpha(x, y)), 1.0f);
+  return out;
+}
+
 Film depthForDisplay(const Film& depth) {
   float lo = 0.0f, hi = 0.0f;
   bool any = false;
@@ -160,7 +167,12 @@ bool Film::writeStaged(const std::string& path, std::string* stagedPath, std::st
   // A PGM holds grey: colour becomes its luminance (Rec. 709 weights, on linear values).
   const bool grey = options.channels != 1 && extension == ".pgm";
   const int colourChannels = options.channels == 1 || grey ? 1 : 3;
-  const int channels = colourChannels + (withAlpha ? 1 : 0);
+  const bool withDepth = options.depth != nullptr;
+  if (withDepth && (!floatOutput || options.depth->width() != width_ || options.depth->height() != height_)) {
+    *error = "cannot write '" + path + "': a depth channel needs a float format (exr)";
+    return false;
+  }
+  const int channels = colourChannels + (withAlpha ? 1 : 0) + (withDepth ? 1 : 0);
   const size_t numPixels = size_t(width_) * size_t(height_);
   std::vector<float> floats;
   std::vector<uint8_t> bytes;
@@ -169,7 +181,9 @@ bool Film::writeStaged(const std::string& path, std::string* stagedPath, std::st
     floats.resize(numPixels * size_t(channels));
     for (size_t i = 0; i < numPixels; ++i)
       for (int c = 0; c < channels; ++c) {
-        const float v = c < colourChannels ? rgb_[3 * i + size_t(c)] : alpha_[i];
+        const float v = c < colourChannels                  ? rgb_[3 * i + size_t(c)]
+                        : withAlpha && c == colourChannels ? alpha_[i]
+                                                           : options.depth->rgb_[3 * i];
         floats[i * size_t(channels) + size_t(c)] = std::isfinite(v) ? v : 0.0f;
       }
     pixels = floats.data();

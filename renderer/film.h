@@ -18,6 +18,8 @@ namespace relief {
 inline constexpr uint64_t kMaxPixels = uint64_t(1) << 27;
 
 // How Film::write stores the pixels.
+class Film;
+
 struct ImageWriteOptions {
   bool alpha = false;  // a fourth channel with coverage (see Film::write)
   int channels = 3;    // 1: only the first colour channel (depth, counts), or 3
@@ -28,6 +30,9 @@ struct ImageWriteOptions {
   std::vector<std::pair<std::string, std::string>> metadata;
   // Threads that may convert to 8 bits and compress a PNG (the bytes do not depend on how many).
   int threads = 1;
+  // A last channel holding this film's first channel (camera depth for RenderMan's "rgbz" and
+  // "rgbaz" modes); float formats only.
+  const Film* depth = nullptr;
 };
 
 class Film {
@@ -89,6 +94,8 @@ bool canWriteFormat(const std::string& path, bool alpha, std::string* error);
 // Arbitrary output variables mapped for viewing in 8-bit formats (float formats keep raw values):
 // depth as grey, near white to far black over the range of hits (misses black); normals as
 // 0.5 + 0.5 N; cache misses as a black-red-yellow-white heat map scaled to the largest count.
+// The film's alpha as grey (alpha 1): RenderMan's "a" display mode.
+Film alphaForDisplay(const Film& film);
 Film depthForDisplay(const Film& depth);
 Film normalForDisplay(const Film& normal);
 Film heatMapForDisplay(const Film& counts);

@@ -1303,7 +1303,8 @@ bool RibParser::executeCamera(const Call& call, bool* handled) {
         type != "png")
       warnOnce(call.line, "display/" + type, "display type '" + type + "' treated as 'file'");
     if (mode == "Z") mode = "z";
-    if (mode != "rgb" && mode != "rgba" && mode != "z" && mode != "N" && mode != "cachemiss") {
+    if (mode != "rgb" && mode != "rgba" && mode != "rgbz" && mode != "rgbaz" && mode != "a" && mode != "az" &&
+        mode != "z" && mode != "N" && mode != "cachemiss") {
       warnOnce(call.line, "mode/" + mode, "display mode '" + mode + "' written as 'rgb'");
       mode = "rgb";
     }

@@ -701,9 +701,15 @@ class Progress {
   int lastDecile_ = -1;
 };
 
-enum class OutputKind { Colour, Depth, Normal, CacheMiss };
+enum class OutputKind { Colour, Alpha, Depth, Normal, CacheMiss };
+
+// RenderMan's colour modes: rgb, rgba, rgbz, rgbaz; alpha alone: a, az. A "z" in them adds a
+// depth channel ("z" alone is the depth AOV).
+bool modeHasAlpha(const std::string& mode) { return mode == "rgba" || mode == "rgbaz" || mode == "a" || mode == "az"; }
+bool modeAddsDepth(const std::string& mode) { return mode == "rgbz" || mode == "rgbaz" || mode == "az"; }
 
 OutputKind outputKind(const std::string& mode) {
+  if (mode == "a" || mode == "az") return OutputKind::Alpha;
   if (mode == "z") return OutputKind::Depth;
   if (mode == "N") return OutputKind::Normal;
   if (mode == "cachemiss") return OutputKind::CacheMiss;
@@ -956,7 +962,11 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
   // render.
   for (size_t i = 0; i < outputs.size(); ++i) {
     std::string error;
-    if (!relief::canWriteFormat(outputs[i], modes[i] == "rgba", &error) ||
+    if (modeAddsDepth(modes[i]) && !relief::isFloatFormat(outputs[i]))
+      error = "cannot write '" + outputs[i] + "': display mode '" + modes[i] +
+              "' has a depth channel, which needs a float format (exr)";
+    if (!error.empty() ||
+        !relief::canWriteFormat(outputs[i], modes[i] == "rgba" || modes[i] == "rgbaz", &error) ||
         !canCreateFile(outputs[i], &error)) {
       std::cerr << "relief: error: " << error << "\n";
       return 1;
@@ -1108,6 +1118,7 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
   std::optional<relief::Film> depth, normal, cacheMiss;
   relief::AovFilms aovs;
   for (const std::string& mode : modes) {
+    if (modeAddsDepth(mode) && !depth) depth.emplace(crop.w, crop.h), aovs.depth = &*depth;
     switch (outputKind(mode)) {
       case OutputKind::Depth:
         if (!depth) depth.emplace(crop.w, crop.h), aovs.depth = &*depth;
@@ -1119,6 +1130,7 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
         if (!cacheMiss) cacheMiss.emplace(crop.w, crop.h), aovs.cacheMiss = &*cacheMiss;
         break;
       case OutputKind::Colour:
+      case OutputKind::Alpha:
         break;
     }
   }
@@ -1180,8 +1192,14 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
     std::optional<relief::Film> mapped;  // AOVs made viewable for 8-bit formats
     switch (outputKind(modes[i])) {
       case OutputKind::Colour:
-        writeOptions.alpha = modes[i] == "rgba";
+        writeOptions.alpha = modeHasAlpha(modes[i]);
         writeOptions.srgb = scene.exposureGamma == 1.0f;  // Exposure's gamma is the display transfer
+        break;
+      case OutputKind::Alpha:  // coverage as the one channel, linear
+        image = &mapped.emplace(relief::alphaForDisplay(film));
+        writeOptions.channels = 1;
+        writeOptions.channelNames = {"A"};
+        writeOptions.srgb = false;
         break;
       case OutputKind::Depth:
         writeOptions.metadata.emplace_back("relief:aov", "z");
@@ -1215,6 +1233,13 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
           writeOptions.srgb = false;
         }
         break;
+    }
+    if (modeAddsDepth(modes[i])) {
+      writeOptions.depth = &*depth;
+      writeOptions.channelNames = outputKind(modes[i]) == OutputKind::Alpha
+                                      ? std::vector<std::string>{"A", "Z"}
+                                      : modeHasAlpha(modes[i]) ? std::vector<std::string>{"R", "G", "B", "A", "Z"}
+                                                               : std::vector<std::string>{"R", "G", "B", "Z"};
     }
     std::string writeError, stagedPath;
     if (!image->writeStaged(path, &stagedPath, &writeError, writeOptions)) {

@@ -545,6 +545,51 @@ TEST(Relief, ExrHasRenderMetadata) {
   EXPECT_EQ(spec.format, OIIO::TypeDesc::FLOAT);
 }
 
+// RenderMan's "rgbaz" and "az" modes add a Z channel (camera depth, as the "z" AOV), "a" writes
+// coverage alone; a depth channel in an 8-bit format is refused before the render.
+TEST(Relief, DisplayModesWithDepthAndAlphaAlone) {
+  const fs::path dir = scratchDir();
+  const fs::path scene =
+      smallScene(dir, "Display \"" + (dir / "c.exr").string() + "\" \"file\" \"rgbaz\"\n" +
+                          "Display \"+" + (dir / "z.exr").string() + "\" \"file\" \"z\"\n" +
+                          "Display \"+" + (dir / "az.exr").string() + "\" \"file\" \"az\"\n" +
+                          "Display \"+" + (dir / "a.png").string() + "\" \"file\" \"a\"\n");
+  RunResult r = run(kRelief + " " + scene.string() + " --quiet");
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  auto read = [](const fs::path& path, std::vector<float>* pixels) {
+    auto in = OIIO::ImageInput::open(path.string());
+    if (!in) return OIIO::ImageSpec();
+    OIIO::ImageSpec spec = in->spec();
+    pixels->resize(size_t(spec.width) * size_t(spec.height) * size_t(spec.nchannels));
+    in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, pixels->data());
+    return spec;
+  };
+  std::vector<float> c, z, az, a;
+  const OIIO::ImageSpec cs = read(dir / "c.exr", &c), zs = read(dir / "z.exr", &z);
+  const OIIO::ImageSpec azs = read(dir / "az.exr", &az), as = read(dir / "a.png", &a);
+  ASSERT_EQ(cs.nchannels, 5);
+  EXPECT_EQ(cs.channelnames, (std::vector<std::string>{"R", "G", "B", "A", "Z"}));
+  ASSERT_EQ(zs.nchannels, 1);
+  ASSERT_EQ(azs.nchannels, 2);
+  ASSERT_EQ(as.nchannels, 1);
+  const size_t pixels = size_t(cs.width) * size_t(cs.height);
+  int covered = 0;
+  for (size_t i = 0; i < pixels; ++i) {
+    EXPECT_EQ(c[5 * i + 4], z[i]);
+    EXPECT_EQ(az[2 * i + 1], z[i]);
+    EXPECT_EQ(az[2 * i], c[5 * i + 3]);
+    EXPECT_NEAR(a[i], c[5 * i + 3], 0.5f / 255.0f);
+    covered += c[5 * i + 3] > 0.0f;
+  }
+  EXPECT_GT(covered, 0);
+  EXPECT_LT(covered, int(pixels));
+  r = run(kRelief + " " + smallScene(dir, "Display \"" + (dir / "d.png").string() + "\" \"file\" \"rgbz\"\n").string());
+  EXPECT_EQ(r.exitCode, 1);
+  EXPECT_NE(r.err.find("display mode 'rgbz' has a depth channel, which needs a float format"), std::string::npos)
+      << r.err;
+  EXPECT_FALSE(fs::exists(dir / "d.png"));
+}
+
 // RI CropWindow: the image written is the crop, and EXR records where it lies in the whole image
 // (its data window); a window that covers no pixel or is reversed is an error.
 TEST(Relief, CropWindowWritesTheCropWithItsDataWindow) {

@@ -93,15 +93,16 @@ TEST(RibOptions, DisplayModesNameTheAovs) {
   ReadResult r = read("Display \"a.exr\" \"file\" \"rgba\"\nDisplay \"+depth.exr\" \"file\" \"z\"\n"
                       "Display \"+normal.exr\" \"file\" \"N\"\n"
                       "Display \"+miss.png\" \"file\" \"cachemiss\"\n"
-                      "Display \"+d2.exr\" \"file\" \"Z\"\nDisplay \"+o.png\" \"file\" \"rgbaz\"\n" +
+                      "Display \"+d2.exr\" \"file\" \"Z\"\nDisplay \"+o.exr\" \"file\" \"rgbaz\"\n"
+                      "Display \"+p.png\" \"file\" \"a\"\nDisplay \"+q.png\" \"file\" \"rgbaq\"\n" +
                       world(""));
   ASSERT_TRUE(r.scene) << r.error.format();
   EXPECT_EQ(r.scene->displays,
             (std::vector<std::string>{"a.exr", "depth.exr", "normal.exr", "miss.png", "d2.exr",
-                                      "o.png"}));
+                                      "o.exr", "p.png", "q.png"}));
   EXPECT_EQ(r.scene->displayModes,
-            (std::vector<std::string>{"rgba", "z", "N", "cachemiss", "z", "rgb"}));
-  EXPECT_NE(r.warnings.find("display mode 'rgbaz' written as 'rgb'"), std::string::npos);
+            (std::vector<std::string>{"rgba", "z", "N", "cachemiss", "z", "rgbaz", "a", "rgb"}));
+  EXPECT_NE(r.warnings.find("display mode 'rgbaq' written as 'rgb'"), std::string::npos);
 }
 
 TEST(RibOptions, ReliefOptionSetsRenderSettings) {
