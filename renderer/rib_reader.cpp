@@ -321,6 +321,7 @@ struct AttributeState {
   std::vector<uint32_t> lightsOn;        // Scene::lights indices lit by Illuminate, sorted
   CubicBasis uBasis = bezierBasis(), vBasis = bezierBasis();
   std::shared_ptr<const runtime::ShaderInstance> displacement;
+  std::vector<runtime::ParamValue> displacementValues;  // what the Displacement call bound
   glm::mat4 worldFromShader{1.0f};
   int displacementLine = 0;
   float boundRadius = 0.0f;
@@ -782,6 +783,8 @@ class RibParser {
   bool executeTransform(const Call& call, bool* handled);
   bool executeAttributes(const Call& call, bool* handled);
   bool executeGeometry(const Call& call, bool* handled);
+  bool shaderParamValue(int line, const runtime::CompiledShader& compiled, const Param& p,
+                        runtime::ParamValue* out);
   bool doDisplacement(const Call& call);
   bool doLight(const Call& call);
   bool doReliefOption(const Call& call, const std::vector<Param>& params);
@@ -828,6 +831,7 @@ class RibParser {
   struct PrimvarCounts {
     size_t uniform, vertex, varying, faceVarying;
   };
+  bool shaderPrimvar(const Call& call, const Param& p, const PrimvarCounts& counts);
   bool readPrimvars(const Call& call, const std::vector<Param>& params,
                     const PrimvarCounts& counts, std::vector<Primvar>* out);
   // Finds a file named by the file being read (an archive, an OBJ mesh). A relative name is
@@ -919,6 +923,29 @@ class RibParser {
     if (!attr_.displacement) return true;
     Displacement d;
     d.shader = attr_.displacement;
+    if (!primvarParams_.empty()) {
+      // An instance per distinct set of values: the Displacement call's, then the primitive's.
+      std::string key = std::to_string(reinterpret_cast<uintptr_t>(attr_.displacement.get()));
+      for (const runtime::ParamValue& v : primvarParams_) {
+        key += "|" + v.name;
+        for (double x : v.numbers) {
+          char text[32];
+          std::snprintf(text, sizeof text, " %.17g", x);
+          key += text;
+        }
+        for (const std::string& x : v.strings) key += " \"" + x + "\"";
+      }
+      std::shared_ptr<const runtime::ShaderInstance>& instance = boundInstances_[key];
+      if (!instance) {
+        auto fresh = std::make_shared<runtime::ShaderInstance>(attr_.displacement->sharedShader());
+        std::string error;
+        for (const runtime::ParamValue& v : attr_.displacementValues) fresh->bind(v, &error);
+        for (const runtime::ParamValue& v : primvarParams_)
+          if (!fresh->bind(v, &error)) return fail(line, error);
+        instance = std::move(fresh);
+      }
+      d.shader = instance;
+    }
     const glm::mat4& worldFromObject = attr_.ctm;
     const std::string& space = attr_.boundSpace;
     float scale = attr_.boundNamedScale;
@@ -962,6 +989,10 @@ class RibParser {
   }
 
   std::string fileName_;
+  // The current primitive's primitive variables named like parameters of its displacement shader
+  // (RenderMan binds them over the Displacement call's values), and the instances made for them.
+  std::vector<runtime::ParamValue> primvarParams_;
+  std::map<std::string, std::shared_ptr<const runtime::ShaderInstance>> boundInstances_;
   std::string baseDir_;
   const RibReadOptions& options_;
   std::vector<RibToken> tokens_;
@@ -1158,6 +1189,7 @@ bool RibParser::execute(const Call& call) {
   if (!executeCamera(call, &handled) || handled) return !failed_;
   if (!executeTransform(call, &handled) || handled) return !failed_;
   if (!executeAttributes(call, &handled) || handled) return !failed_;
+  primvarParams_.clear();  // a primitive's shader-parameter primvars are its own
   if (!executeGeometry(call, &handled) || handled) return !failed_;
   const std::string& n = call.name;
   if (n == "version") return true;
@@ -1965,24 +1997,44 @@ bool RibParser::doDisplacement(const Call& call) {
   // Binding errors are located at the Displacement call, as shader loading errors are: that is
   // the line a user looks for, even when the parameter list continues on later lines.
   auto instance = std::make_shared<runtime::ShaderInstance>(compiled);
+  std::vector<runtime::ParamValue> bound;
   for (const Param& p : params) {
     runtime::ParamValue value;
-    value.name = p.name;
+    if (!shaderParamValue(call.line, *compiled, p, &value)) return false;
+    std::string error;
+    if (!instance->bind(value, &error)) return fail(call.line, error);
+    bound.push_back(std::move(value));
+  }
+  attr_.displacement = std::move(instance);
+  attr_.displacementValues = std::move(bound);
+  attr_.worldFromShader = attr_.ctm;
+  attr_.displacementLine = call.line;
+  return true;
+}
+
+// A scene value for parameter p.name of `compiled`: typed by its declaration or the shader's,
+// spatial types moved from the current space to the shader's "current" space (world).
+bool RibParser::shaderParamValue(int line, const runtime::CompiledShader& compiled, const Param& p,
+                                 runtime::ParamValue* out) {
+  const std::string& name = compiled.name();
+  runtime::ParamValue value;
+  value.name = p.name;
+  {
     if (p.type) {
       value.type = *p.type;
-    } else if (const runtime::ParamInfo* info = compiled->findParam(p.name)) {
+    } else if (const runtime::ParamInfo* info = compiled.findParam(p.name)) {
       value.type = info->type;
     } else {
-      return fail(call.line, "shader '" + name + "' has no parameter '" + p.name + "'");
+      return fail(line, "shader '" + name + "' has no parameter '" + p.name + "'");
     }
     if (value.type == runtime::ParamType::String) {
       if (!p.value.isStringy())
-        return fail(call.line, "parameter '" + p.name + "' of shader '" + name +
+        return fail(line, "parameter '" + p.name + "' of shader '" + name +
                                 "' expects strings, got " + p.value.describe());
       value.strings = p.value.strings;
     } else {
       if (!p.value.isNumeric())
-        return fail(call.line, "parameter '" + p.name + "' of shader '" + name +
+        return fail(line, "parameter '" + p.name + "' of shader '" + name +
                                 "' expects numbers, got " + p.value.describe());
       value.numbers.assign(p.value.numbers.begin(), p.value.numbers.end());
       // As in RenderMan, points, vectors and normals are given in the space current at the call
@@ -2004,12 +2056,8 @@ bool RibParser::doDisplacement(const Call& call) {
         }
       }
     }
-    std::string error;
-    if (!instance->bind(value, &error)) return fail(call.line, error);
   }
-  attr_.displacement = std::move(instance);
-  attr_.worldFromShader = attr_.ctm;
-  attr_.displacementLine = call.line;
+  *out = std::move(value);
   return true;
 }
 
@@ -2308,6 +2356,50 @@ bool RibParser::doQuadric(const Call& call) {
 
 // Reads the primitive variables N st s t Cs of a polygon or patch mesh. `counts` gives the
 // expected number of values per class; an undeclared class is inferred from the value count.
+// A primitive variable that is not one of the standard ones: one named like a parameter of the
+// displacement shader is bound over the Displacement call's value for this primitive (RenderMan's
+// rule), when it has one value for the primitive (constant, or uniform and the same on every
+// face); a value varying over the primitive is not supported: a warning, and the shader's own.
+bool RibParser::shaderPrimvar(const Call& call, const Param& p, const PrimvarCounts& counts) {
+  const runtime::ParamInfo* info =
+      attr_.displacement ? attr_.displacement->shader().findParam(p.name) : nullptr;
+  if (!info || info->isOutput) {
+    warnOnce(p.line, call.name + "/" + p.name,
+             "'" + call.name + "': primitive variable '" + p.name +
+                 "' is not supported (nor a parameter of the displacement shader); ignored");
+    return true;
+  }
+  runtime::ParamValue value;
+  if (!shaderParamValue(p.line, attr_.displacement->shader(), p, &value)) return false;
+  const int components = value.type == runtime::ParamType::Matrix ? 16
+                         : value.type == runtime::ParamType::Float || value.type == runtime::ParamType::Int ||
+                                 value.type == runtime::ParamType::String
+                             ? 1
+                             : 3;
+  const size_t one = size_t(std::max(info->arrayLength, 1)) * size_t(components);
+  const size_t given = value.type == runtime::ParamType::String ? value.strings.size() : value.numbers.size();
+  const bool constant = p.storageClass == "constant" || (p.storageClass.empty() && given == one);
+  bool same = !constant && given == one * counts.uniform && counts.uniform > 0 &&
+              (p.storageClass.empty() || p.storageClass == "uniform");
+  for (size_t f = 1; same && f < counts.uniform; ++f)
+    for (size_t i = 0; same && i < one; ++i)
+      same = value.type == runtime::ParamType::String ? value.strings[f * one + i] == value.strings[i]
+                                                      : value.numbers[f * one + i] == value.numbers[i];
+  if (!constant && !same) {
+    warnOnce(p.line, call.name + "/" + p.name,
+             "'" + call.name + "': primitive variable '" + p.name + "' varies over the primitive; " +
+                 "shader parameters take one value per primitive, so the Displacement call's is used");
+    return true;
+  }
+  value.numbers.resize(std::min(value.numbers.size(), one));
+  value.strings.resize(std::min(value.strings.size(), one));
+  std::string error;
+  runtime::ShaderInstance probe(attr_.displacement->sharedShader());
+  if (!probe.bind(value, &error)) return fail(p.line, "'" + call.name + "': " + error);
+  primvarParams_.push_back(std::move(value));
+  return true;
+}
+
 bool RibParser::readPrimvars(const Call& call, const std::vector<Param>& params,
                              const PrimvarCounts& counts, std::vector<Primvar>* out) {
   struct Known {
@@ -2323,9 +2415,7 @@ bool RibParser::readPrimvars(const Call& call, const std::vector<Param>& params,
     for (const Known& candidate : known)
       if (p.name == candidate.name) k = &candidate;
     if (!k) {
-      warnOnce(p.line, call.name + "/" + p.name,
-               "'" + call.name + "': primitive variable '" + p.name +
-                   "' is not supported; ignored");
+      if (!shaderPrimvar(call, p, counts)) return false;
       continue;
     }
     Primvar v;

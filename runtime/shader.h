@@ -84,6 +84,7 @@ class ShaderInstance {
   ShaderInstance& operator=(const ShaderInstance&) = delete;
 
   const CompiledShader& shader() const { return *shader_; }
+  const std::shared_ptr<const CompiledShader>& sharedShader() const { return shader_; }
   const std::string& name() const { return shader_->name(); }
 
   // Overrides one parameter. Returns false and sets *error (without a location; the caller knows

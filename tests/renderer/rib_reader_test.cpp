@@ -362,6 +362,51 @@ TEST(RibReader, DisplacementBindsTypedAndUntypedParameters) {
   EXPECT_FLOAT_EQ(d.spaces.objectFromCurrent[0], 1.0f / 3.0f);
 }
 
+// RenderMan binds a primitive variable named like a shader parameter over the Displacement
+// call's value, for that primitive: one value (constant, or the same on every face) does; the
+// other bound values stay; primitives with equal values share an instance; a value varying over
+// the primitive and a name the shader lacks warn.
+TEST(RibReader, PrimitiveVariablesBindShaderParameters) {
+  test::TestShaderProvider shaders;
+  ReadResult r = read(world("Attribute \"displacementbound\" \"float sphere\" [0.1]\n"
+                            "Displacement \"push\" \"float Km\" [0.25] \"string map\" [\"bricks.tx\"]\n"
+                            "Polygon \"P\" [0 0 0  1 0 0  0 1 0] \"float Km\" [0.5]\n"
+                            "Polygon \"P\" [0 0 0  1 0 0  0 1 0]\n"
+                            "Sphere 1 -1 1 360 \"constant float Km\" [0.5]\n"
+                            "PointsPolygons [3 3] [0 1 2 0 2 3] \"P\" [0 0 0  1 0 0  1 1 0  0 1 0]"
+                            " \"uniform float Km\" [0.75 0.75] \"tint\" [0 1 0]\n"
+                            "Polygon \"P\" [0 0 0  1 0 0  0 1 0] \"varying float Km\" [1 2 3]\n"
+                            "Polygon \"P\" [0 0 0  1 0 0  0 1 0] \"float Kq\" [1]\n"),
+                      &shaders);
+  ASSERT_TRUE(r.scene) << r.error.format();
+  ASSERT_EQ(r.scene->meshes.size(), 6u);
+  auto block = [&](size_t mesh) { return r.scene->displacements[r.scene->meshes[mesh].displacementIndex].shader->block().data(); };
+  auto km = [&](size_t mesh) {
+    float v;
+    std::memcpy(&v, block(mesh), 4);
+    return v;
+  };
+  EXPECT_FLOAT_EQ(km(0), 0.5f);
+  EXPECT_FLOAT_EQ(km(1), 0.25f);
+  EXPECT_FLOAT_EQ(km(2), 0.5f);
+  EXPECT_EQ(r.scene->displacements[r.scene->meshes[0].displacementIndex].shader,
+            r.scene->displacements[r.scene->meshes[2].displacementIndex].shader);
+  EXPECT_FLOAT_EQ(km(3), 0.75f);
+  float tint[3];
+  std::memcpy(tint, block(3) + 4, 12);
+  EXPECT_FLOAT_EQ(tint[1], 1.0f);
+  const char* map;
+  std::memcpy(&map, block(3) + 16, sizeof map);
+  EXPECT_STREQ(map, "bricks.tx");  // the Displacement call's, kept
+  EXPECT_FLOAT_EQ(km(4), 0.25f);
+  EXPECT_FLOAT_EQ(km(5), 0.25f);
+  EXPECT_NE(r.warnings.find(":8: warning: 'Polygon': primitive variable 'Km' varies over the primitive"),
+            std::string::npos)
+      << r.warnings;
+  EXPECT_NE(r.warnings.find(":9: warning: 'Polygon': primitive variable 'Kq' is not supported"), std::string::npos)
+      << r.warnings;
+}
+
 // RenderMan gives point, vector and normal parameters in the space current at the call; the
 // shader reads them in its current space (world). Before, they were bound as given.
 TEST(RibReader, SpatialShaderParametersAreInTheSpaceOfTheCall) {
