@@ -718,8 +718,9 @@ OutputKind outputKind(const std::string& mode) {
 
 // `out.png` -> `out.0007.png`: the frames of one run must not overwrite each other's files.
 std::string withFrameNumber(const std::string& path, int number) {
+  // Four digits whatever the sign: frame -3 is "-0003", as 3 is "0003" ("%04d" gave "-003").
   char digits[16];
-  std::snprintf(digits, sizeof digits, "%04d", number);
+  std::snprintf(digits, sizeof digits, number < 0 ? "-%04lld" : "%04lld", std::llabs(static_cast<long long>(number)));
   const std::filesystem::path p(path);
   return (p.parent_path() / (p.stem().string() + "." + digits + p.extension().string())).string();
 }

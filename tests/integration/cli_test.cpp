@@ -1119,6 +1119,13 @@ TEST(Relief, OutputAndStatsNamesGetTheFrameNumber) {
   EXPECT_FALSE(fs::exists(dir / "stats.json"));
   EXPECT_NE(readFile(dir / "stats.0001.json").find("\"scene.frame\": 1,"), std::string::npos);
   EXPECT_NE(readFile(dir / "stats.0002.json").find("\"scene.frame\": 2,"), std::string::npos);
+  // A negative frame number keeps four digits after its sign.
+  std::string text = readFile(scene);
+  text.replace(text.find("FrameBegin 2"), 12, "FrameBegin -3");
+  writeFile(scene, text);
+  r = run(kRelief + " " + scene.string() + " --quiet -o " + (dir / "neg.png").string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_EQ(r.out, (dir / "neg.0001.png").string() + "\n" + (dir / "neg.-0003.png").string() + "\n");
 }
 
 TEST(Relief, FramesWritingOneFileWarnOnce) {
