@@ -491,8 +491,14 @@ class ShaderCodegen {
     return b_.CreateInBoundsGEP(a->getAllocatedType(), a, {llvm::ConstantInt::get(i64_, 0), b_.CreateSExt(index, i64_)});
   }
   Value* clampIndex(Value* index, int length) {
-    if (auto* k = llvm::dyn_cast<llvm::ConstantInt>(index))
-      return ci(int32_t(std::clamp<int64_t>(k->getSExtValue(), 0, length - 1)));
+    if (auto* k = llvm::dyn_cast<llvm::ConstantInt>(index)) {
+      // The type checker rejects a constant index out of a sized array; through an unsized
+      // parameter the length is known only here, inlined, and the clamp is reported at run time.
+      const int64_t at = k->getSExtValue();
+      if ((at < 0 || at > length - 1) && indexClamped_)
+        b_.CreateStore(b_.CreateAdd(b_.CreateLoad(i32_, indexClamped_), ci(1)), indexClamped_);
+      return ci(int32_t(std::clamp<int64_t>(at, 0, length - 1)));
+    }
     Value* low = b_.CreateICmpSLT(index, ci(0));
     Value* high = b_.CreateICmpSGT(index, ci(length - 1));
     if (indexClamped_) {
@@ -2062,11 +2068,26 @@ class ShaderCodegen {
       for (size_t i = firstKnot; i < args.size(); ++i) storeElement(*knots, ci(int32_t(i - firstKnot)), convert(args[i], kt));
     }
     const int n = knots->type.arrayLength;
+    // Knots from an unsized array parameter are counted only here, where the call is inlined
+    // (the type checker saw no length): a count no basis can use is a run-time spline problem, as
+    // a run-time basis that does not fit is. Fewer than 4 knots give the first one.
+    auto countProblem = [&] {
+      if (splineBasisProblems_)
+        b_.CreateStore(b_.CreateAdd(b_.CreateLoad(i32_, splineBasisProblems_), ci(1)), splineBasisProblems_);
+    };
+    if (n < 4) {
+      countProblem();
+      return convert(loadElement(*knots, ci(0)), kt);
+    }
     if (args[0].type.kind == TypeKind::String) {
       first = 1;
       if (e.operands[0]->kind == ExprKind::StringLiteral) {
         for (const SplineBasis& candidate : kSplineBases)
           if (e.operands[0]->text == candidate.name) basis = &candidate;
+        if (!basis->fits(n)) {
+          countProblem();
+          basis = &kSplineBases[0];
+        }
       } else {
         dynamicIndex = splineBasisIndex(args[0].c[0].v, n);
       }

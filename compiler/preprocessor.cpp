@@ -176,7 +176,7 @@ std::vector<Token> Preprocessor::run(SourceManager::FileId file) {
   };
   for (const auto& [name, value] : kPredefined) definePredefined(name, value, "<built-in>");
   for (const auto& [name, value] : options_.defines)
-    definePredefined(name, value.empty() ? "1" : value, "<command line>");
+    definePredefined(name, value, "<command line>");  // -D X= is empty; reliefc turns -D X into X=1
 
   Source main;
   main.lexer = std::make_unique<Lexer>(sm_, file, diags_);

@@ -1625,6 +1625,9 @@ class Checker {
         if (args[i]->type.isArray() || conversion(args[i]->type, knotType) == Conversion::None) return noMatch();
       count = int(args.size() - first - 1);
     }
+    // An unsized array parameter's length is known only where the function is inlined: codegen
+    // checks it there, counting a misfit as a run-time spline problem.
+    if (count == -1) return set(e, knotType);
     if (runtimeBasis && count < 4) {
       report(DiagId::ErrSplineKnotsAnyBasis, e.range.begin).arg(count).range(e.opRange);
       return set(e, kError);

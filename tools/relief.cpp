@@ -517,7 +517,7 @@ void reportShaderProblems(const relief::Scene& scene, std::ostream& out) {
     report(p->indexClamped, "array or component indices were clamped into range");
     report(p->unknownSpace, "unknown coordinate space names were treated as 'current'");
     report(p->textureErrors, "texture lookups failed");
-    report(p->splineBasis, "spline calls named an unknown or unfit basis (catmull-rom was used)");
+    report(p->splineBasis, "spline calls named an unknown basis or one unfit for their knots (catmull-rom was used; with fewer than 4 knots, the first knot)");
     if (const uint64_t n = p->outOfBound.load()) {
       warn() << " moved " << n << " points beyond the displacement bound "
           << d.boundWorld << " (world units), by up to " << maxExcess(*p)

@@ -234,14 +234,17 @@ int evaluate(const Args& args, const CompileResult& result) {
   batch.spaces = &spaces;
   // printf() output goes to stdout.
   RlfHostServices services{};
-  services.print = [](void*, const char* text) { std::fputs(text, stdout); };
+  // Through std::cout, which -o collects: the shader's printf output and P and N are what
+  // --eval prints.
+  services.print = [](void*, const char* text) { std::cout << text; };
   batch.services = &services;
   RlfStatus status{};
   instance.evaluate(batch, status);
-  std::printf("P = (%.9g, %.9g, %.9g)\nN = (%.9g, %.9g, %.9g)\n", Pout[0], Pout[1], Pout[2], Nout[0], Nout[1],
-              Nout[2]);
+  char line[160];
+  std::snprintf(line, sizeof line, "P = (%.9g, %.9g, %.9g)\nN = (%.9g, %.9g, %.9g)\n", Pout[0], Pout[1], Pout[2],
+                Nout[0], Nout[1], Nout[2]);
+  std::cout << line << std::flush;
   // Runtime problems name the shader, as the renderer's warnings do (language.md §7).
-  std::fflush(stdout);
   if (status.nonFinite)
     std::cerr << "reliefc: warning: shader '" << shader->name()
               << "' produced a non-finite P; the undisplaced point and input N were used\n";
@@ -256,7 +259,7 @@ int evaluate(const Args& args, const CompileResult& result) {
     std::cerr << "reliefc: warning: shader '" << shader->name() << "': " << status.textureErrors
               << " texture lookup(s) failed\n";
   const std::pair<uint32_t, const char*> warnings[] = {
-      {status.splineBasis, "spline basis name unknown or unfit for the knot count; catmull-rom was used"},
+      {status.splineBasis, "spline basis name unknown or unfit for the knot count; catmull-rom was used (with fewer than 4 knots, the first knot)"},
       {status.indexClamped, "array or component indices were clamped into range"},
       {status.unknownSpace, "unknown coordinate space names were treated as 'current'"}};
   for (const auto& [count, what] : warnings)

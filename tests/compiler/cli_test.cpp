@@ -314,6 +314,30 @@ TEST(CliTest, OutputFileIsWrittenOnlyWhenEveryInputCompiles) {
 }
 
 // §7: the loop limit is a run-time error: said as one, with exit code 1.
+// -o takes what --eval prints (the shader's printf output, then P and N), as it does IR; a
+// place it cannot write leaves nothing on standard output. -D NAME= defines NAME empty, -D NAME
+// as 1 (cc's rule).
+TEST(CliTest, EvalOutputGoesToTheOutputFileAndEmptyDefinesStayEmpty) {
+  const fs::path shader = writeTemp("relief_evalout.disp",
+                                    "displacement e() { float a = 2 X; printf(\"a=%g\\n\", a); }\n");
+  const fs::path out = fs::path(::testing::TempDir()) / "relief_evalout.txt";
+  fs::remove(out);
+  CliRun r = reliefc("--eval -DX= -o " + quote(out.string()) + " " + quote(shader.string()));
+  EXPECT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_EQ(r.out, "");
+  std::ifstream in(out);
+  const std::string written((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_EQ(written.substr(0, 4), "a=2\n") << written;
+  EXPECT_NE(written.find("P = ("), std::string::npos) << written;
+  r = reliefc("--eval -DX=+0 -o /nonexistent/dir/x.txt " + quote(shader.string()));
+  EXPECT_EQ(r.exitCode, 2);
+  EXPECT_NE(r.err.find("cannot write '/nonexistent/dir/x.txt'"), std::string::npos) << r.err;
+  EXPECT_EQ(r.out, "");
+  r = reliefc("--eval -DX=*3 " + quote(shader.string()));
+  EXPECT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_EQ(r.out.substr(0, 4), "a=6\n") << r.out;
+}
+
 TEST(CliTest, EvalLoopLimitIsAnErrorExitCode) {
   const fs::path loop = writeTemp("relief_loop.disp", "displacement spin() { float x = 0; while (x >= 0) x += 1; P += x * N; }\n");
   const CliRun r = reliefc("--eval -floop-limit=1000 " + quote(loop.string()));

@@ -508,6 +508,41 @@ displacement d()
   EXPECT_EQ(printed, "11 10 4 40 7 100\n");
 }
 
+TEST(FunctionTest, SplineAndIndicesOverUnsizedArrayParameters) {
+  // §6.6 takes `T k[]`; through an unsized parameter the knot count is known where the function
+  // is inlined: used there, and a count the basis cannot use (or a constant index out of the
+  // array) is a run-time problem, reported, not a compile error.
+  TestBatch b(1);
+  RlfStatus status{};
+  const std::string fits = evaluate(R"(
+float sp(float x; float k[]) { return spline(x, k); }
+float bz(float x; float k[]) { return spline("bezier", x, k); }
+displacement d()
+{
+    float k5[5] = {0, 1, 4, 9, 16};
+    float k7[7] = {0, 1, 2, 3, 4, 5, 6};
+    printf("%g %g\n", sp(0.5, k5), bz(0.5, k7));
+})",
+                                    b, &status);
+  EXPECT_EQ(fits, "4 3\n");
+  EXPECT_EQ(status.splineBasis, 0u);
+  EXPECT_EQ(status.indexClamped, 0u);
+  const std::string misfits = evaluate(R"(
+float sp(float x; float k[]) { return spline(x, k); }
+float bz(float x; float k[]) { return spline("bezier", x, k); }
+float h(float k[]) { return k[7]; }
+displacement d()
+{
+    float k5[5] = {0, 1, 4, 9, 16};
+    float k2[2] = {3, 4};
+    printf("%g %g %g\n", bz(0.5, k5), sp(0.5, k2), h(k5));
+})",
+                                       b, &status);
+  EXPECT_EQ(misfits, "4 3 16\n");  // catmull-rom instead of bezier; the first of 2 knots; k[4]
+  EXPECT_EQ(status.splineBasis, 2u);
+  EXPECT_EQ(status.indexClamped, 1u);
+}
+
 TEST(DisplaceTest, AmountInANamedSpaceScalesWithThatSpace) {
   // §6.8: displace(space, amp) moves amp * length(ntransform(space, normalize(N))) along N, so
   // 0.1 units of an object space scaled 2x (or of a shader space scaled 0.5x) are 0.2 (0.05) in

@@ -135,10 +135,10 @@ TEST(PreprocessorTest, StringizeAndPaste) {
 
 TEST(PreprocessorTest, CommandLineDefines) {
   PreprocessorOptions options;
-  options.defines = {{"LEVEL", "3"}, {"FLAG", ""}};
-  auto r = preprocess("#if LEVEL > 2 && FLAG\nyes M_PI\n#endif\n", options);
+  options.defines = {{"LEVEL", "3"}, {"FLAG", "1"}, {"EMPTY", ""}};
+  auto r = preprocess("#if LEVEL > 2 && FLAG\nyes M_PI EMPTY\n#endif\n", options);
   EXPECT_EQ(r->errors, "");
-  EXPECT_EQ(r->text, "yes 3.14159265358979323846");
+  EXPECT_EQ(r->text, "yes 3.14159265358979323846");  // -D EMPTY= defines it empty, as cc does
 }
 
 TEST(PreprocessorTest, FunctionLikeMacroArgumentsMayStartOnTheNextLine) {

@@ -881,7 +881,7 @@ TEST(Relief, UnknownRuntimeSplineBasisIsOneWarningNamingTheShader) {
   const std::string expected = scene.string() + ":8: warning: displacement shader 'sb': ";
   const size_t at = onlyWarning(r.err, expected);
   ASSERT_NE(at, std::string::npos) << r.err;
-  EXPECT_NE(r.err.find("unknown or unfit basis", at), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("unknown basis or one unfit for their knots", at), std::string::npos) << r.err;
 }
 
 // A shader's printf goes to standard output, whole messages, up to --print-limit of them (a shader
