@@ -739,6 +739,14 @@ class Checker {
           r = a;
         else if (a.kind != TypeKind::String && b.kind != TypeKind::String)
           r = binaryResult(Tok::Plus, a, b);
+        if (a.isArray() || b.isArray()) {
+          // Arrays are not values (§2): "incompatible 'float[2]' and 'float[2]'" would puzzle.
+          report(DiagId::ErrConditionalArray, e.opLoc)
+              .arg(typeName(a.isArray() ? a : b))
+              .range(e.operands[1]->range)
+              .range(e.operands[2]->range);
+          return set(e, kError);
+        }
         if (r.isError() || r.isArray()) {
           report(DiagId::ErrConditionalOperands, e.opLoc)
               .arg(typeName(a))
