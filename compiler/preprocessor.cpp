@@ -630,6 +630,11 @@ void Preprocessor::expand(std::vector<Token> input, std::vector<Token>& out, con
             .arg(static_cast<long long>(m.params.size()))
             .arg(static_cast<long long>(args.size()))
             .range(t.range());
+        // In its place, a token the parser knows is reported: no "expected expression" after it.
+        Token bad = t;
+        bad.kind = Tok::Unknown;
+        bad.malformed = true;
+        out.push_back(bad);
         continue;
       }
       auto paramIndex = [&](const Token& b) {

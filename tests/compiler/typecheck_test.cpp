@@ -150,6 +150,12 @@ TEST(TypeCheckTest, CallsAreCheckedAgainstBuiltinSignatures) {
   EXPECT_EQ(check("float a = frobnicate(u);").errors, "3:11: use of undeclared function 'frobnicate'\n");
   EXPECT_EQ(check("float a1[2] = {1, 2}, a2[2] = {3, 4};\nfloat x = (u > 0 ? a1 : a2)[0];").errors,
             "4:18: a '?:' expression cannot choose between arrays ('float[2]'); use an if statement\n");
+  // A macro given the wrong number of arguments is one error, not one more at the parser.
+  CompileFlags flags;
+  flags.jit = false;
+  const CompileResult macro = compileSource(
+      "m.disp", "#define G(a, b) (a + b)\ndisplacement t() { float x = G(1) * 2; P += x * N; }\n", {}, flags);
+  EXPECT_EQ(macro.diagnostics->numErrors(), 1u) << renderDiagnostics(macro);
   // Once per body, like an undeclared variable; another name is another error.
   EXPECT_EQ(check("float a = frobnicate(u) + frobnicate(v) + twiddle(u);").errors,
             "3:11: use of undeclared function 'frobnicate'\n3:43: use of undeclared function 'twiddle'\n");
