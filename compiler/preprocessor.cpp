@@ -510,7 +510,26 @@ bool Preprocessor::evaluateCondition(const Token& directiveName, const std::vect
     pre.push_back(line[i]);
   }
   std::vector<Token> expanded;
+  inCondition_ = true;
   expand(pre, expanded, {}, false);
+  inCondition_ = false;
+  // `defined` that macros produced (`#define HAS_A defined(A)`), as GNU cpp evaluates them.
+  std::vector<Token> resolved;
+  for (size_t i = 0; i < expanded.size(); ++i) {
+    if (expanded[i].is(Tok::Identifier) && expanded[i].text == "defined") {
+      size_t j = i + 1;
+      const bool paren = j < expanded.size() && expanded[j].is(Tok::LParen);
+      if (paren) ++j;
+      if (j < expanded.size() && isIdentifierLike(expanded[j]) &&
+          (!paren || (j + 1 < expanded.size() && expanded[j + 1].is(Tok::RParen)))) {
+        resolved.push_back(literal(macros_.count(tokenText(expanded[j])) != 0, expanded[i]));
+        i = paren ? j + 1 : j;
+        continue;
+      }
+    }
+    resolved.push_back(expanded[i]);
+  }
+  expanded = std::move(resolved);
   for (Token& t : expanded)
     if (isIdentifierLike(t)) t = literal(false, t);
   int64_t value = 0;
@@ -581,7 +600,14 @@ void Preprocessor::expand(std::vector<Token> input, std::vector<Token>& out, con
       fatal_ = true;
       return;
     }
-    const std::string name = t.is(Tok::Identifier) && !t.noExpand ? tokenText(t) : std::string();
+    std::string name = t.is(Tok::Identifier) && !t.noExpand ? tokenText(t) : std::string();
+    // In an #if, the operand of a `defined` that a macro produced is a name, not a macro call
+    // (GNU cpp's reading of what C leaves undefined).
+    const size_t n = out.size();
+    if (inCondition_ && !name.empty() &&
+        ((n >= 1 && out[n - 1].is(Tok::Identifier) && out[n - 1].text == "defined") ||
+         (n >= 2 && out[n - 1].is(Tok::LParen) && out[n - 2].is(Tok::Identifier) && out[n - 2].text == "defined")))
+      name.clear();
     auto it = name.empty() ? macros_.end() : macros_.find(name);
     if ((name == "__LINE__" || name == "__FILE__") && it == macros_.end()) {
       // C's predefined pair, at the use (a macro's tokens sit at its use, so inside one too).

@@ -91,6 +91,7 @@ class Preprocessor {
   bool fatal_ = false;
   int expansionDepth_ = 0;
   std::string outermost_;  // the macro used in the source whose expansion is under way
+  bool inCondition_ = false;  // expanding an #if line: `defined`'s operand is not expanded
 };
 
 }  // namespace relief::compiler

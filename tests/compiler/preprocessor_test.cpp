@@ -133,6 +133,15 @@ TEST(PreprocessorTest, StringizeAndPaste) {
   EXPECT_EQ(empty->text, "x y [ ] pq r a bc d");
 }
 
+TEST(PreprocessorTest, DefinedProducedByAMacroIsEvaluated) {
+  // C leaves it undefined; GNU cpp (and RSL headers written for it) evaluate it, its operand
+  // unexpanded.
+  auto r = preprocess("#define A 1\n#define HAS_A defined(A)\n#define HAS_B defined B\n"
+                      "#if HAS_A && !HAS_B\nyes\n#endif\n#if HAS_B\nno\n#endif\n");
+  EXPECT_EQ(r->errors, "");
+  EXPECT_EQ(r->text, "yes");
+}
+
 TEST(PreprocessorTest, CommandLineDefines) {
   PreprocessorOptions options;
   options.defines = {{"LEVEL", "3"}, {"FLAG", "1"}, {"EMPTY", ""}};
