@@ -149,8 +149,16 @@ Token Lexer::lexNumber(const char* start) {
     if (cur_ < end_ && isDigit(*cur_)) {
       isFloat = true;
       while (cur_ < end_ && isDigit(*cur_)) ++cur_;
+    } else if (cur_ < end_ && (std::isalpha(static_cast<unsigned char>(*cur_)) || *cur_ == '_')) {
+      cur_ = save;  // "2ex": the number 2, then an identifier; the parser complains
     } else {
-      cur_ = save;  // "1e" is the number 1 then an identifier; the parser complains
+      // "1e", "1e+": an exponent without digits, one error here rather than a confusing one at
+      // the parser (C calls it an invalid pp-number too).
+      Token t = make(Tok::FloatLiteral, start);
+      sink().report(DiagId::ErrBadNumber, t.loc).arg(t.text).range(t.range());
+      t.floatValue = std::strtof(std::string(t.text).c_str(), nullptr);
+      t.malformed = true;
+      return t;
     }
   }
   Token t = make(isFloat ? Tok::FloatLiteral : Tok::IntLiteral, start);

@@ -55,7 +55,7 @@ TEST(LexerTest, ByteOrderMarkAtTheStartIsSkipped) {
 }
 
 TEST(LexerTest, NumbersAndTheDotRule) {
-  auto l = lex("1 1.0 1. .5 1e3 2.5e-3 0x1F a.5 7e");
+  auto l = lex("1 1.0 1. .5 1e3 2.5e-3 0x1F a.5 7ex");
   ASSERT_TRUE(l->messages.empty());
   const auto& t = l->tokens;
   EXPECT_EQ(t[0].kind, Tok::IntLiteral);
@@ -71,9 +71,14 @@ TEST(LexerTest, NumbersAndTheDotRule) {
   EXPECT_EQ(t[7].kind, Tok::Identifier);
   EXPECT_EQ(t[8].kind, Tok::FloatLiteral);
   EXPECT_FLOAT_EQ(t[8].floatValue, 0.5f);
-  // `7e` is the number 7 followed by the identifier e.
+  // `7ex` is the number 7 followed by the identifier ex (the parser reports it).
   EXPECT_EQ(t[9].kind, Tok::IntLiteral);
   EXPECT_EQ(t[10].kind, Tok::Identifier);
+  // An exponent without digits is an invalid literal, one error at the lexer.
+  auto bad = lex("1e; 2e+ 3");
+  ASSERT_EQ(bad->messages.size(), 2u);
+  EXPECT_EQ(bad->messages[0], "1:1: invalid numeric literal '1e'");
+  EXPECT_EQ(bad->messages[1], "1:5: invalid numeric literal '2e+'");
 }
 
 TEST(LexerTest, IntegerOverflowIsAnError) {
