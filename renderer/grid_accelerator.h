@@ -84,9 +84,10 @@ class GridAccelerator final : public Accelerator {
   float positionStep_ = 0.0f;
   std::vector<std::atomic<uint8_t>> voxelCounted_;  // per voxel: its unique triangles counted
   std::vector<std::atomic<uint8_t>> knownEmpty_;    // per voxel: filled once with no triangles
-  // Per input triangle: kShared when listed in 2+ voxels (the side cache keeps those), and
-  // kMemoWorthy when also subdivided finely enough for a subtree memo to pay.
-  static constexpr uint8_t kShared = 1, kMemoWorthy = 2;
+  // Per input triangle: kShared when listed in 2+ voxels, kMemoWorthy when also subdivided finely
+  // enough for a subtree memo to pay, kSideWorthy when also small enough for the side cache to
+  // keep its whole subdivision (at most an eighth of its capacity).
+  static constexpr uint8_t kShared = 1, kMemoWorthy = 2, kSideWorthy = 4;
   std::vector<uint8_t> sharedContributor_;
   std::atomic<uint64_t> uniqueTriangles_{0}, shaderPoints_{0}, fillNanos_{0}, displaceTicks_{0};
   std::atomic<uint64_t> maxVoxelTriangles_{0};

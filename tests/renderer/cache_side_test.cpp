@@ -92,5 +92,33 @@ TEST(CacheSide, ContributorsOfOneVoxelOnlyBypassTheSideCache) {
   EXPECT_EQ(s.shaderPoints, reference.stats().shaderPoints);
 }
 
+// A contributor whose whole subdivision would not fit an eighth of the capacity bypasses the side
+// cache (it is subdivided per voxel, culled), so the cache stays within its capacity: a coarse
+// sphere of big triangles at a small capacity keeps nothing, with the same hits.
+TEST(CacheSide, ContributorsTooBigForTheSideCacheBypassIt) {
+  testing::SphereOptions o;
+  o.nu = 8, o.nv = 4;  // 64 input triangles of 4^4 micro-triangles each, before displacement
+  const Scene scene = testing::makeSphereScene(o);
+  const std::vector<Ray> rays = sweep();
+  AccelOptions base;
+  base.gridResolution = 12;
+  GridAccelerator reference(scene, base);
+  const std::vector<HitKey> expected = hitKeys(reference, rays);
+  AccelOptions small = base;
+  small.sideCacheTriangles = 2000;  // under 8 x 4^4
+  GridAccelerator side(scene, small);
+  for (size_t i = 0; i < rays.size(); ++i) ASSERT_EQ(hitKey(side.intersect(rays[i])), expected[i]) << i;
+  const AccelStats s = side.stats();
+  EXPECT_EQ(s.sideCachePeakTriangles, 0u);
+  EXPECT_EQ(s.sideCacheHits + s.sideCacheMisses, 0u);
+  // With room for them, the same triangles are kept and shared.
+  AccelOptions roomy = base;
+  roomy.sideCacheTriangles = 200000;
+  GridAccelerator kept(scene, roomy);
+  for (size_t i = 0; i < rays.size(); ++i) ASSERT_EQ(hitKey(kept.intersect(rays[i])), expected[i]) << i;
+  EXPECT_GT(kept.stats().sideCacheHits, 0u);
+  EXPECT_LE(kept.stats().sideCachePeakTriangles, roomy.sideCacheTriangles);
+}
+
 }  // namespace
 }  // namespace relief
