@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include <glm/gtx/component_wise.hpp>
+
 #include "renderer/subdivide.h"
 
 namespace relief {
@@ -67,7 +69,7 @@ ContributorGrid::ContributorGrid(const Scene& scene, const AccelOptions& options
   // Triangle boxes grown by the displacement bound. Triangles with non-finite corners are left
   // out: the scene reader reports them; here they must not poison the grid.
   std::vector<Bounds3> boxes(numTriangles());
-  Bounds3 displacedReach;
+  Bounds3 core;
   for (uint32_t m = 0; m < scene.meshes.size(); ++m) {
     const Mesh& mesh = scene.meshes[m];
     const float grow = displacements_[m] ? std::max(0.0f, displacements_[m]->boundWorld) : 0.0f;
@@ -75,22 +77,40 @@ ContributorGrid::ContributorGrid(const Scene& scene, const AccelOptions& options
       const Bounds3 box = triangleReach(mesh, t, grow);
       if (box.empty()) continue;
       boxes[meshOffsets_[m] + t] = box;
-      if (displacements_[m]) displacedReach.extend(box.lo), displacedReach.extend(box.hi);
+      if (displacements_[m]) core.extend(box.lo), core.extend(box.hi);
+    }
+  }
+  // Without displaced geometry the neighbourhood is that of the triangles of ordinary size: a
+  // ground plane a million units wide under a unit sphere would otherwise be intersected in float
+  // from voxels the size of the plane, and shadow rays leaving it found it again (self-shadowing
+  // speckles on a fifth of the image at 1e5 units).
+  if (core.empty() && options.outsideTriangles && numTriangles() > 2) {
+    std::vector<float> extents;
+    extents.reserve(boxes.size());
+    for (const Bounds3& box : boxes)
+      if (!box.empty()) extents.push_back(glm::compMax(box.hi - box.lo));
+    if (!extents.empty()) {
+      std::vector<float> sorted = extents;
+      std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+      const float ordinary = kOrdinaryTriangles * sorted[sorted.size() / 2];
+      for (const Bounds3& box : boxes)
+        if (!box.empty() && glm::compMax(box.hi - box.lo) <= ordinary)
+          core.extend(box.lo), core.extend(box.hi);
     }
   }
   // Undisplaced triangles reaching outside the displaced geometry's neighbourhood stay out of the
   // grid (header).
-  if (!displacedReach.empty()) {
-    const glm::vec3 extent = displacedReach.hi - displacedReach.lo;
+  if (!core.empty()) {
+    const glm::vec3 extent = core.hi - core.lo;
     const float grow = kOutsideMargin * std::max({extent.x, extent.y, extent.z});
-    displacedReach.lo -= glm::vec3(grow), displacedReach.hi += glm::vec3(grow);
+    core.lo -= glm::vec3(grow), core.hi += glm::vec3(grow);
   }
-  for (uint32_t m = 0; options.outsideTriangles && m < scene.meshes.size() && !displacedReach.empty(); ++m) {
+  for (uint32_t m = 0; options.outsideTriangles && m < scene.meshes.size() && !core.empty(); ++m) {
     if (displacements_[m]) continue;
     for (uint32_t t = 0; t < scene.meshes[m].numTriangles(); ++t) {
       Bounds3& box = boxes[meshOffsets_[m] + t];
       if (box.empty()) continue;
-      if (glm::any(glm::lessThan(box.lo, displacedReach.lo)) || glm::any(glm::greaterThan(box.hi, displacedReach.hi))) {
+      if (glm::any(glm::lessThan(box.lo, core.lo)) || glm::any(glm::greaterThan(box.hi, core.hi))) {
         outside_.push_back(meshOffsets_[m] + t);
         box = {};
       }

@@ -77,8 +77,11 @@ constexpr size_t kMinEntryLimit = size_t(1) << 22;
 // 2000-unit floor: 877 first fills became 4, the render 3.1x slower). The margin keeps the small
 // undisplaced things around the displaced ones (sphere_box's table and glass) in the grid, whose
 // voxel BVHs test them faster than the plain BVH does (with no margin sphere_box's render was
-// 1.25x slower). Scenes without displaced geometry keep every triangle in the grid.
+// 1.25x slower). Scenes without displaced geometry take the neighbourhood of their triangles of
+// ordinary size instead: those at most kOrdinaryTriangles times the median triangle's extent
+// (a huge ground plane under small objects goes to the plain BVH, whose test is in double).
 constexpr float kOutsideMargin = 1.0f;
+constexpr float kOrdinaryTriangles = 64.0f;
 
 class ContributorGrid {
  public:

@@ -261,9 +261,11 @@ TEST(Relief, RunningOutOfMemoryNamesTheDisplacement) {
                                    "Displacement \"bumps\" \"Km\" 5 \"freq\" 10\n"
                                    "Patch \"bilinear\" \"P\" [-200 0 -200  200 0 -200  -200 0 200  200 0 200]\n"
                                    "WorldEnd\n");
-  // Asked for in so many words: an unlimited cache, so the fills run out of memory.
+  // Asked for in so many words: an unlimited cache and a side cache big enough to keep the
+  // plane's two whole subdivisions (16.8M micro-triangles each), so the fills run out of memory.
   RunResult r = run("ulimit -v 1000000; " + kRelief + " " + scene.string() + " -I " + kSource +
-                    "/examples/shaders --threads 2 --cache-triangles unlimited -o " + (dir / "plane.png").string());
+                    "/examples/shaders --threads 2 --cache-triangles unlimited --side-cache 1000000000 -o " +
+                    (dir / "plane.png").string());
   EXPECT_EQ(r.exitCode, 1) << r.err;
   EXPECT_NE(r.err.find(scene.string() + ":8: warning: displacement shader 'bumps': an edge length of 0.05 "
                                          "(world units) asks for about 3.4e+07"),

@@ -702,10 +702,26 @@ TEST(VoxelStorage, UndisplacedTrianglesOutsideTheDisplacedGeometryMatchBruteForc
     EXPECT_EQ(accel.occluded(later), beyond.has_value());
   }
 
+  // Undisplaced, the neighbourhood is that of the triangles of ordinary size (the sphere's): the
+  // same floor triangles are outside, and the hits still match.
   Scene plain = scene;
   for (Mesh& m : plain.meshes) m.displacementIndex = UINT32_MAX;
   GridAccelerator undisplaced(plain, AccelOptions{});
-  EXPECT_TRUE(undisplaced.grid().outside().empty());
+  EXPECT_EQ(std::vector<uint32_t>(undisplaced.grid().outside().begin(), undisplaced.grid().outside().end()), outside);
+  testing::BruteForce plainExpected(plain, undisplaced.positionStep());
+  for (uint32_t id : outside) {
+    const auto [m, t] = undisplaced.grid().split(id);
+    plainExpected.intersectInDouble(m, t);
+  }
+  for (const Ray& ray : testing::randomRays(300, 43, 3.0f, 1.2f)) {
+    const auto ref = plainExpected.intersect(ray);
+    const auto got = undisplaced.intersect(ray);
+    ASSERT_EQ(got.has_value(), ref.has_value());
+    if (got) {
+      EXPECT_EQ(got->t, ref->t);
+      EXPECT_EQ(got->meshIndex, ref->mesh);
+    }
+  }
 }
 
 }  // namespace
