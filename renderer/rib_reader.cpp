@@ -1346,6 +1346,7 @@ bool RibParser::executeCamera(const Call& call, bool* handled) {
     } else {
       scene_.displays.clear();
       scene_.displayModes.clear();
+      scene_.displaySources.clear();
     }
     if (name.empty()) return fail(call.line, "'Display' needs a file name");
     // There is no window to show a framebuffer in; a name without a format gets PNG.
@@ -1356,6 +1357,7 @@ bool RibParser::executeCamera(const Call& call, bool* handled) {
     }
     scene_.displays.push_back(name);
     scene_.displayModes.push_back(mode);
+    scene_.displaySources.push_back(fileName_ + ":" + std::to_string(call.line));
   } else if (n == "Option") {
     std::string category;
     if (!positionalString(call, 0, &category)) return false;

@@ -187,6 +187,8 @@ struct Scene {
   // parallel to displays: "rgb", "rgba", or an AOV: "z" (depth), "N" (world normal), "cachemiss"
   // (per-pixel count of geometry-cache misses: where geometry was rebuilt)
   std::vector<std::string> displayModes;
+  // parallel to displays: "file:line" of the Display call, for errors about the output
+  std::vector<std::string> displaySources;
   // Option "relief": render settings a scene may carry; command-line flags override them.
   uint64_t cacheBudgetTriangles = 0;  // 0: not set
   std::string order;                  // "": not set

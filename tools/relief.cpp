@@ -895,10 +895,14 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
   // -o replaces the main display's file; the scene's other displays (AOVs) are still written.
   std::vector<std::string> outputs;
   std::vector<std::string> modes;
+  std::vector<std::string> sources;  // per output: the Display call's "file:line", or empty
   if (!scene.displays.empty()) {
     outputs = scene.displays;
-    for (size_t i = 0; i < outputs.size(); ++i)
+    for (size_t i = 0; i < outputs.size(); ++i) {
       modes.push_back(i < scene.displayModes.size() ? scene.displayModes[i] : "rgb");
+      sources.push_back(i < scene.displaySources.size() && !(i == 0 && !cl.output.empty()) ? scene.displaySources[i]
+                                                                                          : std::string());
+    }
     if (!cl.output.empty()) {
       // The AOVs follow the image: relative names land beside the -o file, so that
       // `-o out/x.png` never scatters outputs into the working directory.
@@ -953,7 +957,8 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
     for (size_t i = 0; i < claims.size(); ++i)
       for (size_t j = 0; j < i; ++j)
         if (claims[i].first == claims[j].first) {
-          std::cerr << "relief: error: " << claims[j].second << " and " << claims[i].second << " would both write '"
+          const std::string where = i < sources.size() && !sources[i].empty() ? sources[i] : std::string("relief");
+          std::cerr << where << ": error: " << claims[j].second << " and " << claims[i].second << " would both write '"
                     << claims[i].first << "'\n";
           return 1;
         }
@@ -969,7 +974,9 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
     if (!error.empty() ||
         !relief::canWriteFormat(outputs[i], modes[i] == "rgba" || modes[i] == "rgbaz", &error) ||
         !canCreateFile(outputs[i], &error)) {
-      std::cerr << "relief: error: " << error << "\n";
+      // Located at the Display call when the scene named the file.
+      std::cerr << (i < sources.size() && !sources[i].empty() ? sources[i] : std::string("relief")) << ": error: "
+                << error << "\n";
       return 1;
     }
   }
