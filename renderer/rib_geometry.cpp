@@ -1,6 +1,7 @@
 // Polygon triangulation and cubic bases for the RIB reader (see rib_geometry.h).
 #include "renderer/rib_geometry.h"
 
+#include <unordered_map>
 #include <algorithm>
 #include <cmath>
 #include <numeric>
@@ -259,6 +260,126 @@ bool namedCubicBasis(const std::string& name, CubicBasis* basis) {
     return false;
   }
   return true;
+}
+
+SubdivisionSurface subdivideCatmullClark(const SubdivisionSurface& in) {
+  const size_t numPoints = in.P.size();
+  // Edges by their point pair, with the faces on each side (a third face makes it non-manifold:
+  // it is treated as a boundary, which keeps the surface whole).
+  struct Edge {
+    uint32_t a, b;
+    uint32_t faces[2] = {UINT32_MAX, UINT32_MAX};
+    int count = 0;
+  };
+  std::vector<Edge> edges;
+  std::unordered_map<uint64_t, uint32_t> edgeOf;
+  std::vector<std::vector<uint32_t>> faceEdges(in.faces.size());
+  for (uint32_t f = 0; f < in.faces.size(); ++f) {
+    const std::vector<uint32_t>& face = in.faces[f];
+    for (size_t k = 0; k < face.size(); ++k) {
+      const uint32_t a = face[k], b = face[(k + 1) % face.size()];
+      const uint64_t key = uint64_t(std::min(a, b)) << 32 | std::max(a, b);
+      auto [it, fresh] = edgeOf.emplace(key, uint32_t(edges.size()));
+      if (fresh) edges.push_back(Edge{std::min(a, b), std::max(a, b)});
+      Edge& e = edges[it->second];
+      if (e.count < 2) e.faces[e.count] = f;
+      ++e.count;
+      faceEdges[f].push_back(it->second);
+    }
+  }
+  auto boundary = [](const Edge& e) { return e.count != 2; };
+  // New points: the old ones (moved), then one per face, then one per edge.
+  const size_t facesBase = numPoints, edgesBase = numPoints + in.faces.size();
+  const size_t total = edgesBase + edges.size();
+  SubdivisionSurface out;
+  out.P.assign(total, glm::vec3(0.0f));
+  out.channels = in.channels;
+  for (SubdivisionSurface::Channel& c : out.channels) c.values.assign(total * size_t(c.components), 0.0f);
+  // Each quantity (P and every channel) goes through the same masks; `get`/`put` address one.
+  auto apply = [&](auto get, auto put, auto zero, bool smooth) {
+    using V = decltype(zero);
+    std::vector<V> facePoint(in.faces.size(), zero);
+    for (uint32_t f = 0; f < in.faces.size(); ++f) {
+      V sum = zero;
+      for (uint32_t p : in.faces[f]) sum = sum + get(p);
+      facePoint[f] = sum * (1.0f / float(in.faces[f].size()));
+      put(facesBase + f, facePoint[f]);
+    }
+    std::vector<V> edgeMid(edges.size(), zero);
+    for (uint32_t e = 0; e < edges.size(); ++e) {
+      const Edge& edge = edges[e];
+      edgeMid[e] = (get(edge.a) + get(edge.b)) * 0.5f;
+      V point = edgeMid[e];
+      if (smooth && !boundary(edge))
+        point = (get(edge.a) + get(edge.b) + facePoint[edge.faces[0]] + facePoint[edge.faces[1]]) * 0.25f;
+      put(edgesBase + e, point);
+    }
+    // Old points: interior ones by (Q + 2R + (n - 3) S) / n, boundary ones by the crease rule.
+    std::vector<V> faceSum(numPoints, zero), midSum(numPoints, zero), boundarySum(numPoints, zero);
+    std::vector<int> valence(numPoints, 0), faceCount(numPoints, 0), boundaryCount(numPoints, 0);
+    for (uint32_t f = 0; f < in.faces.size(); ++f)
+      for (uint32_t p : in.faces[f]) faceSum[p] = faceSum[p] + facePoint[f], ++faceCount[p];
+    for (uint32_t e = 0; e < edges.size(); ++e) {
+      const Edge& edge = edges[e];
+      for (uint32_t p : {edge.a, edge.b}) {
+        midSum[p] = midSum[p] + edgeMid[e], ++valence[p];
+        if (boundary(edge)) boundarySum[p] = boundarySum[p] + get(p == edge.a ? edge.b : edge.a), ++boundaryCount[p];
+      }
+    }
+    for (uint32_t p = 0; p < numPoints; ++p) {
+      V point = get(p);
+      if (smooth && faceCount[p] > 0) {
+        if (boundaryCount[p] == 2 && faceCount[p] == 1) {
+          // A corner of one face (a grid's corner) stays: "interpolateboundary" makes it sharp.
+        } else if (boundaryCount[p] == 2) {
+          point = (boundarySum[p] + get(p) * 6.0f) * 0.125f;
+        } else if (boundaryCount[p] == 0 && valence[p] >= 3) {
+          const float n = float(valence[p]);
+          const V Q = faceSum[p] * (1.0f / float(faceCount[p]));
+          const V R = midSum[p] * (1.0f / n);
+          point = (Q + R * 2.0f + get(p) * (n - 3.0f)) * (1.0f / n);
+        }  // corners and non-manifold points stay where they are
+      }
+      put(p, point);
+    }
+  };
+  apply([&](uint32_t p) { return in.P[p]; }, [&](size_t p, glm::vec3 v) { out.P[p] = v; }, glm::vec3(0.0f), true);
+  for (size_t c = 0; c < in.channels.size(); ++c) {
+    const int n = in.channels[c].components;
+    for (int k = 0; k < n; ++k)
+      apply([&](uint32_t p) { return in.channels[c].values[size_t(p) * size_t(n) + size_t(k)]; },
+            [&](size_t p, float v) { out.channels[c].values[p * size_t(n) + size_t(k)] = v; }, 0.0f,
+            in.channels[c].smooth);
+  }
+  // Faces: corner i of face f becomes (p_i, edge i, face point, edge i - 1), wound as the face.
+  for (uint32_t f = 0; f < in.faces.size(); ++f) {
+    const std::vector<uint32_t>& face = in.faces[f];
+    const size_t n = face.size();
+    for (size_t i = 0; i < n; ++i) {
+      out.faces.push_back({face[i], uint32_t(edgesBase + faceEdges[f][i]), uint32_t(facesBase + f),
+                           uint32_t(edgesBase + faceEdges[f][(i + n - 1) % n])});
+      out.parent.push_back(in.parent.empty() ? f : in.parent[f]);
+    }
+  }
+  return out;
+}
+
+std::vector<glm::vec3> pointNormals(const SubdivisionSurface& s) {
+  std::vector<glm::vec3> normals(s.P.size(), glm::vec3(0.0f));
+  for (const std::vector<uint32_t>& face : s.faces) {
+    glm::vec3 n(0.0f);
+    for (size_t k = 0; k < face.size(); ++k) {
+      const glm::vec3& a = s.P[face[k]];
+      const glm::vec3& b = s.P[face[(k + 1) % face.size()]];
+      n += glm::cross(a, b);
+    }
+    for (uint32_t p : face) normals[p] += n;
+  }
+  for (glm::vec3& n : normals) {
+    const float l = glm::length(n);
+    n = l > 0.0f && std::isfinite(l) ? n / l : glm::vec3(0.0f);
+  }
+  return normals;
 }
 
 }  // namespace relief

@@ -46,4 +46,28 @@ struct CubicBasis {
 // an unknown name.
 bool namedCubicBasis(const std::string& name, CubicBasis* basis);
 
+// A polygon mesh under Catmull-Clark subdivision (RI SubdivisionMesh "catmull-clark"): points,
+// faces as point lists, and per-point data channels that subdivide with the points (`smooth`:
+// by the Catmull-Clark masks, as "vertex" primitive variables; otherwise bilinearly, as "varying"
+// ones). Boundaries follow the crease rule (RenderMan's "interpolateboundary"): boundary edges
+// split at their midpoints, boundary points take (M1 + 6 S + M2) / 8 of their two boundary
+// neighbours (a point of a single face, a corner, stays), so the surface reaches the boundary.
+// `parent` names each face's face of the input.
+struct SubdivisionSurface {
+  std::vector<glm::vec3> P;
+  std::vector<std::vector<uint32_t>> faces;
+  std::vector<uint32_t> parent;
+  struct Channel {
+    int components = 1;
+    bool smooth = true;
+    std::vector<float> values;  // components per point
+  };
+  std::vector<Channel> channels;
+};
+// One level: every face of n sides becomes n quads. Faces whose points are out of range are
+// dropped beforehand by the caller.
+SubdivisionSurface subdivideCatmullClark(const SubdivisionSurface& in);
+// Area-weighted point normals of a mesh of faces (Newell normals of each face summed per point).
+std::vector<glm::vec3> pointNormals(const SubdivisionSurface& s);
+
 }  // namespace relief

@@ -783,6 +783,7 @@ class RibParser {
   bool executeTransform(const Call& call, bool* handled);
   bool executeAttributes(const Call& call, bool* handled);
   bool executeGeometry(const Call& call, bool* handled);
+  bool doSubdivisionMesh(const Call& call);
   bool shaderParamValue(int line, const runtime::CompiledShader& compiled, const Param& p,
                         runtime::ParamValue* out);
   bool doDisplacement(const Call& call);
@@ -2085,7 +2086,7 @@ bool RibParser::executeGeometry(const Call& call, bool* handled) {
       "Sphere",         "Cylinder",       "Cone",     "Disk",     "Torus",
       "Paraboloid",     "Hyperboloid",    "Polygon",  "GeneralPolygon",
       "PointsPolygons", "PointsGeneralPolygons",    "Patch",    "PatchMesh",
-      "Geometry"};
+      "Geometry",       "SubdivisionMesh"};
   if (kShapes.count(n)) {
     if (!requireWorld(call)) return false;
     if (singular(attr_.ctm)) {
@@ -2112,6 +2113,7 @@ bool RibParser::executeGeometry(const Call& call, bool* handled) {
       return false;
     return buildPolygonMesh(call, std::vector<int>(nverts.size(), 1), nverts, vertices, 2);
   }
+  if (n == "SubdivisionMesh") return doSubdivisionMesh(call);
   if (n == "PointsGeneralPolygons") {
     if (!requireWorld(call)) return false;
     if (call.args.size() < 3 || !call.args[0].isNumeric() || !call.args[1].isNumeric() ||
@@ -2192,6 +2194,186 @@ bool RibParser::executeGeometry(const Call& call, bool* handled) {
   if (n == "Procedural") return doProcedural(call);
   *handled = false;
   return true;
+}
+
+// SubdivisionMesh "catmull-clark" [nverts] [verts] [tags nargs intargs floatargs] params: the
+// control mesh is subdivided a few levels (as quadrics are cut: about (displaced ? 16 : 4) edge
+// lengths apart, at least 2 levels, at most 6 and 4M faces), with point normals of the result,
+// then read as PointsPolygons with what the levels made: vertex primitive variables subdivide
+// with the points, varying ones bilinearly, uniform ones go to every face their face makes,
+// constant ones stay. Boundaries are interpolated (RenderMan's "interpolateboundary"); other tags,
+// facevarying primitive variables and the "loop" scheme are warned about and ignored.
+bool RibParser::doSubdivisionMesh(const Call& call) {
+  if (!requireWorld(call)) return false;
+  std::string scheme;
+  if (!positionalString(call, 0, &scheme)) return false;
+  if (call.args.size() < 3 || !call.args[1].isNumeric() || !call.args[2].isNumeric())
+    return fail(call.line, "'SubdivisionMesh' expects a scheme, [nverts] [vertices] then tags and parameters");
+  std::vector<int> nverts, verts;
+  for (const auto& [arg, out] : {std::pair{&call.args[1], &nverts}, std::pair{&call.args[2], &verts}})
+    for (double d : arg->numbers) {
+      if (d != std::floor(d) || d < 0 || d > 1e9)
+        return fail(arg->line, "'SubdivisionMesh': counts and indices must be whole numbers up to 1e9");
+      out->push_back(int(d));
+    }
+  size_t first = 3;
+  if (call.args.size() > 3 && call.args[3].kind == Arg::Kind::Array) {
+    // tags nargs intargs floatargs
+    if (call.args.size() < 7) return fail(call.line, "'SubdivisionMesh': tags need [nargs] [intargs] [floatargs]");
+    for (const std::string& tag : call.args[3].strings)
+      if (tag != "interpolateboundary" && tag != "facevaryinginterpolateboundary")
+        warnOnce(call.line, "subdivtag/" + tag, "'SubdivisionMesh' tag '" + tag + "' is not supported; ignored");
+    first = 7;
+  }
+  if (scheme != "catmull-clark" && scheme != "bilinear")
+    warnOnce(call.line, "scheme/" + scheme,
+             "'SubdivisionMesh' scheme '" + scheme + "' is not supported; the control mesh is subdivided as catmull-clark");
+  std::vector<Param> params;
+  std::vector<float> P;
+  if (!parseParams(call, first, &params) || !positions(call, params, 0, &P)) return false;
+  const size_t numPoints = P.size() / 3;
+  size_t total = 0;
+  for (int k : nverts) {
+    if (k < 3) return fail(call.line, "'SubdivisionMesh': a face needs at least 3 vertices");
+    total += size_t(k);
+  }
+  if (total != verts.size())
+    return fail(call.line, "'SubdivisionMesh': nverts sum to " + std::to_string(total) + " but " +
+                               std::to_string(verts.size()) + " vertex indices given");
+  SubdivisionSurface surface;
+  for (size_t i = 0; i < numPoints; ++i) surface.P.emplace_back(P[3 * i], P[3 * i + 1], P[3 * i + 2]);
+  size_t at = 0;
+  for (int k : nverts) {
+    std::vector<uint32_t> face;
+    for (int j = 0; j < k; ++j, ++at) {
+      if (size_t(verts[at]) >= numPoints)
+        return fail(call.line, "'SubdivisionMesh': vertex index " + std::to_string(verts[at]) + " is out of range (" +
+                                   std::to_string(numPoints) + " points)");
+      face.push_back(uint32_t(verts[at]));
+    }
+    surface.faces.push_back(std::move(face));
+  }
+  // Primitive variables: point-based ones become channels; the others are passed on as they are.
+  std::vector<Param> passed;
+  std::vector<std::pair<size_t, const Param*>> channelOf;  // channel index, its parameter
+  std::vector<const Param*> uniforms;
+  for (const Param& p : params) {
+    if (p.name == "P" || p.name == "Pw") continue;
+    if (p.value.isStringy()) {
+      passed.push_back(p);
+      continue;
+    }
+    const bool spatial = p.type && (*p.type == runtime::ParamType::Point || *p.type == runtime::ParamType::Vector ||
+                                    *p.type == runtime::ParamType::Normal || *p.type == runtime::ParamType::Color);
+    int components = spatial ? 3 : p.name == "st" ? 2 : p.name == "Cs" || p.name == "N" ? 3 : 1;
+    if (p.arraySize > 1) components *= p.arraySize;
+    const size_t count = p.value.numbers.size();
+    const std::string& cls = p.storageClass;
+    if ((cls == "vertex" || cls == "varying" || cls.empty()) && count == numPoints * size_t(components) && numPoints > 1) {
+      if (p.name == "N") {
+        warnOnce(p.line, "subdivN", "'SubdivisionMesh': \"N\" is ignored; the subdivided surface's normals are used");
+        continue;
+      }
+      SubdivisionSurface::Channel c;
+      c.components = components;
+      c.smooth = cls != "varying";
+      c.values.assign(p.value.numbers.begin(), p.value.numbers.end());
+      channelOf.emplace_back(surface.channels.size(), &p);
+      surface.channels.push_back(std::move(c));
+    } else if ((cls == "uniform" || cls.empty()) && count == nverts.size() * size_t(components) && nverts.size() > 1) {
+      uniforms.push_back(&p);
+    } else if (cls == "facevarying" || (cls.empty() && count == total * size_t(components) && count != size_t(components))) {
+      warnOnce(p.line, "subdivfv/" + p.name,
+               "'SubdivisionMesh': facevarying \"" + p.name + "\" is not supported; ignored");
+    } else {
+      passed.push_back(p);  // constant: as it is
+    }
+  }
+  // Levels: until the control mesh's longest edge is near the target, within [2, 6] and 4M faces.
+  float longest = 0.0f;
+  for (const std::vector<uint32_t>& face : surface.faces)
+    for (size_t k = 0; k < face.size(); ++k)
+      longest = std::max(longest, glm::length(surface.P[face[k]] - surface.P[face[(k + 1) % face.size()]]));
+  const float target = (attr_.displacement ? 16.0f : 4.0f) * attr_.edgeLength;
+  int levels = scheme == "bilinear" ? 0 : 2;
+  while (scheme != "bilinear" && levels < 6 && std::ldexp(longest * maxScale(attr_.ctm), -levels) > target) ++levels;
+  while (levels > 1 && double(total) * std::ldexp(1.0, 2 * levels) > 4e6) --levels;
+  const bool bilinear = scheme == "bilinear";
+  for (int l = 0; l < levels; ++l) {
+    if (bilinear)
+      for (SubdivisionSurface::Channel& c : surface.channels) c.smooth = false;
+    surface = subdivideCatmullClark(surface);
+  }
+  // The result as PointsPolygons: quads (or the control faces), positions, point normals, and
+  // the channels, uniform values following each face's parent.
+  Call polygons;
+  polygons.name = call.name;
+  polygons.line = call.line;
+  Arg counts, indices;
+  counts.kind = indices.kind = Arg::Kind::Array;
+  counts.line = indices.line = call.line;
+  for (const std::vector<uint32_t>& face : surface.faces) {
+    counts.numbers.push_back(double(face.size()));
+    for (uint32_t p : face) indices.numbers.push_back(double(p));
+  }
+  polygons.args = {counts, indices};
+  auto addParam = [&](const std::string& declaration, std::vector<double> values) {
+    Arg name;
+    name.kind = Arg::Kind::String;
+    name.strings = {declaration};
+    name.line = call.line;
+    Arg value;
+    value.kind = Arg::Kind::Array;
+    value.numbers = std::move(values);
+    value.line = call.line;
+    polygons.args.push_back(std::move(name));
+    polygons.args.push_back(std::move(value));
+  };
+  std::vector<double> positionsOut, normalsOut;
+  for (const glm::vec3& p : surface.P) positionsOut.insert(positionsOut.end(), {p.x, p.y, p.z});
+  addParam("vertex point P", std::move(positionsOut));
+  if (levels > 0) {
+    for (const glm::vec3& n : pointNormals(surface)) normalsOut.insert(normalsOut.end(), {n.x, n.y, n.z});
+    addParam("vertex normal N", std::move(normalsOut));
+  }
+  auto typeWord = [](const Param& p) {
+    if (!p.type) return std::string(p.name == "Cs" ? "color" : "float");
+    switch (*p.type) {
+      case runtime::ParamType::Point: return std::string("point");
+      case runtime::ParamType::Vector: return std::string("vector");
+      case runtime::ParamType::Normal: return std::string("normal");
+      case runtime::ParamType::Color: return std::string("color");
+      case runtime::ParamType::Int: return std::string("int");
+      default: return std::string("float");
+    }
+  };
+  auto arrayWord = [](const Param& p) { return p.arraySize > 1 ? "[" + std::to_string(p.arraySize) + "]" : std::string(); };
+  for (const auto& [c, p] : channelOf) {
+    const SubdivisionSurface::Channel& channel = surface.channels[c];
+    addParam("vertex " + typeWord(*p) + arrayWord(*p) + " " + p->name,
+             std::vector<double>(channel.values.begin(), channel.values.end()));
+  }
+  for (const Param* p : uniforms) {
+    const size_t components = p->value.numbers.size() / nverts.size();
+    std::vector<double> values;
+    for (uint32_t parent : surface.parent.empty() ? std::vector<uint32_t>() : surface.parent)
+      values.insert(values.end(), p->value.numbers.begin() + std::ptrdiff_t(parent * components),
+                    p->value.numbers.begin() + std::ptrdiff_t((parent + 1) * components));
+    if (surface.parent.empty()) values = p->value.numbers;
+    addParam("uniform " + typeWord(*p) + arrayWord(*p) + " " + p->name, std::move(values));
+  }
+  for (const Param& p : passed) {
+    Arg name;
+    name.kind = Arg::Kind::String;
+    name.strings = {(p.storageClass.empty() ? std::string() : p.storageClass + " ") +
+                    (p.type ? typeWord(p) + arrayWord(p) + " " : std::string()) + p.name};
+    name.line = p.line;
+    polygons.args.push_back(std::move(name));
+    polygons.args.push_back(p.value);
+  }
+  return buildPolygonMesh(polygons, std::vector<int>(surface.faces.size(), 1),
+                          std::vector<int>(counts.numbers.begin(), counts.numbers.end()),
+                          std::vector<int>(indices.numbers.begin(), indices.numbers.end()), 2);
 }
 
 bool RibParser::doSphere(const Call& call) {

@@ -848,6 +848,63 @@ TEST(RibPatches, PatchMeshBasesAndWrapping) {
   EXPECT_FALSE(read(world("Patch \"bicubic\" \"P\" [0 0 0]")).scene);
 }
 
+// SubdivisionMesh "catmull-clark": a cube's control mesh becomes a closed rounded surface inside
+// the cube with outward normals; a flat open grid stays flat, reaches its boundary and keeps its
+// corners; uniform colours follow their faces; bad indices and counts are errors at the call.
+TEST(RibSubdivision, CatmullClarkCubeAndOpenGrid) {
+  const std::string cube =
+      "SubdivisionMesh \"catmull-clark\" [4 4 4 4 4 4]\n"
+      "  [0 1 3 2  2 3 5 4  4 5 7 6  6 7 1 0  1 7 5 3  6 0 2 4]\n"
+      "  [\"interpolateboundary\"] [0 0] [] []\n"
+      "  \"P\" [-1 -1 1  1 -1 1  -1 1 1  1 1 1  -1 1 -1  1 1 -1  -1 -1 -1  1 -1 -1]\n"
+      "  \"uniform color Cs\" [1 0 0  0 1 0  0 0 1  1 1 0  1 0 1  0 1 1]\n";
+  ReadResult r = read(world(cube));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  ASSERT_EQ(r.scene->meshes.size(), 1u);
+  const Mesh& m = r.scene->meshes[0];
+  EXPECT_GE(m.numTriangles(), 6u * 16u * 2u);  // at least 2 levels of quads
+  ASSERT_EQ(m.N.size(), m.P.size());
+  float nearest = 10.0f;
+  for (size_t i = 0; i < m.P.size(); ++i) {
+    EXPECT_LE(std::max({std::fabs(m.P[i].x), std::fabs(m.P[i].y), std::fabs(m.P[i].z)}), 1.0f + 1e-5f);
+    nearest = std::min(nearest, glm::length(m.P[i]));
+    EXPECT_GT(glm::dot(m.N[i], m.P[i]), 0.0f) << i;  // outward
+  }
+  EXPECT_GT(nearest, 0.5f);
+  ASSERT_EQ(m.Cs.size(), m.P.size());
+  int red = 0;
+  for (const glm::vec3& c : m.Cs) red += c == glm::vec3(1, 0, 0);
+  EXPECT_GT(red, 0);
+  // Triangles keep the control faces' winding: their normals agree with the point normals.
+  for (uint32_t t = 0; t < m.numTriangles(); ++t) {
+    const glm::vec3 a = m.P[m.indices[3 * t]], b = m.P[m.indices[3 * t + 1]], c = m.P[m.indices[3 * t + 2]];
+    EXPECT_GT(glm::dot(glm::cross(b - a, c - a), m.N[m.indices[3 * t]]), 0.0f) << t;
+  }
+
+  r = read(world("SubdivisionMesh \"catmull-clark\" [4 4 4 4] [0 1 4 3  1 2 5 4  3 4 7 6  4 5 8 7]\n"
+                 "  [\"interpolateboundary\"] [0 0] [] []\n"
+                 "  \"P\" [0 0 0  1 0 0  2 0 0  0 1 0  1 1 0  2 1 0  0 2 0  1 2 0  2 2 0]\n"));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  const Mesh& grid = r.scene->meshes[0];
+  bool corner = false;
+  glm::vec3 lo(10.0f), hi(-10.0f);
+  for (const glm::vec3& p : grid.P) {
+    EXPECT_EQ(p.z, 0.0f);
+    lo = glm::min(lo, p), hi = glm::max(hi, p);
+    corner = corner || p == glm::vec3(2, 2, 0);
+  }
+  EXPECT_EQ(lo, glm::vec3(0, 0, 0));
+  EXPECT_EQ(hi, glm::vec3(2, 2, 0));
+  EXPECT_TRUE(corner);
+
+  EXPECT_FALSE(read(world("SubdivisionMesh \"catmull-clark\" [4] [0 1 2 9] \"P\" [0 0 0  1 0 0  1 1 0  0 1 0]\n")).scene);
+  EXPECT_FALSE(read(world("SubdivisionMesh \"catmull-clark\" [4 4] [0 1 2 3] \"P\" [0 0 0  1 0 0  1 1 0  0 1 0]\n")).scene);
+  ReadResult tagged = read(world("SubdivisionMesh \"catmull-clark\" [4] [0 1 2 3] [\"crease\"] [2 1] [0 1] [5]"
+                                 " \"P\" [0 0 0  1 0 0  1 1 0  0 1 0]\n"));
+  ASSERT_TRUE(tagged.scene) << tagged.error.format();
+  EXPECT_NE(tagged.warnings.find("tag 'crease' is not supported"), std::string::npos) << tagged.warnings;
+}
+
 TEST(RibPatches, FlatBilinearPatchesAreTwoTrianglesOnlyWhereTheMapIsAffine) {
   // A rectangle with affine Cs: two triangles are exact. A flat trapezoid is not affine: its
   // v = 0.5 isoline runs through the midpoints of the slanted sides, and st there must be 0.5.
