@@ -493,41 +493,38 @@ bool Preprocessor::evaluateCondition(const Token& directiveName, const std::vect
     t.text = value ? kOne : kZero;
     return t;
   };
-  std::vector<Token> pre;
-  for (size_t i = 1; i < line.size(); ++i) {
-    if (line[i].is(Tok::Identifier) && line[i].text == "defined") {
-      size_t j = i + 1;
-      const bool paren = j < line.size() && line[j].is(Tok::LParen);
-      if (paren) ++j;
-      if (j < line.size() && isIdentifierLike(line[j]) && (!paren || (j + 1 < line.size() && line[j + 1].is(Tok::RParen)))) {
-        pre.push_back(literal(macros_.count(tokenText(line[j])) != 0, line[i]));
-        i = paren ? j + 1 : j;
-        continue;
+  // Replaces each `defined X` / `defined ( X )` of `in` from `first` on by 1 or 0; false at a
+  // `defined` without a name.
+  auto resolveDefined = [&](const std::vector<Token>& in, size_t first, std::vector<Token>* out) {
+    for (size_t i = first; i < in.size(); ++i) {
+      if (in[i].is(Tok::Identifier) && in[i].text == "defined") {
+        size_t j = i + 1;
+        const bool paren = j < in.size() && in[j].is(Tok::LParen);
+        if (paren) ++j;
+        if (j < in.size() && isIdentifierLike(in[j]) && (!paren || (j + 1 < in.size() && in[j + 1].is(Tok::RParen)))) {
+          out->push_back(literal(macros_.count(tokenText(in[j])) != 0, in[i]));
+          i = paren ? j + 1 : j;
+          continue;
+        }
+        return false;
       }
-      diags_.report(DiagId::ErrIfExpression, directiveName.loc).arg(n).range(directiveName.range());
-      return false;
+      out->push_back(in[i]);
     }
-    pre.push_back(line[i]);
+    return true;
+  };
+  std::vector<Token> pre, expanded, resolved;
+  if (!resolveDefined(line, 1, &pre)) {
+    diags_.report(DiagId::ErrIfExpression, directiveName.loc).arg(n).range(directiveName.range());
+    return false;
   }
-  std::vector<Token> expanded;
   inCondition_ = true;
   expand(pre, expanded, {}, false);
   inCondition_ = false;
-  // `defined` that macros produced (`#define HAS_A defined(A)`), as GNU cpp evaluates them.
-  std::vector<Token> resolved;
-  for (size_t i = 0; i < expanded.size(); ++i) {
-    if (expanded[i].is(Tok::Identifier) && expanded[i].text == "defined") {
-      size_t j = i + 1;
-      const bool paren = j < expanded.size() && expanded[j].is(Tok::LParen);
-      if (paren) ++j;
-      if (j < expanded.size() && isIdentifierLike(expanded[j]) &&
-          (!paren || (j + 1 < expanded.size() && expanded[j + 1].is(Tok::RParen)))) {
-        resolved.push_back(literal(macros_.count(tokenText(expanded[j])) != 0, expanded[i]));
-        i = paren ? j + 1 : j;
-        continue;
-      }
-    }
-    resolved.push_back(expanded[i]);
+  // Again for those that macros produced (`#define HAS_A defined(A)`), as GNU cpp evaluates them;
+  // a malformed one is the same error.
+  if (!resolveDefined(expanded, 0, &resolved)) {
+    diags_.report(DiagId::ErrIfExpression, directiveName.loc).arg(n).range(directiveName.range());
+    return false;
   }
   expanded = std::move(resolved);
   for (Token& t : expanded)
