@@ -2344,6 +2344,8 @@ bool RibParser::doSubdivisionMesh(const Call& call) {
       case runtime::ParamType::Normal: return std::string("normal");
       case runtime::ParamType::Color: return std::string("color");
       case runtime::ParamType::Int: return std::string("int");
+      case runtime::ParamType::String: return std::string("string");
+      case runtime::ParamType::Matrix: return std::string("matrix");
       default: return std::string("float");
     }
   };
