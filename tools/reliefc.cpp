@@ -157,6 +157,15 @@ int evaluate(const Args& args, const CompileResult& result) {
     } else {
       pv.type = pv.numbers.size() == 3 && info ? info->type : relief::runtime::ParamType::Float;
     }
+    // A fraction for an int parameter truncates (the language's float -> int), as RIB values do,
+    // but here the user typed it: say so.
+    if (info && info->type == relief::runtime::ParamType::Int)
+      for (double x : pv.numbers)
+        if (x != std::trunc(x)) {
+          std::cerr << "reliefc: warning: parameter '" << name << "' is an int; " << value << " is truncated to "
+                    << static_cast<long long>(std::trunc(x)) << "\n";
+          break;
+        }
     std::string error;
     if (!instance.bind(pv, &error)) {
       std::cerr << "reliefc: error: " << error << "\n";

@@ -333,6 +333,13 @@ TEST(CliTest, EvalOutputGoesToTheOutputFileAndEmptyDefinesStayEmpty) {
   EXPECT_EQ(r.exitCode, 2);
   EXPECT_NE(r.err.find("cannot write '/nonexistent/dir/x.txt'"), std::string::npos) << r.err;
   EXPECT_EQ(r.out, "");
+  // A fraction for an int parameter is truncated with a warning.
+  const fs::path counted = writeTemp("relief_evalint.disp",
+                                     "displacement c(int n = 1) { printf(\"n=%d\\n\", n); }\n");
+  r = reliefc("--eval -p n=2.5 " + quote(counted.string()));
+  EXPECT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_EQ(r.out.substr(0, 4), "n=2\n") << r.out;
+  EXPECT_NE(r.err.find("parameter 'n' is an int; 2.5 is truncated to 2"), std::string::npos) << r.err;
   r = reliefc("--eval -DX=*3 " + quote(shader.string()));
   EXPECT_EQ(r.exitCode, 0) << r.err;
   EXPECT_EQ(r.out.substr(0, 4), "a=6\n") << r.out;
