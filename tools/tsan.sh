@@ -8,7 +8,7 @@ set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 build="$root/build-tsan"
 jobs="${RELIEF_JOBS:-1}"
-filter="${TSAN_FILTER:-GeometryCache.*:CacheRefine.*:CacheSide.*:CacheMemo.*:CacheImage.BudgetCheck*:CacheThreads.*:RenderIntegrator.*Thread*:Accel*:RenderLoop.*:RenderFilter.ImageIsBitIdentical*:RenderFilter.SamplesAre*:FilmOutput.PngBands*}"
+filter="${TSAN_FILTER:-GeometryCache.*:RenderIntegrator.CropWindow*:CacheRefine.*:CacheSide.*:CacheMemo.*:CacheImage.BudgetCheck*:CacheThreads.*:RenderIntegrator.*Thread*:Accel*:RenderLoop.*:RenderFilter.ImageIsBitIdentical*:RenderFilter.SamplesAre*:FilmOutput.PngBands*}"
 cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DRELIEF_TSAN=ON \
   -DRELIEF_BUILD_BENCH=OFF >"$build.log" 2>&1 || { cat "$build.log"; exit 1; }
 cmake --build "$build" -j"$jobs" --target renderer_tests >>"$build.log" 2>&1 ||
