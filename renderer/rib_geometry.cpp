@@ -262,32 +262,94 @@ bool namedCubicBasis(const std::string& name, CubicBasis* basis) {
   return true;
 }
 
-SubdivisionSurface subdivideCatmullClark(const SubdivisionSurface& in) {
-  const size_t numPoints = in.P.size();
-  // Edges by their point pair, with the faces on each side (a third face makes it non-manifold:
-  // it is treated as a boundary, which keeps the surface whole).
+namespace {
+
+// The edges of a face mesh and what each point's rule needs to know of them.
+struct SubdivisionTopology {
   struct Edge {
     uint32_t a, b;
     uint32_t faces[2] = {UINT32_MAX, UINT32_MAX};
-    int count = 0;
+    int count = 0;          // faces on it: not 2 makes it a boundary (a third: non-manifold)
+    float sharpness = 0.0f;  // its crease tag's, infinite on boundaries
   };
   std::vector<Edge> edges;
-  std::unordered_map<uint64_t, uint32_t> edgeOf;
-  std::vector<std::vector<uint32_t>> faceEdges(in.faces.size());
-  for (uint32_t f = 0; f < in.faces.size(); ++f) {
-    const std::vector<uint32_t>& face = in.faces[f];
-    for (size_t k = 0; k < face.size(); ++k) {
-      const uint32_t a = face[k], b = face[(k + 1) % face.size()];
-      const uint64_t key = uint64_t(std::min(a, b)) << 32 | std::max(a, b);
-      auto [it, fresh] = edgeOf.emplace(key, uint32_t(edges.size()));
-      if (fresh) edges.push_back(Edge{std::min(a, b), std::max(a, b)});
-      Edge& e = edges[it->second];
-      if (e.count < 2) e.faces[e.count] = f;
-      ++e.count;
-      faceEdges[f].push_back(it->second);
+  std::vector<std::vector<uint32_t>> faceEdges;  // edge k of face f joins its corners k and k + 1
+  // Per point: edges, faces, boundary edges, sharp edges (boundaries included) and the mean of
+  // their sharpness, the other ends of its first two sharp edges, and whether every face is a quad.
+  struct Point {
+    int valence = 0, faces = 0, boundary = 0, sharp = 0;
+    float sharpnessSum = 0.0f;
+    uint32_t sharpEnds[2] = {0, 0};
+    bool quads = true;
+  };
+  std::vector<Point> points;
+
+  explicit SubdivisionTopology(const SubdivisionSurface& s) : faceEdges(s.faces.size()), points(s.P.size()) {
+    std::unordered_map<uint64_t, uint32_t> edgeOf;
+    for (uint32_t f = 0; f < s.faces.size(); ++f) {
+      const std::vector<uint32_t>& face = s.faces[f];
+      for (size_t k = 0; k < face.size(); ++k) {
+        const uint32_t a = face[k], b = face[(k + 1) % face.size()];
+        auto [it, fresh] = edgeOf.emplace(SubdivisionSurface::edgeKey(a, b), uint32_t(edges.size()));
+        if (fresh) edges.push_back(Edge{std::min(a, b), std::max(a, b)});
+        Edge& e = edges[it->second];
+        if (e.count < 2) e.faces[e.count] = f;
+        ++e.count;
+        faceEdges[f].push_back(it->second);
+        ++points[face[k]].faces;
+        points[face[k]].quads = points[face[k]].quads && face.size() == 4;
+      }
+    }
+    for (Edge& e : edges) {
+      if (e.count != 2) {
+        e.sharpness = kInfiniteSharpness;
+      } else if (auto it = s.creases.find(SubdivisionSurface::edgeKey(e.a, e.b)); it != s.creases.end()) {
+        e.sharpness = std::max(it->second, 0.0f);
+      }
+      for (uint32_t p : {e.a, e.b}) {
+        Point& q = points[p];
+        ++q.valence;
+        q.boundary += e.count != 2;
+        if (e.sharpness > 0.0f) {
+          if (q.sharp < 2) q.sharpEnds[q.sharp] = p == e.a ? e.b : e.a;
+          ++q.sharp;
+          q.sharpnessSum += std::min(e.sharpness, 1.0f);
+        }
+      }
     }
   }
-  auto boundary = [](const Edge& e) { return e.count != 2; };
+
+  // How point p's new value mixes the smooth rule's, the sharp rule's (the crease rule on two
+  // sharp edges, else staying) and its own: the sharp rule's weight against the smooth (1 where
+  // the smooth rule is undefined: boundaries, valence below 3, no faces), then the weight of
+  // staying against that (its own sharpness).
+  struct Rule {
+    float sharpWeight = 0.0f, stayWeight = 0.0f;
+    bool crease = false;
+  };
+  Rule rule(uint32_t p, const std::vector<float>& corners) const {
+    const Point& q = points[p];
+    Rule r;
+    if (q.faces == 1 && q.boundary == 2) {
+      r.sharpWeight = 1.0f;  // a corner of one face stays: "interpolateboundary" makes it sharp
+    } else if (q.sharp >= 2) {
+      r.sharpWeight = std::min(q.sharpnessSum / float(q.sharp), 1.0f);
+      r.crease = q.sharp == 2;
+    }
+    if (q.faces == 0 || q.boundary > 0 || q.valence < 3) r.sharpWeight = 1.0f;
+    if (p < corners.size() && corners[p] > 0.0f) r.stayWeight = std::min(corners[p], 1.0f);
+    return r;
+  }
+};
+
+float wornSharpness(float s) { return s >= kInfiniteSharpness ? s : s - 1.0f; }
+
+}  // namespace
+
+SubdivisionSurface subdivideCatmullClark(const SubdivisionSurface& in) {
+  const size_t numPoints = in.P.size();
+  const SubdivisionTopology topo(in);
+  const std::vector<SubdivisionTopology::Edge>& edges = topo.edges;
   // New points: the old ones (moved), then one per face, then one per edge.
   const size_t facesBase = numPoints, edgesBase = numPoints + in.faces.size();
   const size_t total = edgesBase + edges.size();
@@ -295,6 +357,8 @@ SubdivisionSurface subdivideCatmullClark(const SubdivisionSurface& in) {
   out.P.assign(total, glm::vec3(0.0f));
   out.channels = in.channels;
   for (SubdivisionSurface::Channel& c : out.channels) c.values.assign(total * size_t(c.components), 0.0f);
+  std::vector<SubdivisionTopology::Rule> rules(numPoints);
+  for (uint32_t p = 0; p < numPoints; ++p) rules[p] = topo.rule(p, in.corners);
   // Each quantity (P and every channel) goes through the same masks; `get`/`put` address one.
   auto apply = [&](auto get, auto put, auto zero, bool smooth) {
     using V = decltype(zero);
@@ -307,38 +371,35 @@ SubdivisionSurface subdivideCatmullClark(const SubdivisionSurface& in) {
     }
     std::vector<V> edgeMid(edges.size(), zero);
     for (uint32_t e = 0; e < edges.size(); ++e) {
-      const Edge& edge = edges[e];
+      const SubdivisionTopology::Edge& edge = edges[e];
       edgeMid[e] = (get(edge.a) + get(edge.b)) * 0.5f;
       V point = edgeMid[e];
-      if (smooth && !boundary(edge))
-        point = (get(edge.a) + get(edge.b) + facePoint[edge.faces[0]] + facePoint[edge.faces[1]]) * 0.25f;
+      if (smooth && edge.sharpness < 1.0f) {
+        const V smoothPoint = (get(edge.a) + get(edge.b) + facePoint[edge.faces[0]] + facePoint[edge.faces[1]]) * 0.25f;
+        point = smoothPoint + (edgeMid[e] - smoothPoint) * edge.sharpness;
+      }
       put(edgesBase + e, point);
     }
-    // Old points: interior ones by (Q + 2R + (n - 3) S) / n, boundary ones by the crease rule.
-    std::vector<V> faceSum(numPoints, zero), midSum(numPoints, zero), boundarySum(numPoints, zero);
-    std::vector<int> valence(numPoints, 0), faceCount(numPoints, 0), boundaryCount(numPoints, 0);
+    // Old points: smooth ones by (Q + 2R + (n - 3) S) / n, creases by (M1 + 6 S + M2) / 8.
+    std::vector<V> faceSum(numPoints, zero), midSum(numPoints, zero);
     for (uint32_t f = 0; f < in.faces.size(); ++f)
-      for (uint32_t p : in.faces[f]) faceSum[p] = faceSum[p] + facePoint[f], ++faceCount[p];
-    for (uint32_t e = 0; e < edges.size(); ++e) {
-      const Edge& edge = edges[e];
-      for (uint32_t p : {edge.a, edge.b}) {
-        midSum[p] = midSum[p] + edgeMid[e], ++valence[p];
-        if (boundary(edge)) boundarySum[p] = boundarySum[p] + get(p == edge.a ? edge.b : edge.a), ++boundaryCount[p];
-      }
-    }
+      for (uint32_t p : in.faces[f]) faceSum[p] = faceSum[p] + facePoint[f];
+    for (uint32_t e = 0; e < edges.size(); ++e)
+      for (uint32_t p : {edges[e].a, edges[e].b}) midSum[p] = midSum[p] + edgeMid[e];
     for (uint32_t p = 0; p < numPoints; ++p) {
-      V point = get(p);
-      if (smooth && faceCount[p] > 0) {
-        if (boundaryCount[p] == 2 && faceCount[p] == 1) {
-          // A corner of one face (a grid's corner) stays: "interpolateboundary" makes it sharp.
-        } else if (boundaryCount[p] == 2) {
-          point = (boundarySum[p] + get(p) * 6.0f) * 0.125f;
-        } else if (boundaryCount[p] == 0 && valence[p] >= 3) {
-          const float n = float(valence[p]);
-          const V Q = faceSum[p] * (1.0f / float(faceCount[p]));
-          const V R = midSum[p] * (1.0f / n);
-          point = (Q + R * 2.0f + get(p) * (n - 3.0f)) * (1.0f / n);
-        }  // corners and non-manifold points stay where they are
+      const V here = get(p);
+      V point = here;
+      const SubdivisionTopology::Point& q = topo.points[p];
+      const SubdivisionTopology::Rule& r = rules[p];
+      if (smooth && q.faces > 0) {
+        V smoothPoint = here;
+        if (r.sharpWeight < 1.0f) {
+          const float n = float(q.valence);
+          smoothPoint = (faceSum[p] * (1.0f / float(q.faces)) + midSum[p] * (2.0f / n) + here * (n - 3.0f)) * (1.0f / n);
+        }
+        const V sharpPoint = r.crease ? (get(q.sharpEnds[0]) + get(q.sharpEnds[1]) + here * 6.0f) * 0.125f : here;
+        point = smoothPoint + (sharpPoint - smoothPoint) * r.sharpWeight;
+        point = point + (here - point) * r.stayWeight;
       }
       put(p, point);
     }
@@ -351,17 +412,95 @@ SubdivisionSurface subdivideCatmullClark(const SubdivisionSurface& in) {
             [&](size_t p, float v) { out.channels[c].values[p * size_t(n) + size_t(k)] = v; }, 0.0f,
             in.channels[c].smooth);
   }
-  // Faces: corner i of face f becomes (p_i, edge i, face point, edge i - 1), wound as the face.
+  // Sharpness wears off by one a level on both halves of an edge and on a point; new points and
+  // the edges inside faces are smooth.
+  for (uint32_t e = 0; e < edges.size(); ++e) {
+    const SubdivisionTopology::Edge& edge = edges[e];
+    if (edge.count != 2 || edge.sharpness <= 0.0f) continue;
+    const float s = wornSharpness(edge.sharpness);
+    if (s <= 0.0f) continue;
+    out.creases[SubdivisionSurface::edgeKey(edge.a, uint32_t(edgesBase + e))] = s;
+    out.creases[SubdivisionSurface::edgeKey(edge.b, uint32_t(edgesBase + e))] = s;
+  }
+  if (!in.corners.empty()) {
+    out.corners.assign(total, 0.0f);
+    for (size_t p = 0; p < numPoints; ++p)
+      if (in.corners[p] > 0.0f) out.corners[p] = std::max(wornSharpness(in.corners[p]), 0.0f);
+  }
+  // Faces: corner i of face f becomes (p_i, edge i, face point, edge i - 1), wound as the face;
+  // facevarying values follow linearly.
+  out.faceVarying = in.faceVarying;
+  for (SubdivisionSurface::Channel& c : out.faceVarying) c.values.clear();
+  size_t corner = 0;  // the face's first corner in the facevarying arrays
   for (uint32_t f = 0; f < in.faces.size(); ++f) {
     const std::vector<uint32_t>& face = in.faces[f];
     const size_t n = face.size();
     for (size_t i = 0; i < n; ++i) {
-      out.faces.push_back({face[i], uint32_t(edgesBase + faceEdges[f][i]), uint32_t(facesBase + f),
-                           uint32_t(edgesBase + faceEdges[f][(i + n - 1) % n])});
+      out.faces.push_back({face[i], uint32_t(edgesBase + topo.faceEdges[f][i]), uint32_t(facesBase + f),
+                           uint32_t(edgesBase + topo.faceEdges[f][(i + n - 1) % n])});
       out.parent.push_back(in.parent.empty() ? f : in.parent[f]);
+      if (!in.holes.empty()) out.holes.push_back(in.holes[f]);
     }
+    for (size_t c = 0; c < in.faceVarying.size(); ++c) {
+      const size_t m = size_t(in.faceVarying[c].components);
+      const std::vector<float>& v = in.faceVarying[c].values;
+      std::vector<float>& o = out.faceVarying[c].values;
+      for (size_t i = 0; i < n; ++i) {
+        const size_t next = (i + 1) % n, prev = (i + n - 1) % n;
+        for (size_t k = 0; k < m; ++k) o.push_back(v[(corner + i) * m + k]);
+        for (size_t k = 0; k < m; ++k) o.push_back(0.5f * (v[(corner + i) * m + k] + v[(corner + next) * m + k]));
+        for (size_t k = 0; k < m; ++k) {
+          float sum = 0.0f;
+          for (size_t j = 0; j < n; ++j) sum += v[(corner + j) * m + k];
+          o.push_back(sum / float(n));
+        }
+        for (size_t k = 0; k < m; ++k) o.push_back(0.5f * (v[(corner + i) * m + k] + v[(corner + prev) * m + k]));
+      }
+    }
+    corner += n;
   }
   return out;
+}
+
+void projectToLimit(SubdivisionSurface& s) {
+  const SubdivisionTopology topo(s);
+  // Per point: the sum of its edge neighbours and of the corners across its quads.
+  const size_t numPoints = s.P.size();
+  std::vector<SubdivisionTopology::Rule> rules(numPoints);
+  for (uint32_t p = 0; p < numPoints; ++p) rules[p] = topo.rule(p, s.corners);
+  auto project = [&](auto get, auto put, auto zero) {
+    using V = decltype(zero);
+    std::vector<V> edgeSum(numPoints, zero), diagonalSum(numPoints, zero);
+    for (const SubdivisionTopology::Edge& e : topo.edges)
+      edgeSum[e.a] = edgeSum[e.a] + get(e.b), edgeSum[e.b] = edgeSum[e.b] + get(e.a);
+    for (const std::vector<uint32_t>& face : s.faces)
+      if (face.size() == 4)
+        for (size_t i = 0; i < 4; ++i) diagonalSum[face[i]] = diagonalSum[face[i]] + get(face[(i + 2) % 4]);
+    std::vector<V> limit(numPoints, zero);
+    for (uint32_t p = 0; p < numPoints; ++p) {
+      const SubdivisionTopology::Point& q = topo.points[p];
+      const SubdivisionTopology::Rule& r = rules[p];
+      const V here = get(p);
+      limit[p] = here;
+      if (q.faces == 0 || !q.quads) continue;
+      V smoothLimit = here;
+      if (r.sharpWeight < 1.0f) {
+        const float n = float(q.valence);
+        smoothLimit = (here * (n * n) + edgeSum[p] * 4.0f + diagonalSum[p]) * (1.0f / (n * (n + 5.0f)));
+      }
+      const V sharpLimit = r.crease ? (get(q.sharpEnds[0]) + get(q.sharpEnds[1]) + here * 4.0f) * (1.0f / 6.0f) : here;
+      limit[p] = smoothLimit + (sharpLimit - smoothLimit) * r.sharpWeight;
+      limit[p] = limit[p] + (here - limit[p]) * r.stayWeight;
+    }
+    for (uint32_t p = 0; p < numPoints; ++p) put(p, limit[p]);
+  };
+  project([&](uint32_t p) { return s.P[p]; }, [&](uint32_t p, glm::vec3 v) { s.P[p] = v; }, glm::vec3(0.0f));
+  for (SubdivisionSurface::Channel& c : s.channels) {
+    if (!c.smooth) continue;
+    const size_t n = size_t(c.components);
+    for (size_t k = 0; k < n; ++k)
+      project([&](uint32_t p) { return c.values[p * n + k]; }, [&](uint32_t p, float v) { c.values[p * n + k] = v; }, 0.0f);
+  }
 }
 
 std::vector<glm::vec3> pointNormals(const SubdivisionSurface& s) {

@@ -3,9 +3,11 @@
 // tested on their own; depends only on GLM.
 #pragma once
 
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include <glm/glm.hpp>
@@ -53,6 +55,15 @@ bool namedCubicBasis(const std::string& name, CubicBasis* basis);
 // split at their midpoints, boundary points take (M1 + 6 S + M2) / 8 of their two boundary
 // neighbours (a point of a single face, a corner, stays), so the surface reaches the boundary.
 // `parent` names each face's face of the input.
+//
+// Sharpness (the "crease" and "corner" tags) follows the semi-sharp rules of DeRose, Kass and
+// Truong (1998): an edge of sharpness s >= 1 splits at its midpoint and its two halves keep s - 1;
+// 0 < s < 1 blends the smooth and sharp rules by s. A point on two sharp edges takes the crease
+// rule, on three or more the corner rule (it stays), blended by their mean sharpness when below 1;
+// a point's own sharpness blends towards staying. Sharpness of kInfiniteSharpness or more never
+// wears off (RI_INFINITY is 1e38). Faces marked as holes subdivide like the others (they shape
+// their neighbours) and their children stay holes.
+constexpr float kInfiniteSharpness = 1e30f;
 struct SubdivisionSurface {
   std::vector<glm::vec3> P;
   std::vector<std::vector<uint32_t>> faces;
@@ -60,13 +71,26 @@ struct SubdivisionSurface {
   struct Channel {
     int components = 1;
     bool smooth = true;
-    std::vector<float> values;  // components per point
+    std::vector<float> values;  // components per point (per face corner for faceVarying)
   };
   std::vector<Channel> channels;
+  // Values per face corner, faces in order ("facevarying" primitive variables): interpolated
+  // linearly over each face, as RenderMan does without facevarying boundary rules.
+  std::vector<Channel> faceVarying;
+  std::unordered_map<uint64_t, float> creases;  // edge key (edgeKey) -> sharpness
+  std::vector<float> corners;                   // per point, or empty: none sharp
+  std::vector<uint8_t> holes;                   // per face, or empty: none
+
+  static uint64_t edgeKey(uint32_t a, uint32_t b) { return uint64_t(std::min(a, b)) << 32 | std::max(a, b); }
 };
 // One level: every face of n sides becomes n quads. Faces whose points are out of range are
 // dropped beforehand by the caller.
 SubdivisionSurface subdivideCatmullClark(const SubdivisionSurface& in);
+// Moves the points (and the smooth channels) of a subdivided mesh of quads to their limit
+// positions: Catmull-Clark's limit masks for smooth points, (M1 + 4 S + M2) / 6 on creases and
+// boundaries, corners staying, blended as the subdivision rules are for fractional sharpness.
+// Points of faces that are not quads stay.
+void projectToLimit(SubdivisionSurface& s);
 // Area-weighted point normals of a mesh of faces (Newell normals of each face summed per point).
 std::vector<glm::vec3> pointNormals(const SubdivisionSurface& s);
 

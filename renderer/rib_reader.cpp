@@ -2199,10 +2199,12 @@ bool RibParser::executeGeometry(const Call& call, bool* handled) {
 // SubdivisionMesh "catmull-clark" [nverts] [verts] [tags nargs intargs floatargs] params: the
 // control mesh is subdivided a few levels (as quadrics are cut: about (displaced ? 16 : 4) edge
 // lengths apart, at least 2 levels, at most 6 and 4M faces), with point normals of the result,
-// then read as PointsPolygons with what the levels made: vertex primitive variables subdivide
-// with the points, varying ones bilinearly, uniform ones go to every face their face makes,
-// constant ones stay. Boundaries are interpolated (RenderMan's "interpolateboundary"); other tags,
-// facevarying primitive variables and the "loop" scheme are warned about and ignored.
+// then moved to the limit surface and read as PointsPolygons with what the levels made: vertex
+// primitive variables subdivide with the points, varying ones bilinearly, facevarying ones
+// linearly over each control face, uniform ones go to every face their face makes, constant ones
+// stay. Tags "crease", "corner" and "hole" as rib_geometry.h says; boundaries are always
+// interpolated (RenderMan's "interpolateboundary"); other tags and the "loop" scheme are warned
+// about and ignored.
 bool RibParser::doSubdivisionMesh(const Call& call) {
   if (!requireWorld(call)) return false;
   std::string scheme;
@@ -2217,12 +2219,45 @@ bool RibParser::doSubdivisionMesh(const Call& call) {
       out->push_back(int(d));
     }
   size_t first = 3;
+  struct Tag {
+    std::string name;
+    std::vector<int> ints;
+    std::vector<float> floats;
+    int line;
+  };
+  std::vector<Tag> tags;
   if (call.args.size() > 3 && call.args[3].kind == Arg::Kind::Array) {
-    // tags nargs intargs floatargs
+    // tags nargs intargs floatargs: per tag, its count of integer and of float arguments.
     if (call.args.size() < 7) return fail(call.line, "'SubdivisionMesh': tags need [nargs] [intargs] [floatargs]");
-    for (const std::string& tag : call.args[3].strings)
-      if (tag != "interpolateboundary" && tag != "facevaryinginterpolateboundary")
-        warnOnce(call.line, "subdivtag/" + tag, "'SubdivisionMesh' tag '" + tag + "' is not supported; ignored");
+    const Arg &names = call.args[3], &nargs = call.args[4], &ints = call.args[5], &floats = call.args[6];
+    if (!names.numbers.empty() || !nargs.strings.empty() || !ints.strings.empty() || !floats.strings.empty())
+      return fail(names.line, "'SubdivisionMesh': tags are strings, [nargs] [intargs] [floatargs] numbers");
+    if (nargs.numbers.size() != 2 * names.strings.size())
+      return fail(nargs.line, "'SubdivisionMesh': " + std::to_string(names.strings.size()) + " tags need " +
+                                  std::to_string(2 * names.strings.size()) + " nargs (integer and float counts), got " +
+                                  std::to_string(nargs.numbers.size()));
+    size_t nextInt = 0, nextFloat = 0;
+    for (size_t k = 0; k < names.strings.size(); ++k) {
+      const double ni = nargs.numbers[2 * k], nf = nargs.numbers[2 * k + 1];
+      if (ni < 0 || nf < 0 || ni != std::floor(ni) || nf != std::floor(nf) || nextInt + ni > ints.numbers.size() ||
+          nextFloat + nf > floats.numbers.size())
+        return fail(nargs.line, "'SubdivisionMesh': the nargs of tag '" + names.strings[k] +
+                                    "' do not match the intargs and floatargs given");
+      Tag tag{names.strings[k], {}, {}, names.line};
+      for (size_t i = 0; i < size_t(ni); ++i) {
+        const double d = ints.numbers[nextInt + i];
+        if (d != std::floor(d) || std::fabs(d) > 1e9)
+          return fail(ints.line, "'SubdivisionMesh': intargs must be whole numbers");
+        tag.ints.push_back(int(d));
+      }
+      for (size_t i = 0; i < size_t(nf); ++i) tag.floats.push_back(float(floats.numbers[nextFloat + i]));
+      nextInt += size_t(ni), nextFloat += size_t(nf);
+      tags.push_back(std::move(tag));
+    }
+    if (nextInt != ints.numbers.size() || nextFloat != floats.numbers.size())
+      return fail(nargs.line, "'SubdivisionMesh': the nargs account for " + std::to_string(nextInt) + " intargs and " +
+                                  std::to_string(nextFloat) + " floatargs, but " + std::to_string(ints.numbers.size()) +
+                                  " and " + std::to_string(floats.numbers.size()) + " are given");
     first = 7;
   }
   if (scheme != "catmull-clark" && scheme != "bilinear")
@@ -2253,9 +2288,51 @@ bool RibParser::doSubdivisionMesh(const Call& call) {
     }
     surface.faces.push_back(std::move(face));
   }
+  // Tags: creases (chains of edges, one sharpness or one per edge), corners (points, one sharpness
+  // or one each), holes (faces). The boundary is always interpolated.
+  for (const Tag& tag : tags) {
+    auto pointIndex = [&](int i) { return i >= 0 && size_t(i) < numPoints; };
+    if (tag.name == "crease") {
+      if (tag.ints.size() < 2 || (tag.floats.size() != 1 && tag.floats.size() != tag.ints.size() - 1))
+        return fail(tag.line, "'SubdivisionMesh': a crease takes a chain of at least 2 points and 1 sharpness "
+                              "(or one per edge)");
+      for (size_t i = 0; i + 1 < tag.ints.size(); ++i) {
+        if (!pointIndex(tag.ints[i]) || !pointIndex(tag.ints[i + 1]))
+          return fail(tag.line, "'SubdivisionMesh': crease point " +
+                                    std::to_string(pointIndex(tag.ints[i]) ? tag.ints[i + 1] : tag.ints[i]) +
+                                    " is out of range (" + std::to_string(numPoints) + " points)");
+        const float sharpness = tag.floats.size() == 1 ? tag.floats[0] : tag.floats[i];
+        float& slot = surface.creases[SubdivisionSurface::edgeKey(uint32_t(tag.ints[i]), uint32_t(tag.ints[i + 1]))];
+        slot = std::max(slot, std::isfinite(sharpness) ? sharpness : kInfiniteSharpness);
+      }
+    } else if (tag.name == "corner") {
+      if (tag.ints.empty() || (tag.floats.size() != 1 && tag.floats.size() != tag.ints.size()))
+        return fail(tag.line, "'SubdivisionMesh': a corner tag takes points and 1 sharpness (or one per point)");
+      surface.corners.resize(numPoints, 0.0f);
+      for (size_t i = 0; i < tag.ints.size(); ++i) {
+        if (!pointIndex(tag.ints[i]))
+          return fail(tag.line, "'SubdivisionMesh': corner point " + std::to_string(tag.ints[i]) + " is out of range (" +
+                                    std::to_string(numPoints) + " points)");
+        const float sharpness = tag.floats.size() == 1 ? tag.floats[0] : tag.floats[i];
+        surface.corners[size_t(tag.ints[i])] = std::isfinite(sharpness) ? sharpness : kInfiniteSharpness;
+      }
+    } else if (tag.name == "hole") {
+      surface.holes.resize(nverts.size(), 0);
+      for (int f : tag.ints) {
+        if (f < 0 || size_t(f) >= nverts.size())
+          return fail(tag.line, "'SubdivisionMesh': hole face " + std::to_string(f) + " is out of range (" +
+                                    std::to_string(nverts.size()) + " faces)");
+        surface.holes[size_t(f)] = 1;
+      }
+    } else if (tag.name != "interpolateboundary" && tag.name != "facevaryinginterpolateboundary" &&
+               tag.name != "facevaryingpropagatecorners") {
+      warnOnce(call.line, "subdivtag/" + tag.name, "'SubdivisionMesh' tag '" + tag.name + "' is not supported; ignored");
+    }
+  }
   // Primitive variables: point-based ones become channels; the others are passed on as they are.
   std::vector<Param> passed;
   std::vector<std::pair<size_t, const Param*>> channelOf;  // channel index, its parameter
+  std::vector<std::pair<size_t, const Param*>> faceVaryingOf;  // facevarying channel, its parameter
   std::vector<const Param*> uniforms;
   for (const Param& p : params) {
     if (p.name == "P" || p.name == "Pw") continue;
@@ -2265,7 +2342,8 @@ bool RibParser::doSubdivisionMesh(const Call& call) {
     }
     const bool spatial = p.type && (*p.type == runtime::ParamType::Point || *p.type == runtime::ParamType::Vector ||
                                     *p.type == runtime::ParamType::Normal || *p.type == runtime::ParamType::Color);
-    int components = spatial ? 3 : p.name == "st" ? 2 : p.name == "Cs" || p.name == "N" ? 3 : 1;
+    // Undeclared, st is two floats and Cs or N three; declared, the type says ("float[2] st").
+    int components = spatial ? 3 : p.type ? 1 : p.name == "st" ? 2 : p.name == "Cs" || p.name == "N" ? 3 : 1;
     if (p.arraySize > 1) components *= p.arraySize;
     const size_t count = p.value.numbers.size();
     const std::string& cls = p.storageClass;
@@ -2282,9 +2360,17 @@ bool RibParser::doSubdivisionMesh(const Call& call) {
       surface.channels.push_back(std::move(c));
     } else if ((cls == "uniform" || cls.empty()) && count == nverts.size() * size_t(components) && nverts.size() > 1) {
       uniforms.push_back(&p);
-    } else if (cls == "facevarying" || (cls.empty() && count == total * size_t(components) && count != size_t(components))) {
-      warnOnce(p.line, "subdivfv/" + p.name,
-               "'SubdivisionMesh': facevarying \"" + p.name + "\" is not supported; ignored");
+    } else if ((cls == "facevarying" || cls == "facevertex" || cls.empty()) && count == total * size_t(components) &&
+               count != size_t(components)) {
+      if (p.name == "N") {
+        warnOnce(p.line, "subdivN", "'SubdivisionMesh': \"N\" is ignored; the subdivided surface's normals are used");
+        continue;
+      }
+      SubdivisionSurface::Channel c;
+      c.components = components;
+      c.values.assign(p.value.numbers.begin(), p.value.numbers.end());
+      faceVaryingOf.emplace_back(surface.faceVarying.size(), &p);
+      surface.faceVarying.push_back(std::move(c));
     } else {
       passed.push_back(p);  // constant: as it is
     }
@@ -2304,6 +2390,10 @@ bool RibParser::doSubdivisionMesh(const Call& call) {
       for (SubdivisionSurface::Channel& c : surface.channels) c.smooth = false;
     surface = subdivideCatmullClark(surface);
   }
+  if (levels > 0 && !bilinear) projectToLimit(surface);
+  // Faces that are holes are left out (their points stay, unused).
+  std::vector<uint8_t> kept(surface.faces.size(), 1);
+  for (size_t f = 0; f < surface.holes.size(); ++f) kept[f] = !surface.holes[f];
   // The result as PointsPolygons: quads (or the control faces), positions, point normals, and
   // the channels, uniform values following each face's parent.
   Call polygons;
@@ -2312,9 +2402,16 @@ bool RibParser::doSubdivisionMesh(const Call& call) {
   Arg counts, indices;
   counts.kind = indices.kind = Arg::Kind::Array;
   counts.line = indices.line = call.line;
-  for (const std::vector<uint32_t>& face : surface.faces) {
-    counts.numbers.push_back(double(face.size()));
-    for (uint32_t p : face) indices.numbers.push_back(double(p));
+  size_t keptFaces = 0;
+  for (size_t f = 0; f < surface.faces.size(); ++f) {
+    if (!kept[f]) continue;
+    ++keptFaces;
+    counts.numbers.push_back(double(surface.faces[f].size()));
+    for (uint32_t p : surface.faces[f]) indices.numbers.push_back(double(p));
+  }
+  if (keptFaces == 0) {
+    warn(call.line, "'SubdivisionMesh' has only holes; skipped");
+    return true;
   }
   polygons.args = {counts, indices};
   auto addParam = [&](const std::string& declaration, std::vector<double> values) {
@@ -2358,11 +2455,27 @@ bool RibParser::doSubdivisionMesh(const Call& call) {
   for (const Param* p : uniforms) {
     const size_t components = p->value.numbers.size() / nverts.size();
     std::vector<double> values;
-    for (uint32_t parent : surface.parent.empty() ? std::vector<uint32_t>() : surface.parent)
+    for (size_t f = 0; f < surface.faces.size(); ++f) {
+      if (!kept[f]) continue;
+      const size_t parent = surface.parent.empty() ? f : surface.parent[f];
       values.insert(values.end(), p->value.numbers.begin() + std::ptrdiff_t(parent * components),
                     p->value.numbers.begin() + std::ptrdiff_t((parent + 1) * components));
-    if (surface.parent.empty()) values = p->value.numbers;
+    }
     addParam("uniform " + typeWord(*p) + arrayWord(*p) + " " + p->name, std::move(values));
+  }
+  for (const auto& [c, p] : faceVaryingOf) {
+    const SubdivisionSurface::Channel& channel = surface.faceVarying[c];
+    const size_t m = size_t(channel.components);
+    std::vector<double> values;
+    size_t corner = 0;
+    for (size_t f = 0; f < surface.faces.size(); ++f) {
+      const size_t n = surface.faces[f].size();
+      if (kept[f])
+        values.insert(values.end(), channel.values.begin() + std::ptrdiff_t(corner * m),
+                      channel.values.begin() + std::ptrdiff_t((corner + n) * m));
+      corner += n;
+    }
+    addParam("facevarying " + typeWord(*p) + arrayWord(*p) + " " + p->name, std::move(values));
   }
   for (const Param& p : passed) {
     Arg name;
@@ -2373,7 +2486,7 @@ bool RibParser::doSubdivisionMesh(const Call& call) {
     polygons.args.push_back(std::move(name));
     polygons.args.push_back(p.value);
   }
-  return buildPolygonMesh(polygons, std::vector<int>(surface.faces.size(), 1),
+  return buildPolygonMesh(polygons, std::vector<int>(keptFaces, 1),
                           std::vector<int>(counts.numbers.begin(), counts.numbers.end()),
                           std::vector<int>(indices.numbers.begin(), indices.numbers.end()), 2);
 }

@@ -127,5 +127,106 @@ TEST(CubicBasis, NamedBasesInterpolateAndSumToOne) {
   EXPECT_FALSE(namedCubicBasis("nurbs", &power));
 }
 
+// A cube's control mesh (faces wound outwards), optionally with every edge creased.
+SubdivisionSurface controlCube(float creaseSharpness) {
+  SubdivisionSurface s;
+  s.P = {{-1, -1, 1}, {1, -1, 1}, {-1, 1, 1}, {1, 1, 1}, {-1, 1, -1}, {1, 1, -1}, {-1, -1, -1}, {1, -1, -1}};
+  s.faces = {{0, 1, 3, 2}, {2, 3, 5, 4}, {4, 5, 7, 6}, {6, 7, 1, 0}, {1, 7, 5, 3}, {6, 0, 2, 4}};
+  if (creaseSharpness > 0.0f)
+    for (const auto& face : s.faces)
+      for (size_t k = 0; k < 4; ++k) s.creases[SubdivisionSurface::edgeKey(face[k], face[(k + 1) % 4])] = creaseSharpness;
+  return s;
+}
+
+float largestNorm(const SubdivisionSurface& s) {
+  float r = 0.0f;
+  for (const glm::vec3& p : s.P) r = std::max(r, glm::length(p));
+  return r;
+}
+
+// The limit masks are right when a point's limit does not move as the mesh is subdivided further:
+// the old points keep their indices, so limit(level k) and limit(level k + 1) must agree on them.
+// Checked on a smooth cube (valence 3 and 4 points), on a cube with infinitely sharp creases, on
+// one whose sharpness 2 has worn off by level 2, and on an open grid (boundary and corner rules).
+TEST(CatmullClark, LimitPositionsDoNotMoveUnderFurtherSubdivision) {
+  SubdivisionSurface grid;
+  for (int y = 0; y < 4; ++y)
+    for (int x = 0; x < 4; ++x) grid.P.emplace_back(float(x), float(y), 0.3f * float((x * 7 + y * 3) % 4));
+  for (uint32_t y = 0; y < 3; ++y)
+    for (uint32_t x = 0; x < 3; ++x) grid.faces.push_back({y * 4 + x, y * 4 + x + 1, (y + 1) * 4 + x + 1, (y + 1) * 4 + x});
+  const std::pair<const char*, SubdivisionSurface> cases[] = {
+      {"smooth cube", controlCube(0.0f)}, {"sharp cube", controlCube(kInfiniteSharpness)},
+      {"worn cube", controlCube(2.0f)}, {"open grid", grid}};
+  for (const auto& [name, control] : cases) {
+    SubdivisionSurface level = subdivideCatmullClark(subdivideCatmullClark(control));
+    SubdivisionSurface limit = level;
+    projectToLimit(limit);
+    SubdivisionSurface finer = subdivideCatmullClark(level);
+    projectToLimit(finer);
+    float moved = 0.0f, projected = 0.0f;
+    for (size_t p = 0; p < level.P.size(); ++p) {
+      moved = std::max(moved, glm::length(limit.P[p] - finer.P[p]));
+      projected = std::max(projected, glm::length(limit.P[p] - level.P[p]));
+    }
+    EXPECT_LT(moved, 2e-5f) << name;
+    if (std::string(name) != "sharp cube") {
+      EXPECT_GT(projected, 1e-3f) << name;  // the projection did something
+    }
+  }
+}
+
+// Infinitely sharp creases on every edge keep the cube a cube (every point on its faces, the
+// corners in place); semi-sharp ones round it less the sharper they are; a corner tag keeps its
+// point; a hole's children stay holes; facevarying values interpolate linearly over each face.
+TEST(CatmullClark, CreasesCornersHolesAndFacevaryingValues) {
+  SubdivisionSurface sharp = controlCube(kInfiniteSharpness);
+  for (int l = 0; l < 3; ++l) sharp = subdivideCatmullClark(sharp);
+  projectToLimit(sharp);
+  bool corner = false;
+  for (const glm::vec3& p : sharp.P) {
+    EXPECT_NEAR(std::max({std::fabs(p.x), std::fabs(p.y), std::fabs(p.z)}), 1.0f, 1e-5f);
+    corner = corner || p == glm::vec3(1, 1, 1);
+  }
+  EXPECT_TRUE(corner);
+
+  float previous = 0.0f;
+  for (float sharpness : {0.0f, 0.5f, 1.0f, 2.0f, kInfiniteSharpness}) {
+    SubdivisionSurface s = controlCube(sharpness);
+    for (int l = 0; l < 3; ++l) s = subdivideCatmullClark(s);
+    projectToLimit(s);
+    const float reach = largestNorm(s);
+    EXPECT_GT(reach, previous + 0.01f) << sharpness;
+    previous = reach;
+  }
+  EXPECT_NEAR(previous, std::sqrt(3.0f), 1e-5f);
+
+  SubdivisionSurface cornered = controlCube(0.0f);
+  cornered.corners.assign(cornered.P.size(), 0.0f);
+  cornered.corners[3] = kInfiniteSharpness;
+  cornered.holes.assign(cornered.faces.size(), 0);
+  cornered.holes[2] = 1;
+  SubdivisionSurface::Channel st;
+  st.components = 2;
+  for (size_t f = 0; f < 6; ++f) st.values.insert(st.values.end(), {0, 0, 1, 0, 1, 1, 0, 1});
+  cornered.faceVarying.push_back(st);
+  for (int l = 0; l < 2; ++l) cornered = subdivideCatmullClark(cornered);
+  projectToLimit(cornered);
+  EXPECT_EQ(cornered.P[3], glm::vec3(1, 1, 1));
+  ASSERT_EQ(cornered.holes.size(), cornered.faces.size());
+  ASSERT_EQ(cornered.parent.size(), cornered.faces.size());
+  size_t corners = 0;
+  for (size_t f = 0; f < cornered.faces.size(); ++f) {
+    EXPECT_EQ(cornered.holes[f], cornered.parent[f] == 2) << f;
+    corners += cornered.faces[f].size();
+  }
+  ASSERT_EQ(cornered.faceVarying[0].values.size(), 2 * corners);
+  // Face 0's first child of its first child keeps the control corner's st and the quarter point.
+  const float* v = cornered.faceVarying[0].values.data();
+  EXPECT_EQ(glm::vec2(v[0], v[1]), glm::vec2(0, 0));
+  EXPECT_EQ(glm::vec2(v[2], v[3]), glm::vec2(0.25f, 0));
+  EXPECT_EQ(glm::vec2(v[4], v[5]), glm::vec2(0.25f, 0.25f));
+  EXPECT_EQ(glm::vec2(v[6], v[7]), glm::vec2(0, 0.25f));
+}
+
 }  // namespace
 }  // namespace relief

@@ -899,10 +899,76 @@ TEST(RibSubdivision, CatmullClarkCubeAndOpenGrid) {
 
   EXPECT_FALSE(read(world("SubdivisionMesh \"catmull-clark\" [4] [0 1 2 9] \"P\" [0 0 0  1 0 0  1 1 0  0 1 0]\n")).scene);
   EXPECT_FALSE(read(world("SubdivisionMesh \"catmull-clark\" [4 4] [0 1 2 3] \"P\" [0 0 0  1 0 0  1 1 0  0 1 0]\n")).scene);
-  ReadResult tagged = read(world("SubdivisionMesh \"catmull-clark\" [4] [0 1 2 3] [\"crease\"] [2 1] [0 1] [5]"
+  ReadResult tagged = read(world("SubdivisionMesh \"catmull-clark\" [4] [0 1 2 3] [\"stitch\" \"crease\"] [1 0 2 1] [7 0 1] [5]"
                                  " \"P\" [0 0 0  1 0 0  1 1 0  0 1 0]\n"));
   ASSERT_TRUE(tagged.scene) << tagged.error.format();
-  EXPECT_NE(tagged.warnings.find("tag 'crease' is not supported"), std::string::npos) << tagged.warnings;
+  EXPECT_NE(tagged.warnings.find("tag 'stitch' is not supported"), std::string::npos) << tagged.warnings;
+  EXPECT_EQ(tagged.warnings.find("crease"), std::string::npos) << tagged.warnings;
+}
+
+// Tags as RenderMan exporters write them: creases and corners keep the cube's edges and corners,
+// a hole takes its face's share of the triangles out, facevarying st follows each face; tag
+// arguments that do not add up, or name missing points or faces, are errors at the call.
+TEST(RibSubdivision, CreasesCornersHolesFacevaryingAndTagErrors) {
+  const std::string cube =
+      "SubdivisionMesh \"catmull-clark\" [4 4 4 4 4 4]\n"
+      "  [0 1 3 2  2 3 5 4  4 5 7 6  6 7 1 0  1 7 5 3  6 0 2 4]\n"
+      "  [\"interpolateboundary\" TAGS] [0 0 NARGS] [INTS] [FLOATS]\n"
+      "  \"P\" [-1 -1 1  1 -1 1  -1 1 1  1 1 1  -1 1 -1  1 1 -1  -1 -1 -1  1 -1 -1]\n"
+      "  \"facevarying float[2] st\" [0 0 1 0 1 1 0 1  0 0 1 0 1 1 0 1  0 0 1 0 1 1 0 1"
+      "  0 0 1 0 1 1 0 1  0 0 1 0 1 1 0 1  0 0 1 0 1 1 0 1]\n";
+  auto with = [&](const std::string& tags, const std::string& nargs, const std::string& ints, const std::string& floats) {
+    std::string text = cube;
+    for (const auto& [key, value] : {std::pair<std::string, std::string>{"TAGS", tags}, {"NARGS", nargs}, {"INTS", ints}, {"FLOATS", floats}})
+      text.replace(text.find(key), key.size(), value);
+    return read(world(text));
+  };
+  auto reach = [](const Mesh& m) {
+    float r = 0.0f;
+    for (const glm::vec3& p : m.P) r = std::max(r, glm::length(p));
+    return r;
+  };
+  ReadResult smooth = with("", "", "", "");
+  ASSERT_TRUE(smooth.scene) << smooth.error.format();
+  EXPECT_EQ(smooth.warnings, "");
+  const Mesh& round = smooth.scene->meshes[0];
+  ASSERT_EQ(round.st.size(), round.P.size());
+  for (const glm::vec2& st : round.st) EXPECT_TRUE(st.x >= 0 && st.x <= 1 && st.y >= 0 && st.y <= 1) << st.x << " " << st.y;
+  EXPECT_LT(reach(round), 1.2f);
+
+  // All twelve edges as three chains (RI_INFINITY sharpness) and one corner: a sharp cube.
+  ReadResult sharp = with("\"crease\" \"crease\" \"crease\"", "5 1 5 1 6 1",
+                          "0 1 3 2 0  4 5 7 6 4  0 6 1 7 3 5", "1e38 1e38 1e38");
+  ASSERT_TRUE(sharp.scene) << sharp.error.format();
+  // The third chain's 6-1 and 7-3 are no edges (ignored) and edge 2-4 is in no chain: points 2
+  // and 4 have two sharp edges (crease rule), the other six corners three (they stay).
+  auto has = [](const Mesh& m, glm::vec3 q) { return std::find(m.P.begin(), m.P.end(), q) != m.P.end(); };
+  for (const glm::vec3 q : {glm::vec3(-1, -1, 1), glm::vec3(1, -1, 1), glm::vec3(1, 1, 1), glm::vec3(1, 1, -1),
+                            glm::vec3(-1, -1, -1), glm::vec3(1, -1, -1)})
+    EXPECT_TRUE(has(sharp.scene->meshes[0], q)) << q.x << " " << q.y << " " << q.z;
+  EXPECT_FALSE(has(sharp.scene->meshes[0], glm::vec3(-1, 1, 1)));
+  EXPECT_FALSE(has(round, glm::vec3(1, 1, 1)));
+  ReadResult cornered = with("\"corner\"", "1 1", "3", "10");
+  ASSERT_TRUE(cornered.scene) << cornered.error.format();
+  EXPECT_TRUE(has(cornered.scene->meshes[0], glm::vec3(1, 1, 1)));
+
+  ReadResult holed = with("\"hole\"", "2 0", "0 5", "");
+  ASSERT_TRUE(holed.scene) << holed.error.format();
+  EXPECT_EQ(3 * holed.scene->meshes[0].numTriangles(), 2 * round.numTriangles());
+
+  for (const auto& [tags, nargs, ints, floats, message] :
+       {std::tuple<const char*, const char*, const char*, const char*, const char*>{
+            "\"crease\"", "2 1", "0 9", "2", "crease point 9 is out of range"},
+        {"\"crease\"", "2 1", "0 1", "", "do not match"},
+        {"\"crease\"", "2", "0 1", "1", "nargs"},
+        {"\"hole\"", "1 0", "6", "", "hole face 6 is out of range"},
+        {"\"corner\"", "1 0", "1", "", "a corner tag takes"},
+        {"\"hole\"", "1 0", "1 2", "", "account for 1 intargs"}}) {
+    ReadResult bad = with(tags, nargs, ints, floats);
+    ASSERT_FALSE(bad.scene) << tags << " " << ints;
+    EXPECT_NE(bad.error.format().find(message), std::string::npos) << bad.error.format();
+    EXPECT_NE(bad.error.format().find(":4:"), std::string::npos) << bad.error.format();
+  }
 }
 
 TEST(RibPatches, FlatBilinearPatchesAreTwoTrianglesOnlyWhereTheMapIsAffine) {
