@@ -262,6 +262,54 @@ bool namedCubicBasis(const std::string& name, CubicBasis* basis) {
   return true;
 }
 
+int nurbsBasis(const std::vector<float>& knots, int order, int count, float t, float* value, float* derivative) {
+  const int p = order - 1;
+  const float lo = knots[size_t(p)], hi = knots[size_t(count)];
+  if (!(lo < hi)) return -1;
+  t = std::clamp(t, lo, hi);
+  // The span [knots[i], knots[i + 1]) holding t, nonempty, with i in [p, count - 1].
+  int i = p;
+  while (i < count - 1 && knots[size_t(i) + 1] <= t) ++i;
+  while (i > p && knots[size_t(i)] == knots[size_t(i) + 1]) --i;
+  // Cox-de Boor, degree by degree; `lower` keeps the degree p - 1 functions for the derivatives.
+  float left[kMaxNurbsOrder], right[kMaxNurbsOrder], lower[kMaxNurbsOrder];
+  value[0] = 1.0f;
+  lower[0] = 1.0f;
+  for (int j = 1; j <= p; ++j) {
+    if (j == p) std::copy(value, value + p, lower);
+    left[j] = t - knots[size_t(i + 1 - j)];
+    right[j] = knots[size_t(i + j)] - t;
+    float saved = 0.0f;
+    for (int r = 0; r < j; ++r) {
+      const float denominator = right[r + 1] + left[j - r];
+      const float term = denominator != 0.0f ? value[r] / denominator : 0.0f;
+      value[r] = saved + right[r + 1] * term;
+      saved = left[j - r] * term;
+    }
+    value[j] = saved;
+  }
+  // N'_{k,p} = p (N_{k,p-1} / (u_{k+p} - u_k) - N_{k+1,p-1} / (u_{k+p+1} - u_{k+1})), with the
+  // degree p - 1 functions of this span being lower[0..p-1] for k = i - p + 1 .. i.
+  for (int r = 0; r <= p; ++r) {
+    if (p == 0) {
+      derivative[r] = 0.0f;
+      continue;
+    }
+    const int k = i - p + r;
+    float d = 0.0f;
+    if (r > 0) {
+      const float span = knots[size_t(k + p)] - knots[size_t(k)];
+      if (span != 0.0f) d += lower[r - 1] / span;
+    }
+    if (r < p) {
+      const float span = knots[size_t(k + p + 1)] - knots[size_t(k + 1)];
+      if (span != 0.0f) d -= lower[r] / span;
+    }
+    derivative[r] = float(p) * d;
+  }
+  return i - p;
+}
+
 namespace {
 
 // The edges of a face mesh and what each point's rule needs to know of them.

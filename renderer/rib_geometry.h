@@ -48,6 +48,14 @@ struct CubicBasis {
 // an unknown name.
 bool namedCubicBasis(const std::string& name, CubicBasis* basis);
 
+// The B-spline basis of RI NuPatch: `order` (degree + 1, at most kMaxNurbsOrder) over `knots`
+// (count + order non-decreasing values) for `count` control points. At parameter t, writes the
+// `order` functions that may be nonzero, with their first derivatives, and returns the index of
+// the first of them; t is clamped to [knots[order - 1], knots[count]], and the last knot belongs
+// to the span before it. Returns -1 when that range is empty.
+constexpr int kMaxNurbsOrder = 16;
+int nurbsBasis(const std::vector<float>& knots, int order, int count, float t, float* value, float* derivative);
+
 // A polygon mesh under Catmull-Clark subdivision (RI SubdivisionMesh "catmull-clark"): points,
 // faces as point lists, and per-point data channels that subdivide with the points (`smooth`:
 // by the Catmull-Clark masks, as "vertex" primitive variables; otherwise bilinearly, as "varying"

@@ -784,6 +784,7 @@ class RibParser {
   bool executeAttributes(const Call& call, bool* handled);
   bool executeGeometry(const Call& call, bool* handled);
   bool doSubdivisionMesh(const Call& call);
+  bool doNuPatch(const Call& call);
   bool shaderParamValue(int line, const runtime::CompiledShader& compiled, const Param& p,
                         runtime::ParamValue* out);
   bool doDisplacement(const Call& call);
@@ -2086,7 +2087,7 @@ bool RibParser::executeGeometry(const Call& call, bool* handled) {
       "Sphere",         "Cylinder",       "Cone",     "Disk",     "Torus",
       "Paraboloid",     "Hyperboloid",    "Polygon",  "GeneralPolygon",
       "PointsPolygons", "PointsGeneralPolygons",    "Patch",    "PatchMesh",
-      "Geometry",       "SubdivisionMesh"};
+      "Geometry",       "SubdivisionMesh", "NuPatch"};
   if (kShapes.count(n)) {
     if (!requireWorld(call)) return false;
     if (singular(attr_.ctm)) {
@@ -2114,6 +2115,12 @@ bool RibParser::executeGeometry(const Call& call, bool* handled) {
     return buildPolygonMesh(call, std::vector<int>(nverts.size(), 1), nverts, vertices, 2);
   }
   if (n == "SubdivisionMesh") return doSubdivisionMesh(call);
+  if (n == "NuPatch") return doNuPatch(call);
+  if (n == "TrimCurve") {
+    warnOnce(call.line, "request/TrimCurve", "'TrimCurve' is not supported; NuPatches render untrimmed");
+    *handled = true;
+    return true;
+  }
   if (n == "PointsGeneralPolygons") {
     if (!requireWorld(call)) return false;
     if (call.args.size() < 3 || !call.args[0].isNumeric() || !call.args[1].isNumeric() ||
@@ -2489,6 +2496,266 @@ bool RibParser::doSubdivisionMesh(const Call& call) {
   return buildPolygonMesh(polygons, std::vector<int>(keptFaces, 1),
                           std::vector<int>(counts.numbers.begin(), counts.numbers.end()),
                           std::vector<int>(indices.numbers.begin(), indices.numbers.end()), 2);
+}
+
+// NuPatch nu uorder uknot umin umax nv vorder vknot vmin vmax params: a non-uniform rational
+// B-spline patch ("P", or "Pw" for rational weights), tessellated on a grid of parameter values
+// (every knot span in [umin, umax] cut into as many steps as a bicubic patch would be) with its
+// analytic normals. u and v are the knot parameters, and st defaults to them (RI). Vertex
+// primitive variables follow the patch's basis and weights, varying ones interpolate linearly
+// between the segment corners, constant ones stay; uniform and facevarying ones are warned about
+// and ignored. Closed patches (seams and poles, as NURBS spheres and cylinders have) get points
+// and normals that are bit-identical across the seam, so displacement does not crack them.
+bool RibParser::doNuPatch(const Call& call) {
+  if (!requireWorld(call)) return false;
+  // The ten positional arguments: counts and orders are numbers, knots arrays.
+  if (call.args.size() < 10)
+    return fail(call.line, "'NuPatch' expects nu uorder [uknot] umin umax nv vorder [vknot] vmin vmax then parameters");
+  for (size_t k = 0; k < 10; ++k)
+    if (!call.args[k].isNumeric() || ((k == 2 || k == 7) ? call.args[k].kind != Arg::Kind::Array : call.args[k].numbers.size() != 1))
+      return fail(call.args[k].line, "'NuPatch' expects nu uorder [uknot] umin umax nv vorder [vknot] vmin vmax then parameters");
+  struct Direction {
+    int n, order;
+    std::vector<float> knots;
+    float lo, hi;
+    std::vector<float> breaks;  // the distinct knots in [lo, hi], lo and hi included
+  };
+  Direction dir[2];
+  for (int d = 0; d < 2; ++d) {
+    const size_t a = size_t(5 * d);
+    const double n = call.args[a].numbers[0], order = call.args[a + 1].numbers[0];
+    const char* name = d == 0 ? "u" : "v";
+    if (n != std::floor(n) || order != std::floor(order) || order < 1 || order > kMaxNurbsOrder || n < order || n > 1e6)
+      return fail(call.args[a].line, std::string("'NuPatch': n") + name + " " + std::to_string(int64_t(n)) + " and " + name +
+                                         "order " + std::to_string(int64_t(order)) + " must be whole, the order from 1 to " +
+                                         std::to_string(kMaxNurbsOrder) + " and at most the count");
+    Direction& D = dir[d];
+    D.n = int(n), D.order = int(order);
+    for (double k : call.args[a + 2].numbers) D.knots.push_back(float(k));
+    if (D.knots.size() != size_t(D.n + D.order))
+      return fail(call.args[a + 2].line, std::string("'NuPatch': ") + name + "knot needs n" + name + " + " + name + "order = " +
+                                             std::to_string(D.n + D.order) + " values, got " + std::to_string(D.knots.size()));
+    for (size_t k = 0; k < D.knots.size(); ++k)
+      if (!std::isfinite(D.knots[k]) || (k > 0 && D.knots[k] < D.knots[k - 1]))
+        return fail(call.args[a + 2].line, std::string("'NuPatch': ") + name + "knot must be finite and non-decreasing");
+    const float first = D.knots[size_t(D.order - 1)], last = D.knots[size_t(D.n)];
+    D.lo = std::max(float(call.args[a + 3].numbers[0]), first);
+    D.hi = std::min(float(call.args[a + 4].numbers[0]), last);
+    if (!(D.lo < D.hi))
+      return fail(call.args[a + 3].line, std::string("'NuPatch': the ") + name + " range [" + std::to_string(call.args[a + 3].numbers[0]) +
+                                             ", " + std::to_string(call.args[a + 4].numbers[0]) + "] holds none of the knot range [" +
+                                             std::to_string(first) + ", " + std::to_string(last) + "]");
+    D.breaks.push_back(D.lo);
+    for (float k : D.knots)
+      if (k > D.breaks.back() && k < D.hi) D.breaks.push_back(k);
+    D.breaks.push_back(D.hi);
+  }
+  const int nu = dir[0].n, nv = dir[1].n;
+  const size_t count = size_t(nu) * size_t(nv);
+  std::vector<Param> params;
+  std::vector<float> P;
+  if (!parseParams(call, 10, &params) || !positions(call, params, count, &P)) return false;
+  // Homogeneous control points: RenderMan's Pw is (w x, w y, w z, w).
+  std::vector<glm::vec4> H(count);
+  const Param* pw = findParam(params, "P") ? nullptr : findParam(params, "Pw");
+  for (size_t i = 0; i < count; ++i) {
+    const float w = pw ? float(pw->value.numbers[4 * i + 3]) : 1.0f;
+    H[i] = glm::vec4(glm::vec3(P[3 * i], P[3 * i + 1], P[3 * i + 2]) * w, w);
+  }
+  const size_t segU = size_t(nu - dir[0].order + 1), segV = size_t(nv - dir[1].order + 1);
+  PrimvarCounts counts{segU * segV, count, (segU + 1) * (segV + 1), 4 * segU * segV};
+  std::vector<Primvar> vars;
+  if (!readPrimvars(call, params, counts, &vars)) return false;
+  const Primvar *st = nullptr, *s = nullptr, *t = nullptr, *Cs = nullptr, *N = nullptr;
+  for (const Primvar& v : vars) {
+    if (v.storage == PrimvarClass::Uniform || v.storage == PrimvarClass::FaceVarying) {
+      warnOnce(call.line, "nupatch/" + v.name, "'NuPatch': uniform and facevarying \"" + v.name + "\" are not supported; ignored");
+      continue;
+    }
+    if (v.name == "st") st = &v;
+    if (v.name == "s") s = &v;
+    if (v.name == "t") t = &v;
+    if (v.name == "Cs") Cs = &v;
+    if (v.name == "N") N = &v;
+  }
+  // Steps per knot span, from the control hull as for bicubic patches.
+  const glm::mat4& m = attr_.ctm;
+  float hull = 0.0f;
+  for (int j = 0; j < nv; ++j)
+    for (int i = 0; i < nu; ++i) {
+      const glm::vec3 p(P[3 * (size_t(j) * size_t(nu) + size_t(i))], P[3 * (size_t(j) * size_t(nu) + size_t(i)) + 1],
+                        P[3 * (size_t(j) * size_t(nu) + size_t(i)) + 2]);
+      if (i + 1 < nu) {
+        const size_t k = 3 * (size_t(j) * size_t(nu) + size_t(i) + 1);
+        hull = std::max(hull, glm::length(glm::vec3(P[k], P[k + 1], P[k + 2]) - p));
+      }
+      if (j + 1 < nv) {
+        const size_t k = 3 * ((size_t(j) + 1) * size_t(nu) + size_t(i));
+        hull = std::max(hull, glm::length(glm::vec3(P[k], P[k + 1], P[k + 2]) - p));
+      }
+    }
+  if (!std::isfinite(hull)) return fail(call.line, "'NuPatch': control points must be finite");
+  const float target = (attr_.displacement ? 16.0f : 4.0f) * attr_.edgeLength;
+  const int linear = dir[0].order <= 2 && dir[1].order <= 2;
+  const int steps = linear ? 1 : std::clamp(int(std::ceil(hull * maxScale(m) * 3.0f / target)), 8, 32);
+  std::vector<float> params1[2];
+  for (int d = 0; d < 2; ++d) {
+    const std::vector<float>& b = dir[d].breaks;
+    for (size_t k = 0; k + 1 < b.size(); ++k)
+      for (int q = 0; q < steps; ++q) params1[d].push_back(b[k] + (b[k + 1] - b[k]) * float(q) / float(steps));
+    params1[d].push_back(b.back());
+  }
+  const size_t columns = params1[0].size(), rows = params1[1].size();
+  if (columns * rows > (size_t(1) << 24)) return fail(call.line, "'NuPatch' is too large to tessellate");
+
+  // Vertex values at a grid point: sum of basis * weight * value over the nonzero functions,
+  // divided by the weights' sum (the same rational map as P).
+  struct Basis {
+    int first;
+    float value[kMaxNurbsOrder], derivative[kMaxNurbsOrder];
+  };
+  auto basisAt = [&](int d, float x) {
+    Basis b;
+    b.first = nurbsBasis(dir[d].knots, dir[d].order, dir[d].n, x, b.value, b.derivative);
+    return b;
+  };
+  // Varying values: linear between the segment corners, which sit at knots order-1 .. n.
+  auto varyingAt = [&](const Primvar& v, float x, float y, float* out) {
+    float w[2][2];
+    size_t index[2][2];
+    for (int d = 0; d < 2; ++d) {
+      const Direction& D = dir[d];
+      const float param = d == 0 ? x : y;
+      size_t k = 0;
+      const size_t segments = size_t(D.n - D.order + 1);
+      while (k + 1 < segments && D.knots[size_t(D.order) + k] <= param) ++k;
+      const float a = D.knots[size_t(D.order - 1) + k], b = D.knots[size_t(D.order) + k];
+      const float f = b > a ? std::clamp((param - a) / (b - a), 0.0f, 1.0f) : 0.0f;
+      w[d][0] = 1.0f - f, w[d][1] = f;
+      index[d][0] = k, index[d][1] = k + 1;
+    }
+    for (int c = 0; c < v.components; ++c) out[c] = 0.0f;
+    for (int j = 0; j < 2; ++j)
+      for (int i = 0; i < 2; ++i) {
+        const float* value = v.at(index[1][j] * (segU + 1) + index[0][i]);
+        for (int c = 0; c < v.components; ++c) out[c] += w[0][i] * w[1][j] * value[c];
+      }
+  };
+  auto valueAt = [&](const Primvar& v, const Basis& bu, const Basis& bv, float x, float y, float* out) {
+    if (v.storage == PrimvarClass::Constant) {
+      std::copy(v.at(0), v.at(0) + v.components, out);
+    } else if (v.storage == PrimvarClass::Varying) {
+      varyingAt(v, x, y, out);
+    } else {
+      float weight = 0.0f;
+      for (int c = 0; c < v.components; ++c) out[c] = 0.0f;
+      for (int j = 0; j < dir[1].order; ++j)
+        for (int i = 0; i < dir[0].order; ++i) {
+          const size_t k = size_t(bv.first + j) * size_t(nu) + size_t(bu.first + i);
+          const float b = bu.value[i] * bv.value[j] * H[k].w;
+          weight += b;
+          for (int c = 0; c < v.components; ++c) out[c] += b * v.at(k)[c];
+        }
+      for (int c = 0; c < v.components; ++c) out[c] = weight != 0.0f ? out[c] / weight : 0.0f;
+    }
+  };
+  const glm::mat3 normalFromObject = glm::transpose(glm::inverse(glm::mat3(m)));
+  Mesh mesh;
+  mesh.P.resize(columns * rows);
+  mesh.N.resize(columns * rows);
+  mesh.uv.resize(columns * rows);
+  mesh.st.resize(columns * rows);
+  if (Cs) mesh.Cs.resize(columns * rows);
+  std::vector<uint8_t> degenerate(columns * rows, 0);
+  for (size_t row = 0; row < rows; ++row) {
+    const float y = params1[1][row];
+    const Basis bv = basisAt(1, y);
+    for (size_t col = 0; col < columns; ++col) {
+      const float x = params1[0][col];
+      const Basis bu = basisAt(0, x);
+      glm::dvec4 S(0.0), Su(0.0), Sv(0.0);
+      for (int j = 0; j < dir[1].order; ++j)
+        for (int i = 0; i < dir[0].order; ++i) {
+          const glm::dvec4 h(H[size_t(bv.first + j) * size_t(nu) + size_t(bu.first + i)]);
+          S += double(bu.value[i]) * double(bv.value[j]) * h;
+          Su += double(bu.derivative[i]) * double(bv.value[j]) * h;
+          Sv += double(bu.value[i]) * double(bv.derivative[j]) * h;
+        }
+      const size_t k = row * columns + col;
+      const glm::dvec3 p = glm::dvec3(S) / S.w;
+      // The quotient rule: d(A / w) = (dA - dw (A / w)) / w.
+      const glm::dvec3 du = (glm::dvec3(Su) - Su.w * p) / S.w, dv = (glm::dvec3(Sv) - Sv.w * p) / S.w;
+      mesh.P[k] = glm::vec3(m * glm::vec4(glm::vec3(p), 1.0f));
+      glm::vec3 normal = N ? glm::vec3(0.0f) : normalFromObject * glm::vec3(glm::cross(du, dv));
+      if (N) {
+        float value[3];
+        valueAt(*N, bu, bv, x, y, value);
+        normal = normalFromObject * glm::vec3(value[0], value[1], value[2]);
+      }
+      const float len = glm::length(normal);
+      degenerate[k] = !(len > 1e-20f && std::isfinite(len)) || !std::isfinite(S.w) || S.w == 0.0;
+      mesh.N[k] = degenerate[k] ? glm::vec3(0.0f) : normal / len;
+      mesh.uv[k] = glm::vec2(x, y);
+      mesh.st[k] = mesh.uv[k];
+      float value[3];
+      if (st) valueAt(*st, bu, bv, x, y, value), mesh.st[k] = glm::vec2(value[0], value[1]);
+      if (!st && s) valueAt(*s, bu, bv, x, y, value), mesh.st[k].x = value[0];
+      if (!st && t) valueAt(*t, bu, bv, x, y, value), mesh.st[k].y = value[0];
+      if (Cs) valueAt(*Cs, bu, bv, x, y, value), mesh.Cs[k] = glm::vec3(value[0], value[1], value[2]);
+    }
+  }
+  for (const glm::vec3& p : mesh.P)
+    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
+      return fail(call.line, "'NuPatch' evaluates to non-finite points (zero or negative weights?)");
+  // Seams and poles: the displacement of a point follows its position and normal, so points that
+  // coincide must agree bit for bit. Within a relative tolerance of the patch's size, a last
+  // column (row) equal to the first becomes its copy, and a row (column) collapsed to one point
+  // becomes that point, its normal the mean of the neighbouring row's.
+  glm::vec3 lo = mesh.P[0], hi = mesh.P[0];
+  for (const glm::vec3& p : mesh.P) lo = glm::min(lo, p), hi = glm::max(hi, p);
+  const float tolerance = 1e-6f * glm::length(hi - lo);
+  auto at = [&](size_t row, size_t col) { return row * columns + col; };
+  auto close = [&](size_t a, size_t b) { return glm::length(mesh.P[a] - mesh.P[b]) <= tolerance; };
+  for (int d = 0; d < 2; ++d) {
+    const size_t along = d == 0 ? rows : columns, across = d == 0 ? columns : rows;
+    auto index = [&](size_t i, size_t j) { return d == 0 ? at(i, j) : at(j, i); };  // i along, j across
+    bool seam = across > 2;
+    for (size_t i = 0; seam && i < along; ++i) seam = close(index(i, 0), index(i, across - 1));
+    if (!seam) continue;
+    for (size_t i = 0; i < along; ++i) {
+      const size_t a = index(i, 0), b = index(i, across - 1);
+      const glm::vec3 sum = mesh.N[a] + mesh.N[b];
+      const float len = glm::length(sum);
+      if (len > 1e-6f) mesh.N[a] = sum / len, degenerate[a] = 0;
+      mesh.P[b] = mesh.P[a], mesh.N[b] = mesh.N[a], degenerate[b] = degenerate[a];
+    }
+  }
+  for (int d = 0; d < 2; ++d) {
+    const size_t along = d == 0 ? rows : columns, across = d == 0 ? columns : rows;
+    auto index = [&](size_t i, size_t j) { return d == 0 ? at(i, j) : at(j, i); };
+    for (size_t i : {size_t(0), along - 1}) {
+      bool pole = along > 1;
+      for (size_t j = 1; pole && j < across; ++j) pole = close(index(i, 0), index(i, j));
+      if (!pole) continue;
+      const size_t next = i == 0 ? 1 : along - 2;
+      glm::vec3 sum(0.0f);
+      for (size_t j = 0; j + (across > 2 ? 1 : 0) < across; ++j) sum += mesh.N[index(next, j)];
+      const float len = glm::length(sum);
+      for (size_t j = 0; j < across; ++j) {
+        const size_t k = index(i, j);
+        mesh.P[k] = mesh.P[index(i, 0)];
+        if (len > 1e-6f) mesh.N[k] = sum / len, degenerate[k] = 0;
+      }
+    }
+  }
+  if (std::find(degenerate.begin(), degenerate.end(), 1) != degenerate.end()) mesh.N.clear();
+  mesh.givenNormals = N != nullptr && !mesh.N.empty();
+  for (size_t j = 0; j + 1 < rows; ++j)
+    for (size_t i = 0; i + 1 < columns; ++i) {
+      const uint32_t a = uint32_t(at(j, i)), b = a + 1, c = uint32_t(at(j + 1, i)), d = c + 1;
+      mesh.indices.insert(mesh.indices.end(), {a, b, d, a, d, c});
+    }
+  return addMesh(std::move(mesh), call.line);
 }
 
 bool RibParser::doSphere(const Call& call) {

@@ -228,5 +228,44 @@ TEST(CatmullClark, CreasesCornersHolesAndFacevaryingValues) {
   EXPECT_EQ(glm::vec2(v[6], v[7]), glm::vec2(0, 0.25f));
 }
 
+// The NURBS basis sums to one with derivatives summing to zero, matches a finite difference, is
+// Bernstein's on clamped Bezier knots, and handles repeated interior knots and the range's ends.
+TEST(NurbsBasis, PartitionOfUnityDerivativesAndBezierKnots) {
+  const std::vector<float> bezier = {0, 0, 0, 0, 1, 1, 1, 1};
+  float value[kMaxNurbsOrder], derivative[kMaxNurbsOrder];
+  for (float t : {0.0f, 0.3f, 1.0f}) {
+    ASSERT_EQ(nurbsBasis(bezier, 4, 4, t, value, derivative), 0);
+    const float s = 1.0f - t;
+    EXPECT_NEAR(value[0], s * s * s, 1e-6f);
+    EXPECT_NEAR(value[1], 3 * t * s * s, 1e-6f);
+    EXPECT_NEAR(value[2], 3 * t * t * s, 1e-6f);
+    EXPECT_NEAR(value[3], t * t * t, 1e-6f);
+    EXPECT_NEAR(derivative[0], -3 * s * s, 1e-5f);
+  }
+  const std::vector<float> knots = {0, 0, 0, 0.25f, 0.25f, 0.5f, 0.7f, 1, 1, 1};  // 7 points, order 3
+  for (float t = 0.0f; t <= 1.0f; t += 0.0625f) {
+    const int first = nurbsBasis(knots, 3, 7, t, value, derivative);
+    ASSERT_GE(first, 0);
+    ASSERT_LE(first + 3, 7);
+    float sum = 0.0f, dsum = 0.0f;
+    for (int k = 0; k < 3; ++k) {
+      sum += value[k], dsum += derivative[k];
+      EXPECT_GE(value[k], -1e-6f);
+    }
+    EXPECT_NEAR(sum, 1.0f, 1e-5f) << t;
+    EXPECT_NEAR(dsum, 0.0f, 1e-3f) << t;
+    // Finite difference of function first + 1 (away from the knots, where it is smooth).
+    const float h = 1e-3f;
+    if (t > h && t < 1 - h && std::fabs(t - 0.25f) > h && std::fabs(t - 0.5f) > h && std::fabs(t - 0.7f) > h) {
+      float a[kMaxNurbsOrder], b[kMaxNurbsOrder], da[kMaxNurbsOrder], db[kMaxNurbsOrder];
+      const int fa = nurbsBasis(knots, 3, 7, t - h, a, da), fb = nurbsBasis(knots, 3, 7, t + h, b, db);
+      if (fa == first && fb == first) {
+        for (int k = 0; k < 3; ++k) EXPECT_NEAR((b[k] - a[k]) / (2 * h), derivative[k], 2e-2f) << t << " " << k;
+      }
+    }
+  }
+  EXPECT_EQ(nurbsBasis({0, 0, 0, 0, 0, 0}, 3, 3, 0.5f, value, derivative), -1);  // empty range
+}
+
 }  // namespace
 }  // namespace relief

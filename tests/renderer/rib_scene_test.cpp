@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <cmath>
+#include <map>
 #include <filesystem>
 #include <fstream>
 #include <set>
@@ -968,6 +969,70 @@ TEST(RibSubdivision, CreasesCornersHolesFacevaryingAndTagErrors) {
     ASSERT_FALSE(bad.scene) << tags << " " << ints;
     EXPECT_NE(bad.error.format().find(message), std::string::npos) << bad.error.format();
     EXPECT_NE(bad.error.format().find(":4:"), std::string::npos) << bad.error.format();
+  }
+}
+
+// NuPatch: the classic rational sphere (9 x 5 Pw points, degree 2) lies on the unit sphere with
+// outward normals; its seam and poles are bit-identical points with one normal, so displacement
+// cannot crack them; a non-rational bilinear NuPatch is the plane through its corners; malformed
+// knots, orders and ranges are errors at the call.
+TEST(RibPatches, NuPatchRationalSphereSeamsPolesAndErrors) {
+  const std::string sphere =
+      "NuPatch 9 3 [0 0 0 .25 .25 .5 .5 .75 .75 1 1 1] 0 1 5 3 [0 0 0 .5 .5 1 1 1] 0 1 \"Pw\" [PW]\n";
+  std::string text = sphere;
+  text.replace(text.find("PW"), 2, "0 0 -1 1 0 0 -0.707106781 0.707106781 0 0 -1 1 0 0 -0.707106781 0.707106781 0 0 -1 1 0 0 -0.707106781 0.707106781 0 0 -1 1 0 0 -0.707106781 0.707106781 0 0 -1 1 0.707106781 0 -0.707106781 0.707106781 0.5 0.5 -0.5 0.5 0 0.707106781 -0.707106781 0.707106781 -0.5 0.5 -0.5 0.5 -0.707106781 0 -0.707106781 0.707106781 -0.5 -0.5 -0.5 0.5 0 -0.707106781 -0.707106781 0.707106781 0.5 -0.5 -0.5 0.5 0.707106781 0 -0.707106781 0.707106781 1 0 0 1 0.707106781 0.707106781 0 0.707106781 0 1 0 1 -0.707106781 0.707106781 0 0.707106781 -1 0 0 1 -0.707106781 -0.707106781 0 0.707106781 0 -1 0 1 0.707106781 -0.707106781 0 0.707106781 1 0 0 1 0.707106781 0 0.707106781 0.707106781 0.5 0.5 0.5 0.5 0 0.707106781 0.707106781 0.707106781 -0.5 0.5 0.5 0.5 -0.707106781 0 0.707106781 0.707106781 -0.5 -0.5 0.5 0.5 0 -0.707106781 0.707106781 0.707106781 0.5 -0.5 0.5 0.5 0.707106781 0 0.707106781 0.707106781 0 0 1 1 0 0 0.707106781 0.707106781 0 0 1 1 0 0 0.707106781 0.707106781 0 0 1 1 0 0 0.707106781 0.707106781 0 0 1 1 0 0 0.707106781 0.707106781 0 0 1 1");
+  ReadResult r = read(world(text));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  EXPECT_EQ(r.warnings, "");
+  ASSERT_EQ(r.scene->meshes.size(), 1u);
+  const Mesh& m = r.scene->meshes[0];
+  ASSERT_EQ(m.N.size(), m.P.size());
+  EXPECT_GE(m.numTriangles(), 2u * 32u * 16u);
+  std::map<std::tuple<float, float, float>, glm::vec3> normalAt;
+  for (size_t i = 0; i < m.P.size(); ++i) {
+    EXPECT_NEAR(glm::length(m.P[i]), 1.0f, 1e-5f) << i;
+    EXPECT_GT(glm::dot(m.N[i], m.P[i]), 0.99f) << i;
+    // Points that coincide share their bits and their normal.
+    const auto key = std::make_tuple(m.P[i].x, m.P[i].y, m.P[i].z);
+    const auto [it, fresh] = normalAt.emplace(key, m.N[i]);
+    if (!fresh) {
+      EXPECT_EQ(it->second, m.N[i]) << i;
+    }
+    EXPECT_GE(m.uv[i].x, 0.0f);
+    EXPECT_LE(m.uv[i].x, 1.0f);
+  }
+  // The seam column and the pole rows each collapse onto points shared with another column.
+  EXPECT_LT(normalAt.size(), m.P.size() - 16);
+  for (uint32_t t = 0; t < m.numTriangles(); ++t) {
+    const glm::vec3 a = m.P[m.indices[3 * t]], b = m.P[m.indices[3 * t + 1]], c = m.P[m.indices[3 * t + 2]];
+    const glm::vec3 n = glm::cross(b - a, c - a);
+    if (glm::length(n) > 1e-7f) {
+      EXPECT_GT(glm::dot(n, a + b + c), 0.0f) << t;  // wound outwards
+    }
+  }
+
+  r = read(world("NuPatch 2 2 [0 0 1 1] 0 1 2 2 [0 0 2 2] 0 2 \"P\" [0 0 0  1 0 0  0 1 1  1 1 1] \"Cs\" [1 0 0  0 1 0  0 0 1  1 1 1]\n"));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  const Mesh& flat = r.scene->meshes[0];
+  EXPECT_EQ(flat.numTriangles(), 2u);
+  ASSERT_EQ(flat.Cs.size(), flat.P.size());
+  for (size_t i = 0; i < flat.P.size(); ++i) {
+    EXPECT_EQ(flat.P[i].y, flat.P[i].z);
+    EXPECT_EQ(flat.uv[i].y, 2.0f * flat.P[i].y);  // v runs over the knot range [0, 2]
+  }
+
+  const std::pair<const char*, const char*> bad[] = {
+      {"NuPatch 2 2 [0 0 1] 0 1 2 2 [0 0 1 1] 0 1 \"P\" [0 0 0 1 0 0 0 1 0 1 1 0]", "uknot needs nu + uorder = 4 values, got 3"},
+      {"NuPatch 2 3 [0 0 0 1 1] 0 1 2 2 [0 0 1 1] 0 1 \"P\" [0 0 0 1 0 0 0 1 0 1 1 0]", "at most the count"},
+      {"NuPatch 2 2 [0 1 0 1] 0 1 2 2 [0 0 1 1] 0 1 \"P\" [0 0 0 1 0 0 0 1 0 1 1 0]", "non-decreasing"},
+      {"NuPatch 2 2 [0 0 1 1] 2 3 2 2 [0 0 1 1] 0 1 \"P\" [0 0 0 1 0 0 0 1 0 1 1 0]", "holds none of the knot range"},
+      {"NuPatch 2 2 [0 0 1 1] 0 1 2 2 [0 0 1 1] 0 1 \"P\" [0 0 0 1 0 0 0 1 0]", "'P' expects 12 values"},
+      {"NuPatch 2 2 [0 0 1 1] 0 1 2 2 \"P\" [0 0 0 1 0 0 0 1 0 1 1 0]", "expects nu uorder"}};
+  for (const auto& [call, message] : bad) {
+    ReadResult e = read(world(call));
+    ASSERT_FALSE(e.scene) << call;
+    EXPECT_NE(e.error.format().find(message), std::string::npos) << e.error.format();
+    EXPECT_NE(e.error.format().find(":2:"), std::string::npos) << e.error.format();
   }
 }
 
