@@ -98,6 +98,7 @@ void Lexer::skipWhitespaceAndComments() {
       if (cur_ + 1 >= end_) {
         sink().report(DiagId::ErrUnterminatedComment, locOf(start));
         cur_ = end_;
+        cutShort_ = true;
         return;
       }
       cur_ += 2;
@@ -239,7 +240,11 @@ Token Lexer::next() {
   for (;;) {
     skipWhitespaceAndComments();
     const char* start = cur_;
-    if (cur_ >= end_) return make(Tok::Eof, start);
+    if (cur_ >= end_) {
+      Token eof = make(Tok::Eof, start);
+      eof.malformed = cutShort_;  // the file ended inside a comment
+      return eof;
+    }
     const char c = *cur_;
     if (isIdentStart(c)) {
       while (cur_ < end_ && isIdentChar(*cur_)) ++cur_;

@@ -35,6 +35,7 @@ class Lexer {
 
   const SourceManager& sm_;
   SourceManager::FileId file_;
+  bool cutShort_ = false;  // an unterminated comment ran to the end of the file
   bool spliced_ = false;  // the text had backslash-newlines, removed before lexing (§1.1)
   DiagnosticsEngine& diags_;
   const char* begin_;

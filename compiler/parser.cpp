@@ -85,7 +85,7 @@ bool Parser::accept(Tok k) {
 
 bool Parser::expectAfterPrev(Tok k, const char* context) {
   if (accept(k)) return true;
-  if (tok().is(Tok::Unknown) || stopped_ || (pos_ && prev().malformed)) return false;  // already reported
+  if (tok().is(Tok::Unknown) || stopped_ || (pos_ && prev().malformed) || cutShort()) return false;  // already reported
   const SourceLoc at = pos_ ? prev().end() : tok().loc;
   if (context)
     diags_.report(DiagId::ErrExpectedAfter, at).arg(tokDescription(k)).arg(context);
@@ -96,7 +96,7 @@ bool Parser::expectAfterPrev(Tok k, const char* context) {
 
 bool Parser::expectClosing(Tok k, const Token& opener) {
   if (accept(k)) return true;
-  if (tok().is(Tok::Unknown) || stopped_ || (pos_ && prev().malformed)) return false;  // already reported
+  if (tok().is(Tok::Unknown) || stopped_ || (pos_ && prev().malformed) || cutShort()) return false;  // already reported
   const SourceLoc at = pos_ ? prev().end() : tok().loc;
   diags_.report(DiagId::ErrExpected, at)
       .arg(tokDescription(k))
@@ -131,7 +131,7 @@ ExprPtr Parser::bounded(ExprPtr e) {
 bool Parser::missingSemiAtLineEnd() const { return tok().atLineStart || tok().is(Tok::RBrace); }
 
 void Parser::errorExpectedExpression() {
-  if (tok().is(Tok::Unknown) || stopped_) return;
+  if (tok().is(Tok::Unknown) || stopped_ || cutShort()) return;
   if (tok().is(Tok::ReservedWord) || tok().is(Tok::ShaderKindWord))
     diags_.report(DiagId::ErrReservedWord, tok().loc).arg(tok().text).range(tok().range());
   else
@@ -308,7 +308,7 @@ std::unique_ptr<FunctionDecl> Parser::parseFunction() {
   const unsigned errorsBefore = diags_.numErrors();
   const size_t firstToken = pos_;
   f->body = parseBlock();
-  f->bodyHadErrors = diags_.numErrors() != errorsBefore || lexedBadly(firstToken, pos_);
+  f->bodyHadErrors = diags_.numErrors() != errorsBefore || lexedBadly(firstToken, pos_) || cutShort();
   return f;
 }
 
@@ -398,7 +398,7 @@ void Parser::parseShader() {
     return;
   }
   shader->body = parseBlock();
-  shader->hadSyntaxErrors = diags_.numErrors() != errorsBefore || lexedBadly(firstToken, pos_);
+  shader->hadSyntaxErrors = diags_.numErrors() != errorsBefore || lexedBadly(firstToken, pos_) || cutShort();
   shader->parseOrder = uint32_t(unit_->shaders.size() + unit_->functions.size());
   unit_->shaders.push_back(std::move(shader));
 }

@@ -39,6 +39,9 @@ class Parser {
   const Token& prev() const { return toks_[pos_ ? pos_ - 1 : 0]; }
   Token consume() { return toks_[pos_ < toks_.size() - 1 ? pos_++ : pos_]; }
   bool accept(Tok k);
+  // At an end of file that an unterminated comment or macro call brought early (the Eof token is
+  // then `malformed`): that error is the one to read, not what the parser misses after it.
+  bool cutShort() const { return tok().is(Tok::Eof) && tok().malformed; }
   // Reports "expected X" one column past the previous token (missing closers and ';').
   bool expectAfterPrev(Tok k, const char* context = nullptr);
   bool expectClosing(Tok k, const Token& opener);

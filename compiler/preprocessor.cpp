@@ -188,6 +188,7 @@ std::vector<Token> Preprocessor::run(SourceManager::FileId file) {
   while (!stack_.empty() && !fatal_) {
     Token t = nextRaw();
     if (t.is(Tok::Eof)) {
+      if (stack_.size() == 1 && t.malformed) cutShort_ = true;
       for (const Conditional& c : stack_.back().conditionals)
         diags_.report(DiagId::ErrUnterminatedConditional, c.loc);
       stack_.pop_back();
@@ -214,6 +215,7 @@ std::vector<Token> Preprocessor::run(SourceManager::FileId file) {
   eof.kind = Tok::Eof;
   eof.loc = sm_.startOf(file).advanced(uint32_t(sm_.text(file).size()));
   eof.atLineStart = true;
+  eof.malformed = cutShort_;  // the parser does not report what it misses at an early end
   out.push_back(eof);
   return out;
 }
@@ -560,6 +562,7 @@ bool Preprocessor::collectArguments(std::vector<Token>& input, size_t& pos, bool
   for (;;) {
     if (!next(&t)) {
       diags_.report(DiagId::ErrUnterminatedMacroCall, name.loc).arg(name.text).range(name.range());
+      if (fromSource) cutShort_ = true;
       return false;
     }
     if (t.is(Tok::LParen)) {

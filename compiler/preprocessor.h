@@ -89,6 +89,7 @@ class Preprocessor {
   std::unordered_map<std::string, Macro> macros_;
   std::set<std::string> onceFiles_;
   bool fatal_ = false;
+  bool cutShort_ = false;  // an unterminated macro call or comment ended the main file early
   int expansionDepth_ = 0;
   std::string outermost_;  // the macro used in the source whose expansion is under way
   bool inCondition_ = false;  // expanding an #if line: `defined`'s operand is not expanded

@@ -490,7 +490,7 @@ class Checker {
         else
           report(error, value.range.begin).arg(typeName(to)).arg(typeName(from)).range(value.range);
         break;
-      case Conversion::Narrowing: report(DiagId::WarnNarrowing, value.range.begin).range(value.range); break;
+      case Conversion::Narrowing: warnNarrowing(value); break;
       default: break;
     }
   }
@@ -592,7 +592,7 @@ class Checker {
                   .arg(typeName(function_->returnType))
                   .range(s.expr->range);
             else if (c == Conversion::Narrowing)
-              report(DiagId::WarnNarrowing, s.expr->range.begin).range(s.expr->range);
+              warnNarrowing(*s.expr);
           }
         }
         break;
@@ -928,7 +928,7 @@ class Checker {
     // A silent probe (suppress_) checks this tree again for real: the cast and the warning are
     // the real pass's, or the warning would be lost with the probe's reports.
     if (suppress_) return true;
-    report(DiagId::WarnNarrowing, index->range.begin).range(index->range);
+    warnNarrowing(*index);
     auto cast = std::make_unique<Expr>(ExprKind::Construct, index->range);
     cast->constructType = TypeKind::Int;
     cast->isCast = true;
@@ -1029,8 +1029,7 @@ class Checker {
           .range(value.range);
       return set(e, kError);
     }
-    if (conversion(result, tt) == Conversion::Narrowing)
-      report(DiagId::WarnNarrowing, value.range.begin).range(value.range);
+    if (conversion(result, tt) == Conversion::Narrowing) warnNarrowing(value);
     checkUniformTarget(target, value);
     return set(e, tt);
   }
@@ -1286,7 +1285,18 @@ class Checker {
           }
         }
       } else {
-        report(DiagId::ErrNoMatchingCall, e.range.begin).arg(e.text).arg(typeList(args)).range(e.opRange);
+        // The shader's own candidates are shown, with their argument counts where those differ.
+        auto builder = report(DiagId::ErrNoMatchingCall, e.range.begin);
+        builder.arg(e.text).arg(typeList(args)).range(e.opRange);
+        auto count = [](size_t n) { return std::to_string(n) + (n == 1 ? " argument" : " arguments"); };
+        for (const FunctionDecl* f : candidates) {
+          if (f->isLibrary) continue;
+          if (f->params.size() != args.size())
+            builder.note(DiagId::NoteCandidateArgCount, f->nameRange.begin, {count(f->params.size()), std::to_string(args.size())},
+                         f->nameRange);
+          else
+            builder.note(DiagId::NoteCandidate, f->nameRange.begin, {}, f->nameRange);
+        }
       }
       return set(e, kError);
     }
@@ -1335,7 +1345,7 @@ class Checker {
         if (!checkAssignable(a, a.range.begin, a.range)) return set(e, kError);
         checkUniformTarget(a, e.isVarying, a.range);  // the function's result may land in it
       } else if (conversion(a.type, p.type) == Conversion::Narrowing) {
-        report(DiagId::WarnNarrowing, a.range.begin).range(a.range);
+        warnNarrowing(a);
       }
     }
     markWrites(f->writesP, f->writesN, f->writesOwnN);
@@ -1505,11 +1515,22 @@ class Checker {
     return set(e, r);
   }
 
+  // -Wnarrowing for a float value converted to int. A constant with a whole value (`int n = 3.0`,
+  // `a[1.0]`, an RSL `octaves` of 4) loses nothing, as clang does not warn on it either.
+  void warnNarrowing(const Expr& value) {
+    const Expr* e = &value;
+    while (e->kind == ExprKind::Unary && (e->op == Tok::Minus || e->op == Tok::Plus) && e->operands.size() == 1)
+      e = e->operands[0].get();
+    if (e->kind == ExprKind::FloatLiteral && std::trunc(e->floatValue) == e->floatValue &&
+        std::fabs(e->floatValue) < 2147483648.0f)
+      return;
+    report(DiagId::WarnNarrowing, value.range.begin).range(value.range);
+  }
+
   // comp/setcomp: arguments 1..end-1 are int indices; a float one truncates (§2.1).
   void warnNarrowIndices(const std::vector<ExprPtr>& args, size_t end) {
     for (size_t i = 1; i < end; ++i)
-      if (args[i]->type.kind == TypeKind::Float)
-        report(DiagId::WarnNarrowing, args[i]->range.begin).range(args[i]->range);
+      if (args[i]->type.kind == TypeKind::Float) warnNarrowing(*args[i]);
   }
 
   // Where the decoded character `index` of a string literal sits in the source, when the
@@ -1660,16 +1681,29 @@ class Checker {
     }
     size_t first = 1;
     if (args.size() >= 3 && args[1]->type.isScalar() && args[2]->type.isScalar()) first = 3;
+    // RSL's four-point form names the corners of the area to filter: a clearer error than "option
+    // names must be string literals" at its third coordinate.
+    if (first == 3 && args.size() >= 9) {
+      bool fourPoints = true;
+      for (size_t i = 3; i < 9; ++i) fourPoints &= args[i]->type.isScalar() && args[i]->kind != ExprKind::StringLiteral;
+      if (fourPoints) {
+        report(DiagId::ErrTextureFourPoints, args[3]->range.begin).range(args[3]->range).range(args[8]->range);
+        return set(e, kError);
+      }
+    }
     if ((args.size() - first) % 2 != 0) {
       report(DiagId::ErrNoMatchingCall, e.range.begin).arg(e.text).arg(typeList(args)).range(e.opRange);
       return set(e, kError);
     }
+    // Every option is checked, so that one compile reports each bad one.
+    bool bad = false;
     for (size_t i = first; i < args.size(); i += 2) {
       const Expr& name = *args[i];
       const Expr& value = *args[i + 1];
       if (name.kind != ExprKind::StringLiteral) {
         report(DiagId::ErrTextureOptionName, name.range.begin).range(name.range);
-        return set(e, kError);
+        bad = true;
+        continue;
       }
       static const std::set<std::string> kFloat = {"blur", "sblur", "tblur", "width", "swidth", "twidth",
                                                    "fill", "samples", "lerp"};
@@ -1686,19 +1720,21 @@ class Checker {
         want = "int";
         fitsValue = value.type.isScalar();
         // A float converts as it would to an int parameter (§2.1).
-        if (value.type.kind == TypeKind::Float) report(DiagId::WarnNarrowing, value.range.begin).range(value.range);
+        if (value.type.kind == TypeKind::Float) warnNarrowing(value);
       } else if (name.text == "missingcolor") {
         want = "color";
         fitsValue = value.type.kind == TypeKind::Color || value.type.isScalar();
       } else {
         report(DiagId::ErrTextureOption, name.range.begin).arg(name.text).range(name.range);
-        return set(e, kError);
+        bad = true;
+        continue;
       }
       static const std::set<std::string> kWrap = {"default", "black", "clamp", "periodic", "mirror"};
       if (fitsValue && name.text.find("wrap") != std::string::npos && value.kind == ExprKind::StringLiteral &&
           !kWrap.count(value.text)) {
         report(DiagId::ErrTextureWrap, value.range.begin).arg(value.text).range(value.range);
-        return set(e, kError);
+        bad = true;
+        continue;
       }
       if (!fitsValue) {
         report(DiagId::ErrTextureOptionType, name.range.begin)
@@ -1707,9 +1743,10 @@ class Checker {
             .arg(typeName(value.type))
             .range(name.range)
             .range(value.range);
-        return set(e, kError);
+        bad = true;
       }
     }
+    if (bad) return set(e, kError);
     if (first == 1) {
       // Without coordinates, texture reads the globals s and t.
       e.isVarying = true;
