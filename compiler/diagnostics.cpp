@@ -279,6 +279,21 @@ void jsonBody(std::ostream& out, const SourceManager& sm, const Diagnostic& d) {
     out << ",\"file\":";
     jsonString(out, d.file);
   }
+  // The include stack, outermost #include first, as the text's "In file included from" lines.
+  if (p.isValid() && sm.includedFrom(sm.fileOf(d.loc)).isValid()) {
+    std::vector<SourceLoc> stack;
+    for (SourceLoc at = sm.includedFrom(sm.fileOf(d.loc)); at.isValid() && stack.size() < 100;
+         at = sm.includedFrom(sm.fileOf(at)))
+      stack.push_back(at);
+    out << ",\"included_from\":[";
+    for (auto it = stack.rbegin(); it != stack.rend(); ++it) {
+      const PresumedLoc ip = sm.presumed(*it);
+      out << (it == stack.rbegin() ? "" : ",") << "{\"file\":";
+      jsonString(out, ip.file);
+      out << ",\"line\":" << ip.line << '}';
+    }
+    out << ']';
+  }
   out << ",\"message\":";
   jsonString(out, d.message);
   if (!d.flag.empty()) out << ",\"flag\":\"-W" << d.flag << "\"";

@@ -91,7 +91,7 @@ constexpr const char* kUsage =
     "Displays: the first Display is the image (-o replaces its file name); further displays of\n"
     "mode \"z\" (depth), \"N\" (normal) or \"cachemiss\" (cache misses per pixel) are written\n"
     "too. EXR files hold linear floats and render metadata; png/tif/jpg hold 8-bit sRGB.\n"
-    "Progress: a bar on a terminal, plain lines every 10% otherwise, nothing with --quiet.\n"
+    "Progress: a bar on a terminal, otherwise a plain line as each further tenth is done, nothing with --quiet.\n"
     "Frames: a scene with several FrameBegin blocks renders each in turn, each writing its own\n"
     "Displays; a failed frame writes nothing and stops the run (earlier frames stay). With\n"
     "several frames, -o FILE, --stats-json FILE and the default image name get the frame\n"
@@ -211,7 +211,7 @@ int parseCommandLine(int argc, char** argv, CommandLine* cl) {
       long long w = 0, h = 0;
       if (x == std::string::npos || !parsePositive(v.substr(0, x), 65536, &w) ||
           !parsePositive(v.substr(x + 1), 65536, &h))
-        return usageError("invalid resolution '" + v + "' (expected WxH, e.g. 640x480)");
+        return usageError("invalid resolution '" + v + "' (expected WxH, each from 1 to 65536, e.g. 640x480)");
       if (uint64_t(w) * uint64_t(h) > relief::kMaxPixels)
         return usageError("resolution '" + v + "' has more than " +
                           std::to_string(relief::kMaxPixels) + " pixels");

@@ -157,6 +157,17 @@ int evaluate(const Args& args, const CompileResult& result) {
     } else {
       pv.type = pv.numbers.size() == 3 && info ? info->type : relief::runtime::ParamType::Float;
     }
+    // A triple given a count that no triple value has: say what it takes, not that a float came.
+    if (info && pv.type != relief::runtime::ParamType::String && pv.numbers.size() > 1) {
+      const size_t each = size_t(relief::runtime::paramComponents(info->type));
+      const size_t whole = each * size_t(std::max(info->arrayLength, 1));
+      if (each > 1 && pv.numbers.size() != whole && pv.numbers.size() != each) {
+        std::cerr << "reliefc: error: parameter '" << name << "' is a " << relief::runtime::paramTypeName(info->type)
+                  << (info->arrayLength > 0 ? "[" + std::to_string(info->arrayLength) + "]" : std::string())
+                  << ": give " << whole << " numbers, not " << pv.numbers.size() << " ('" << value << "')\n";
+        return 2;
+      }
+    }
     // A fraction for an int parameter truncates (the language's float -> int), as RIB values do,
     // but here the user typed it: say so.
     if (info && info->type == relief::runtime::ParamType::Int)
@@ -391,6 +402,10 @@ int main(int argc, char** argv) {
   if (std::count(args.files.begin(), args.files.end(), "-") > 1)
     return usageError("standard input ('-') named more than once: it can be read only once");
   if (args.eval && args.files.size() != 1) return usageError("--eval takes exactly one file");
+  // As clang says of arguments unused during compilation: a value that changes nothing is a slip.
+  if (!args.eval && (!args.params.empty() || !args.at.empty()))
+    optionWarnings.push_back(std::string(args.params.empty() ? "--at only applies" : args.at.empty() ? "-p only applies" : "-p and --at only apply") +
+                             " with --eval; ignored");
   // `reliefc shader.disp -o shader.ll` asks for the IR, as clang's -S -emit-llvm would give it.
   if (!args.output.empty() && !args.emitAst && !args.eval && !args.emitBundle) args.emitLlvm = true;
   if (args.emitBundle && (args.files.size() != 1 || args.eval || args.emitAst || args.emitLlvm))

@@ -152,6 +152,15 @@ TEST(CliTest, JsonDiagnosticsAreOneObjectPerLine) {
   EXPECT_EQ(option.err.rfind("{\"severity\":\"warning\",\"message\":\"unknown warning option '-Wbogus'\"}\n", 0), 0u)
       << option.err;
   EXPECT_EQ(relief::compiler::jsonQuoted("a\xe9" "b\"\n\xc3\xa9"), "\"a\\ufffd" "b\\\"\\n\xc3\xa9\"");
+  // A diagnostic inside an included file carries the include stack, outermost first, as the text
+  // output's "In file included from" lines.
+  const CliRun nested = reliefc("--diagnostics-format=json nested_include.disp", dir);
+  EXPECT_NE(nested.err.find("\"included_from\":[{\"file\":\"nested_include.disp\",\"line\":"), std::string::npos)
+      << nested.err;
+  // -p and --at without --eval change nothing: a warning says so (in the format asked for).
+  const CliRun unused = reliefc("--diagnostics-format=json -p Km=1 macro_redefined.disp", dir);
+  EXPECT_EQ(unused.err.rfind("{\"severity\":\"warning\",\"message\":\"-p only applies with --eval; ignored\"}\n", 0), 0u)
+      << unused.err;
 }
 
 TEST(CliTest, UsageAndInputErrorsExitWithTwo) {
@@ -252,8 +261,12 @@ TEST(CliTest, EvalPrintsTheDisplacedPointAndNormal) {
   EXPECT_EQ(m.exitCode, 0) << m.err;
   EXPECT_EQ(m.out, "P = (1, 2, 4)\nN = (0, 0, 1)\n");
 
-  // Bad parameter bindings are usage errors.
+  // Bad parameter bindings are usage errors; a triple given two numbers says what it takes.
   EXPECT_EQ(reliefc("--eval " + quote(lift.string()) + " -p nosuch=1").exitCode, 2);
+  const fs::path tinted = writeTemp("relief_tinted.disp", "displacement tinted(color c = 1)\n{\n    P += comp(c, 0) * N;\n}\n");
+  const CliRun pair = reliefc("--eval " + quote(tinted.string()) + " -p " + quote("c=(0,1)"));
+  EXPECT_EQ(pair.exitCode, 2);
+  EXPECT_NE(pair.err.find("parameter 'c' is a color: give 3 numbers, not 2"), std::string::npos) << pair.err;
 }
 
 // '-' compiles standard input (named <stdin> in diagnostics), once; '--' ends the options, so a file
