@@ -2493,9 +2493,18 @@ bool RibParser::doSubdivisionMesh(const Call& call) {
     polygons.args.push_back(std::move(name));
     polygons.args.push_back(p.value);
   }
-  return buildPolygonMesh(polygons, std::vector<int>(keptFaces, 1),
-                          std::vector<int>(counts.numbers.begin(), counts.numbers.end()),
-                          std::vector<int>(indices.numbers.begin(), indices.numbers.end()), 2);
+  const size_t before = scene_.meshes.size();
+  if (!buildPolygonMesh(polygons, std::vector<int>(keptFaces, 1),
+                        std::vector<int>(counts.numbers.begin(), counts.numbers.end()),
+                        std::vector<int>(indices.numbers.begin(), indices.numbers.end()), 2))
+    return false;
+  // The normals are the limit surface's own, not the scene's: they turn with the orientation, and
+  // the shader's Ng follows them as on any smooth surface.
+  for (size_t m = before; m < scene_.meshes.size(); ++m) {
+    scene_.meshes[m].givenNormals = false;
+    scene_.meshes[m].smoothSurface = !scene_.meshes[m].N.empty();
+  }
+  return true;
 }
 
 // NuPatch nu uorder uknot umin umax nv vorder vknot vmin vmax params: a non-uniform rational
@@ -2755,6 +2764,7 @@ bool RibParser::doNuPatch(const Call& call) {
       const uint32_t a = uint32_t(at(j, i)), b = a + 1, c = uint32_t(at(j + 1, i)), d = c + 1;
       mesh.indices.insert(mesh.indices.end(), {a, b, d, a, d, c});
     }
+  mesh.smoothSurface = !mesh.givenNormals && !mesh.N.empty();
   return addMesh(std::move(mesh), call.line);
 }
 
@@ -2792,6 +2802,7 @@ bool RibParser::doSphere(const Call& call) {
       std::clamp(int(std::ceil(arcV / target)), std::max(2, int(float(minV) * vFraction)), 512);
   Mesh mesh = tessellateSphere(radius, zmin, zmax, thetamax, nu, nv, attr_.ctm);
   applyQuadricPrimvars(vars, &mesh);
+  mesh.smoothSurface = !mesh.N.empty();
   return addMesh(std::move(mesh), call.line, /*wound=*/true);
 }
 
@@ -2917,6 +2928,7 @@ bool RibParser::doQuadric(const Call& call) {
       mesh.indices.insert(mesh.indices.end(), {a, b, d, a, d, c});
     }
   applyQuadricPrimvars(vars, &mesh);
+  mesh.smoothSurface = !mesh.N.empty();
   return addMesh(std::move(mesh), call.line);
 }
 
@@ -3450,6 +3462,7 @@ bool RibParser::buildPatchMesh(const Call& call, bool bicubic, int nu, bool uPer
   }
   if (!normalsOk) mesh.N.clear();
   mesh.givenNormals = N != nullptr && !mesh.N.empty();
+  mesh.smoothSurface = !mesh.givenNormals && !mesh.N.empty();
   return addMesh(std::move(mesh), call.line);
 }
 

@@ -135,6 +135,11 @@ struct Mesh {
   // surface (quadrics, patches): the RI spec flips the surface's normals on a reversed orientation,
   // never the ones the user gave.
   bool givenNormals = false;
+  // The triangles sample a smooth surface whose own normal N is (quadrics, patches, NURBS,
+  // subdivision surfaces; not polygons): as the RI spec's Ng of such a surface is smooth, the
+  // displacement shader's Ng at a vertex is its N, shared by the triangles around it, so that
+  // displacing along Ng cannot crack the surface. Polygons keep their facets' Ng (as RenderMan).
+  bool smoothSurface = false;
   std::vector<glm::vec2> uv;  // surface parameters (u, v); empty: barycentric-derived per face
   std::vector<glm::vec2> st;  // texture coordinates; empty: equal to uv
   std::vector<glm::vec3> Cs;  // per-vertex colour (RIB "Cs"); empty: the material's colour

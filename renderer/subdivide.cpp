@@ -194,6 +194,12 @@ struct TriangleFrame {
   glm::vec3 dNdu{0}, dNdv{0};  // derivative seeds of N (language.md 6.4): zero on flat faces
   float dsdu = 1, dsdv = 0, dtdu = 0, dtdv = 1;  // seeds of s and t
   float uExtent, vExtent;
+  bool ngFollowsN = false;  // Mesh::smoothSurface: each vertex's Ng is its N
+  // The level the undisplaced triangle's subdivision reaches (undisplacedLevels): du and dv are
+  // never coarser than its spacing, since a corner made at level 0 ends up among micro-triangles
+  // of that size, and the extents' spacing would blur its filtered lookups (texture, filterstep)
+  // far more than its neighbours'.
+  int targetLevel = 0;
 };
 
 bool finite(glm::vec3 v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
@@ -261,6 +267,17 @@ TriangleFrame makeFrame(const glm::vec3 p[3], const glm::vec3 n[3], const glm::v
   return f;
 }
 
+// The frame of triangle corners p of `mesh` under `disp`, whose undisplaced subdivision reaches
+// level `targetLevel`.
+TriangleFrame makeFrame(const Mesh& mesh, const glm::vec3 p[3], const glm::vec3 n[3], const glm::vec2 uv[3],
+                        const glm::vec2 st[3], const Displacement& disp, int targetLevel) {
+  const bool smoothNormals = mesh.N.size() == mesh.P.size();
+  TriangleFrame f = makeFrame(p, n, uv, st, smoothNormals, disp.reverseOrientation);
+  f.ngFollowsN = mesh.smoothSurface && smoothNormals;
+  f.targetLevel = targetLevel;
+  return f;
+}
+
 // Deepest vertex level: the depth limit plus the interior samples below it.
 constexpr int kMaxLevel = 40;
 
@@ -295,7 +312,7 @@ void displaceBatch(const Displacement& disp, const TriangleFrame& frame, Vertice
     return table;
   }();
   for (uint32_t i = 0; i < n; ++i) {
-    const float sp = spacing[size_t(std::min<int>(vs.level[first + i], kMaxLevel))];
+    const float sp = spacing[size_t(std::min<int>(std::max<int>(vs.level[first + i], frame.targetLevel), kMaxLevel))];
     batch.du[i] = frame.uExtent * sp, batch.dv[i] = frame.vExtent * sp;
   }
   // The ABI has the shader write every output; preset them anyway so a shader that does not
@@ -306,7 +323,7 @@ void displaceBatch(const Displacement& disp, const TriangleFrame& frame, Vertice
   std::memcpy(batch.Nout.y.data(), &vs.N.y[first], bytes), std::memcpy(batch.Nout.z.data(), &vs.N.z[first], bytes);
   RlfShadingBatch b{};
   b.count = n;
-  b.P = vs.P.view(first), b.N = vs.N.view(first), b.Ng = batch.Ng.view();
+  b.P = vs.P.view(first), b.N = vs.N.view(first), b.Ng = frame.ngFollowsN ? vs.N.view(first) : batch.Ng.view();
   b.dPdu = batch.dPdu.view(), b.dPdv = batch.dPdv.view();
   b.u = &vs.u[first], b.v = &vs.v[first], b.s = &vs.s[first], b.t = &vs.t[first];
   b.du = batch.du.data(), b.dv = batch.dv.data();
@@ -640,9 +657,9 @@ bool displacedShadingNormal(const Mesh& mesh, uint32_t triangle, const Displacem
   vs.clear();
   batch.constCount = 0;
   pushCorners(vs, p, n, uv, st);
-  addInteriorPoint(vs, 0, 1, 2, 1.0f - bary.x - bary.y, bary.x, bary.y,
-                   undisplacedLevels(p, disp.edgeLength, std::clamp(disp.maxDepth, 0, kMaxSubdivisionDepth)));
-  const TriangleFrame frame = makeFrame(p, n, uv, st, mesh.N.size() == mesh.P.size(), disp.reverseOrientation);
+  const int target = undisplacedLevels(p, disp.edgeLength, std::clamp(disp.maxDepth, 0, kMaxSubdivisionDepth));
+  addInteriorPoint(vs, 0, 1, 2, 1.0f - bary.x - bary.y, bary.x, bary.y, target);
+  const TriangleFrame frame = makeFrame(mesh, p, n, uv, st, disp, target);
   SubdivideCounters counters;  // shading-time evaluations stay out of the fill statistics
   RlfStatus status{};
   displace(disp, frame, vs, 3, batch, counters, &status);
@@ -686,8 +703,8 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
   }
   if (displaced) {
     const Displacement& disp = *displacement;
-    const TriangleFrame frame = makeFrame(p, n, uv, st, mesh.N.size() == mesh.P.size(), disp.reverseOrientation);
     const int maxDepth = std::clamp(disp.maxDepth, 0, kMaxSubdivisionDepth);
+    const TriangleFrame frame = makeFrame(mesh, p, n, uv, st, disp, undisplacedLevels(p, disp.edgeLength, maxDepth));
     const float edgeLength2 = disp.edgeLength * disp.edgeLength;
     const uint64_t pointsBefore = counters.shaderPoints;
     displace(disp, frame, vs, 0, scratch.batch, counters);

@@ -1036,6 +1036,26 @@ TEST(RibPatches, NuPatchRationalSphereSeamsPolesAndErrors) {
   }
 }
 
+// Smooth surfaces (quadrics, patches, NURBS, subdivision meshes) are marked so that the shader's
+// Ng follows their normals (Mesh::smoothSurface); polygons keep their facets' Ng, and so do patches
+// whose normals the scene gave.
+TEST(RibSurfaces, SmoothSurfacesAreMarkedPolygonsAreNot) {
+  ReadResult r = read(world(
+      "Sphere 1 -1 1 360\n"
+      "Torus 1 0.25 0 360 360\n"
+      "Patch \"bicubic\" \"P\" [0 0 0 1 0 0 2 0 0 3 0 0  0 1 0 1 1 1 2 1 1 3 1 0  0 2 0 1 2 1 2 2 1 3 2 0  0 3 0 1 3 0 2 3 0 3 3 0]\n"
+      "NuPatch 2 2 [0 0 1 1] 0 1 2 2 [0 0 1 1] 0 1 \"P\" [0 0 0 1 0 0 0 1 0 1 1 0]\n"
+      "SubdivisionMesh \"catmull-clark\" [4] [0 1 2 3] \"P\" [0 0 0 1 0 0 1 1 0 0 1 0]\n"
+      "Polygon \"P\" [0 0 0 1 0 0 1 1 0]\n"
+      "Patch \"bilinear\" \"P\" [0 0 0 1 0 0 0 1 1 1 1 1] \"N\" [0 0 1 0 0 1 0 0 1 0 0 1]\n"));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  ASSERT_EQ(r.scene->meshes.size(), 7u);
+  for (size_t m = 0; m < 5; ++m) EXPECT_TRUE(r.scene->meshes[m].smoothSurface) << m;
+  EXPECT_FALSE(r.scene->meshes[4].givenNormals);  // the subdivision surface's normals are its own
+  EXPECT_FALSE(r.scene->meshes[5].smoothSurface);
+  EXPECT_FALSE(r.scene->meshes[6].smoothSurface);
+}
+
 TEST(RibPatches, FlatBilinearPatchesAreTwoTrianglesOnlyWhereTheMapIsAffine) {
   // A rectangle with affine Cs: two triangles are exact. A flat trapezoid is not affine: its
   // v = 0.5 isoline runs through the midpoints of the slanted sides, and st there must be 0.5.

@@ -111,6 +111,38 @@ TEST_P(WatertightSphere, RaysThroughVerticesAndEdgesAllHit) {
 // 0.01: whole runs of long edges kept whole and interiors split 1-to-3.
 INSTANTIATE_TEST_SUITE_P(Flatness, WatertightSphere, ::testing::Values(0.0f, 0.002f, 0.01f));
 
+// Displacing along Ng: on a smooth surface (a quadric, patch, NURBS or subdivision surface) the
+// shader's Ng at a vertex is its N, shared by every triangle around it, so the displaced sphere is
+// closed. With the facets' own Ng (as polygons keep) the same shader tears it apart, which is
+// what makes the test meaningful.
+void ngEntry(const RlfShadingBatch* b, const void*, RlfStatus*) {
+  for (uint32_t i = 0; i < b->count; ++i) {
+    const glm::vec3 ng(b->Ng.x[i], b->Ng.y[i], b->Ng.z[i]);
+    const glm::vec3 p = glm::vec3(b->P.x[i], b->P.y[i], b->P.z[i]) + 0.1f * glm::normalize(ng);
+    b->Pout.x[i] = p.x, b->Pout.y[i] = p.y, b->Pout.z[i] = p.z;
+    b->Nout.x[i] = b->N.x[i], b->Nout.y[i] = b->N.y[i], b->Nout.z[i] = b->N.z[i];
+  }
+}
+
+TEST(Watertight, DisplacingAlongNgKeepsASmoothSurfaceClosed) {
+  SphereOptions o = watertightOptions();
+  o.entry = ngEntry;
+  for (bool smooth : {true, false}) {
+    Scene scene = makeSphereScene(o);
+    scene.meshes[0].smoothSurface = smooth;
+    auto accel = makeGridAccelerator(scene, AccelOptions{});
+    int misses = 0;
+    for (const Ray& ray : testing::randomRays(4000, 20261129, 3.0f, 0.0f)) {
+      auto hit = accel->intersect(ray);
+      misses += !hit || glm::dot(ray.origin + hit->t * ray.direction, ray.direction) > 0.0f;
+    }
+    if (smooth)
+      EXPECT_EQ(misses, 0);
+    else
+      EXPECT_GT(misses, 40);
+  }
+}
+
 // Simplification removes a good share of the triangles without moving the surface much.
 TEST(Watertight, SimplificationReducesTriangles) {
   const Scene full = makeSphereScene(watertightOptions(0.0f));
