@@ -2041,6 +2041,19 @@ bool RibParser::shaderParamValue(int line, const runtime::CompiledShader& compil
         return fail(line, "parameter '" + p.name + "' of shader '" + name +
                                 "' expects numbers, got " + p.value.describe());
       value.numbers.assign(p.value.numbers.begin(), p.value.numbers.end());
+      // An "hpoint" value is (x y z w) per point, the point (x/w, y/w, z/w), as "Pw" is.
+      if (p.homogeneous) {
+        if (value.numbers.size() % 4 != 0)
+          return fail(line, "parameter '" + p.name + "' of shader '" + name + "' is an hpoint: 4 numbers (x y z w) per point, got " +
+                                std::to_string(value.numbers.size()));
+        std::vector<double> cartesian;
+        for (size_t i = 0; i < value.numbers.size(); i += 4) {
+          const double w = value.numbers[i + 3];
+          if (w == 0.0) return fail(line, "parameter '" + p.name + "' of shader '" + name + "': an hpoint with w = 0");
+          cartesian.insert(cartesian.end(), {value.numbers[i] / w, value.numbers[i + 1] / w, value.numbers[i + 2] / w});
+        }
+        value.numbers = std::move(cartesian);
+      }
       // As in RenderMan, points, vectors and normals are given in the space current at the call
       // and the shader sees them in its "current" space (world): each triple moves as its declared
       // kind does (a point with the translation, a vector without, a normal by the inverse
@@ -2956,6 +2969,30 @@ bool RibParser::shaderPrimvar(const Call& call, const Param& p, const PrimvarCou
                              : 3;
   const size_t one = size_t(std::max(info->arrayLength, 1)) * size_t(components);
   const size_t given = value.type == runtime::ParamType::String ? value.strings.size() : value.numbers.size();
+  // A count that fits no storage class (or not the one declared) is a slip, an error as for the
+  // standard variables, not a value that merely varies.
+  {
+    const std::pair<const char*, size_t> classes[] = {{"constant", 1},
+                                                      {"uniform", counts.uniform},
+                                                      {"varying", counts.varying},
+                                                      {"vertex", counts.vertex},
+                                                      {"facevarying", counts.faceVarying}};
+    bool fits = false;
+    for (const auto& [word, items] : classes)
+      if ((p.storageClass.empty() || p.storageClass == word) && given == one * items) fits = true;
+    if (!fits) {
+      if (!p.storageClass.empty())
+        for (const auto& [word, items] : classes)
+          if (p.storageClass == word)
+            return fail(p.line, "'" + call.name + "': " + p.storageClass + " '" + p.name + "' needs " +
+                                    std::to_string(one * items) + (one * items == 1 ? " value" : " values") + ", got " +
+                                    std::to_string(given));
+      return fail(p.line, "'" + call.name + "': '" + p.name + "' has " + std::to_string(given) + " values; expected " +
+                              std::to_string(one) + " (one in all), " + std::to_string(one * counts.uniform) +
+                              " (per face), " + std::to_string(one * counts.varying) + " (per vertex) or " +
+                              std::to_string(one * counts.faceVarying) + " (per face corner)");
+    }
+  }
   const bool constant = p.storageClass == "constant" || (p.storageClass.empty() && given == one);
   bool same = !constant && given == one * counts.uniform && counts.uniform > 0 &&
               (p.storageClass.empty() || p.storageClass == "uniform");

@@ -281,7 +281,9 @@ int evaluate(const Args& args, const CompileResult& result) {
   const std::pair<uint32_t, const char*> warnings[] = {
       {status.splineBasis, "spline basis name unknown or unfit for the knot count; catmull-rom was used (with fewer than 4 knots, the first knot)"},
       {status.indexClamped, "array or component indices were clamped into range"},
-      {status.unknownSpace, "unknown coordinate space names were treated as 'current'"}};
+      {status.unknownSpace,
+       "lookups of a coordinate space name other than \"current\", \"world\", \"common\", \"object\", "
+       "\"shader\" or \"camera\" were treated as 'current'"}};
   for (const auto& [count, what] : warnings)
     if (count) std::cerr << "reliefc: warning: shader '" << shader->name() << "': " << what << "\n";
   // The loop limit is a run-time error (§7): the printed point is the undisplaced input.

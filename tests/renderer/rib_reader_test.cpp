@@ -407,6 +407,24 @@ TEST(RibReader, PrimitiveVariablesBindShaderParameters) {
       << r.warnings;
 }
 
+// A shader-parameter primitive variable whose count fits no storage class of the primitive (or
+// not the class declared) is an error at its line, as for st or Cs: it used to pass as "varies".
+TEST(RibReader, PrimitiveVariableCountsThatFitNoClassAreErrors) {
+  test::TestShaderProvider shaders;
+  const std::pair<const char*, const char*> cases[] = {
+      {"Polygon \"P\" [0 0 0  1 0 0  0 1 0] \"float Km\" [1 2]", "'Km' has 2 values; expected 1 (one in all)"},
+      {"Polygon \"P\" [0 0 0  1 0 0  0 1 0] \"uniform float Km\" [3 4]", "uniform 'Km' needs 1 value, got 2"},
+      {"Sphere 1 -1 1 360 \"point centre\" [1 2]", "'centre' has 2 values; expected 3 (one in all)"}};
+  for (const auto& [call, message] : cases) {
+    ReadResult r = read(world("Attribute \"displacementbound\" \"float sphere\" [0.1]\n"
+                              "Displacement \"push\" \"float Km\" [0.25]\n" + std::string(call) + "\n"),
+                        &shaders);
+    ASSERT_FALSE(r.scene) << call;
+    EXPECT_NE(r.error.format().find(":4: error: "), std::string::npos) << r.error.format();
+    EXPECT_NE(r.error.format().find(message), std::string::npos) << r.error.format();
+  }
+}
+
 // RenderMan gives point, vector and normal parameters in the space current at the call; the
 // shader reads them in its current space (world). Before, they were bound as given.
 TEST(RibReader, SpatialShaderParametersAreInTheSpaceOfTheCall) {
@@ -427,6 +445,14 @@ TEST(RibReader, SpatialShaderParametersAreInTheSpaceOfTheCall) {
   expectNear(centre, glm::vec3(1, 0, -1));    // translated
   expectNear(direction, glm::vec3(2, 1, 0));  // scaled, not translated
   expectNear(facing, glm::vec3(0.5f, 1, 0));  // inverse transpose
+  // An hpoint is (x y z w), the point (x/w, y/w, z/w), then moved as a point.
+  ReadResult h = read(world("Attribute \"displacementbound\" \"float sphere\" [0.1]\n"
+                            "Translate 1 0 0\nDisplacement \"push\" \"hpoint centre\" [2 4 6 2]\nSphere 1 -1 1 360"),
+                      &shaders);
+  ASSERT_TRUE(h.scene) << h.error.format();
+  std::memcpy(&centre, h.scene->displacements[0].shader->block().data() + 24, 12);
+  expectNear(centre, glm::vec3(2, 2, 3));
+  EXPECT_FALSE(read(world("Displacement \"push\" \"hpoint centre\" [2 4 6 0]\nSphere 1 -1 1 360"), &shaders).scene);
 }
 
 TEST(RibReader, WorldBoundIsNotScaled) {
