@@ -2778,6 +2778,7 @@ bool RibParser::doNuPatch(const Call& call) {
       mesh.indices.insert(mesh.indices.end(), {a, b, d, a, d, c});
     }
   mesh.smoothSurface = !mesh.givenNormals && !mesh.N.empty();
+  if (mesh.smoothSurface) smoothSurfaceDerivatives(mesh);
   return addMesh(std::move(mesh), call.line);
 }
 
@@ -2816,6 +2817,7 @@ bool RibParser::doSphere(const Call& call) {
   Mesh mesh = tessellateSphere(radius, zmin, zmax, thetamax, nu, nv, attr_.ctm);
   applyQuadricPrimvars(vars, &mesh);
   mesh.smoothSurface = !mesh.N.empty();
+  if (mesh.smoothSurface) smoothSurfaceDerivatives(mesh);
   return addMesh(std::move(mesh), call.line, /*wound=*/true);
 }
 
@@ -2942,6 +2944,7 @@ bool RibParser::doQuadric(const Call& call) {
     }
   applyQuadricPrimvars(vars, &mesh);
   mesh.smoothSurface = !mesh.N.empty();
+  if (mesh.smoothSurface) smoothSurfaceDerivatives(mesh);
   return addMesh(std::move(mesh), call.line);
 }
 
@@ -3500,6 +3503,7 @@ bool RibParser::buildPatchMesh(const Call& call, bool bicubic, int nu, bool uPer
   if (!normalsOk) mesh.N.clear();
   mesh.givenNormals = N != nullptr && !mesh.N.empty();
   mesh.smoothSurface = !mesh.givenNormals && !mesh.N.empty();
+  if (mesh.smoothSurface) smoothSurfaceDerivatives(mesh);
   return addMesh(std::move(mesh), call.line);
 }
 

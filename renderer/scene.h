@@ -140,6 +140,10 @@ struct Mesh {
   // displacement shader's Ng at a vertex is its N, shared by the triangles around it, so that
   // displacing along Ng cannot crack the surface. Polygons keep their facets' Ng (as RenderMan).
   bool smoothSurface = false;
+  // Per vertex, world space, on smooth surfaces (smoothSurfaceDerivatives, subdivide.h): dP/du and
+  // dP/dv shared by the triangles around a vertex, so a shader displacing along them (a tangent
+  // frame) cannot crack the surface. Empty: each triangle's own (u, v) map gives them.
+  std::vector<glm::vec3> dPdu, dPdv;
   std::vector<glm::vec2> uv;  // surface parameters (u, v); empty: barycentric-derived per face
   std::vector<glm::vec2> st;  // texture coordinates; empty: equal to uv
   std::vector<glm::vec3> Cs;  // per-vertex colour (RIB "Cs"); empty: the material's colour

@@ -30,6 +30,9 @@ struct Float3Soa {
 // into them instead of copying them.
 struct Vertices {
   Float3Soa P, N;
+  // Per-vertex dP/du and dP/dv (Mesh::dPdu), interpolated like N; only when `derivatives`.
+  Float3Soa dPdu, dPdv;
+  bool derivatives = false;
   std::vector<float> u, v, s, t;
   std::vector<glm::vec2> bary;
   std::vector<uint8_t> level;
@@ -51,6 +54,7 @@ struct Vertices {
   void grow() {
     const size_t n = std::max<size_t>(256, 2 * u.size());
     P.resize(n), N.resize(n), u.resize(n), v.resize(n), s.resize(n), t.resize(n);
+    dPdu.resize(n), dPdv.resize(n);
     bary.resize(n), level.resize(n);
     decided.resize(n), displaced.resize(n);
   }
@@ -324,7 +328,10 @@ void displaceBatch(const Displacement& disp, const TriangleFrame& frame, Vertice
   RlfShadingBatch b{};
   b.count = n;
   b.P = vs.P.view(first), b.N = vs.N.view(first), b.Ng = frame.ngFollowsN ? vs.N.view(first) : batch.Ng.view();
-  b.dPdu = batch.dPdu.view(), b.dPdv = batch.dPdv.view();
+  if (vs.derivatives)
+    b.dPdu = vs.dPdu.view(first), b.dPdv = vs.dPdv.view(first);
+  else
+    b.dPdu = batch.dPdu.view(), b.dPdv = batch.dPdv.view();
   b.u = &vs.u[first], b.v = &vs.v[first], b.s = &vs.s[first], b.t = &vs.t[first];
   b.du = batch.du.data(), b.dv = batch.dv.data();
   b.dsdu = batch.dsdu.data(), b.dsdv = batch.dsdv.data();
@@ -424,6 +431,10 @@ uint32_t addMidpoint(Vertices& vs, uint32_t a, uint32_t b) {
   vs.N.set(m, len > 0.0f && std::isfinite(len) ? n / len : vs.N.get(std::min(a, b)));
   vs.setUv(m, 0.5f * (vs.uv(a) + vs.uv(b)));
   vs.setSt(m, 0.5f * (vs.st(a) + vs.st(b)));
+  if (vs.derivatives) {
+    vs.dPdu.set(m, 0.5f * (vs.dPdu.get(a) + vs.dPdu.get(b)));
+    vs.dPdv.set(m, 0.5f * (vs.dPdv.get(a) + vs.dPdv.get(b)));
+  }
   vs.bary[m] = 0.5f * (vs.bary[a] + vs.bary[b]);
   vs.level[m] = uint8_t(std::max(vs.level[a], vs.level[b]) + 1);
   vs.decided[m] = kUndecided;
@@ -454,6 +465,10 @@ uint32_t addInteriorPoint(Vertices& vs, uint32_t a, uint32_t b, uint32_t c, floa
   vs.N.set(m, len > 0.0f && std::isfinite(len) ? n / len : vs.N.get(a));
   vs.setUv(m, wa * vs.uv(a) + wb * vs.uv(b) + wc * vs.uv(c));
   vs.setSt(m, wa * vs.st(a) + wb * vs.st(b) + wc * vs.st(c));
+  if (vs.derivatives) {
+    vs.dPdu.set(m, wa * vs.dPdu.get(a) + wb * vs.dPdu.get(b) + wc * vs.dPdu.get(c));
+    vs.dPdv.set(m, wa * vs.dPdv.get(a) + wb * vs.dPdv.get(b) + wc * vs.dPdv.get(c));
+  }
   vs.bary[m] = wa * vs.bary[a] + wb * vs.bary[b] + wc * vs.bary[c];
   vs.level[m] = uint8_t(level);
   vs.decided[m] = kUndecided;
@@ -631,12 +646,17 @@ void cornerData(const Mesh& mesh, uint32_t triangle, const Displacement* disp, g
 
 // The three corners as the first vertices of a subdivision (level 0, displaced = undisplaced until
 // the shader runs).
-void pushCorners(Vertices& vs, const glm::vec3 p[3], const glm::vec3 n[3], const glm::vec2 uv[3],
-                 const glm::vec2 st[3]) {
+void pushCorners(Vertices& vs, const Mesh& mesh, uint32_t triangle, const glm::vec3 p[3], const glm::vec3 n[3],
+                 const glm::vec2 uv[3], const glm::vec2 st[3]) {
   const glm::vec2 cornerBary[3] = {{0, 0}, {1, 0}, {0, 1}};
+  vs.derivatives = mesh.dPdu.size() == mesh.P.size() && mesh.dPdv.size() == mesh.P.size();
   for (int c = 0; c < 3; ++c) {
     const uint32_t k = vs.append();
     vs.P.set(k, p[c]), vs.N.set(k, n[c]), vs.setUv(k, uv[c]), vs.setSt(k, st[c]);
+    if (vs.derivatives) {
+      const uint32_t i = mesh.indices[3 * size_t(triangle) + size_t(c)];
+      vs.dPdu.set(k, mesh.dPdu[i]), vs.dPdv.set(k, mesh.dPdv[i]);
+    }
     vs.bary[k] = cornerBary[c], vs.level[k] = 0, vs.displaced[k] = p[c];
     vs.decided[k] = kUndecided;
   }
@@ -656,7 +676,7 @@ bool displacedShadingNormal(const Mesh& mesh, uint32_t triangle, const Displacem
   thread_local Batch batch;
   vs.clear();
   batch.constCount = 0;
-  pushCorners(vs, p, n, uv, st);
+  pushCorners(vs, mesh, triangle, p, n, uv, st);
   const int target = undisplacedLevels(p, disp.edgeLength, std::clamp(disp.maxDepth, 0, kMaxSubdivisionDepth));
   addInteriorPoint(vs, 0, 1, 2, 1.0f - bary.x - bary.y, bary.x, bary.y, target);
   const TriangleFrame frame = makeFrame(mesh, p, n, uv, st, disp, target);
@@ -683,7 +703,7 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
   glm::vec3 p[3], n[3];
   glm::vec2 uv[3], st[3];
   cornerData(mesh, triangle, displacement, p, n, uv, st);
-  pushCorners(vs, p, n, uv, st);
+  pushCorners(vs, mesh, triangle, p, n, uv, st);
 
   const bool displaced = displacement != nullptr && displacement->shader != nullptr;
   out.indices.clear();

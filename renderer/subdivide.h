@@ -28,11 +28,12 @@
 // levels, and its centre) lie within `flatness` of it, and is split 1-to-3 at its centre
 // otherwise. Simplification costs shader evaluations (the lookahead and samples) and saves
 // micro-triangles; SubdivideCounters reports both counts.
-// Ng is each vertex's N on smooth surfaces (Mesh::smoothSurface), so shared exactly there; du/dv
-// are the vertex level's spacing, never coarser than the undisplaced subdivision's deepest level.
-// Known limit: a shader reading dPdu/dPdv, dNdu/dNdv, the s/t seeds, du/dv or a polygon's Ng (per
-// input triangle) may displace a shared edge differently from its two sides; P, N, u, v, s, t are
-// shared exactly.
+// Ng is each vertex's N on smooth surfaces (Mesh::smoothSurface), and dPdu/dPdv are per vertex
+// where the mesh has them (Mesh::dPdu), so shared exactly there; du/dv are the vertex level's
+// spacing, never coarser than the undisplaced subdivision's deepest level.
+// Known limit: a shader reading dNdu/dNdv, the s/t seeds, du/dv or a polygon's Ng or dPdu/dPdv
+// (per input triangle) may displace a shared edge differently from its two sides; P, N, u, v, s, t
+// are shared exactly.
 #pragma once
 
 #include <atomic>

@@ -2,8 +2,11 @@
 #include "renderer/tessellate.h"
 
 #include <algorithm>
+#include <array>
+#include <bit>
 #include <cmath>
 #include <numbers>
+#include <unordered_map>
 
 namespace relief {
 
@@ -78,6 +81,54 @@ Mesh tessellateSphere(float radius, float zmin, float zmax, float thetamaxDeg, i
     }
   }
   return mesh;
+}
+
+void smoothSurfaceDerivatives(Mesh& mesh) {
+  const size_t n = mesh.P.size();
+  mesh.dPdu.assign(n, glm::vec3(0.0f));
+  mesh.dPdv.assign(n, glm::vec3(0.0f));
+  if (mesh.uv.size() != n) return;
+  // Vertices by position and normal bits: a seam's copies and a pole's are one group.
+  struct Key {
+    std::array<uint32_t, 6> bits;
+    bool operator==(const Key& o) const { return bits == o.bits; }
+  };
+  struct KeyHash {
+    size_t operator()(const Key& k) const {
+      uint64_t h = 0x9E3779B97F4A7C15ull;
+      for (uint32_t b : k.bits) h = (h ^ b) * 0x100000001B3ull;
+      return size_t(h);
+    }
+  };
+  std::unordered_map<Key, uint32_t, KeyHash> groupOf;
+  std::vector<uint32_t> group(n);
+  for (size_t i = 0; i < n; ++i) {
+    const glm::vec3 nrm = mesh.N.size() == n ? mesh.N[i] : glm::vec3(0.0f);
+    const Key key{{std::bit_cast<uint32_t>(mesh.P[i].x), std::bit_cast<uint32_t>(mesh.P[i].y), std::bit_cast<uint32_t>(mesh.P[i].z),
+                   std::bit_cast<uint32_t>(nrm.x), std::bit_cast<uint32_t>(nrm.y), std::bit_cast<uint32_t>(nrm.z)}};
+    group[i] = groupOf.try_emplace(key, uint32_t(groupOf.size())).first->second;
+  }
+  std::vector<glm::dvec3> sumU(groupOf.size(), glm::dvec3(0.0)), sumV(groupOf.size(), glm::dvec3(0.0));
+  std::vector<uint32_t> count(groupOf.size(), 0);
+  for (uint32_t t = 0; t < mesh.numTriangles(); ++t) {
+    const uint32_t* idx = &mesh.indices[3 * size_t(t)];
+    const glm::vec3 e1 = mesh.P[idx[1]] - mesh.P[idx[0]], e2 = mesh.P[idx[2]] - mesh.P[idx[0]];
+    const glm::vec2 d1 = mesh.uv[idx[1]] - mesh.uv[idx[0]], d2 = mesh.uv[idx[2]] - mesh.uv[idx[0]];
+    const float det = d1.x * d2.y - d1.y * d2.x;
+    if (!(std::fabs(det) > 1e-12f) || glm::length(glm::cross(e1, e2)) == 0.0f) continue;  // poles
+    const glm::vec3 du = (e1 * d2.y - e2 * d1.y) / det, dv = (e2 * d1.x - e1 * d2.x) / det;
+    if (!std::isfinite(du.x + du.y + du.z + dv.x + dv.y + dv.z)) continue;
+    for (int c = 0; c < 3; ++c) {
+      const uint32_t g = group[idx[c]];
+      sumU[g] += glm::dvec3(du), sumV[g] += glm::dvec3(dv), ++count[g];
+    }
+  }
+  for (size_t i = 0; i < n; ++i) {
+    const uint32_t g = group[i];
+    if (!count[g]) continue;
+    mesh.dPdu[i] = glm::vec3(sumU[g] / double(count[g]));
+    mesh.dPdv[i] = glm::vec3(sumV[g] / double(count[g]));
+  }
 }
 
 }  // namespace relief

@@ -1,5 +1,6 @@
-// Turns RenderMan quadrics into input triangle meshes (world space) for the contributor grid.
-// Used by the scene reader (rib_reader.*) and by geometry tests; depends only on scene.h.
+// Turns RenderMan quadrics into input triangle meshes (world space) for the contributor grid, and
+// gives tessellated smooth surfaces their per-vertex derivatives. Used by the scene reader
+// (rib_reader.*) and by geometry tests; depends only on scene.h.
 #pragma once
 
 #include <glm/glm.hpp>
@@ -22,5 +23,12 @@ namespace relief {
 // treat zero-area triangles without NaNs (no hit, a finite fallback normal).
 Mesh tessellateSphere(float radius, float zmin, float zmax, float thetamaxDeg, int nu, int nv,
                       const glm::mat4& worldFromObject);
+
+// Fills mesh.dPdu and mesh.dPdv of a tessellated smooth surface (Mesh::smoothSurface, with a
+// global (u, v) parameterisation: quadrics, patches, NURBS) with the mean of the derivatives of
+// the (u, v) maps of the triangles around each vertex, over every vertex at the same position
+// with the same normal (so a seam's two copies and a pole's get one value). Triangles whose map is
+// degenerate add nothing; a vertex with none keeps zero vectors.
+void smoothSurfaceDerivatives(Mesh& mesh);
 
 }  // namespace relief

@@ -126,5 +126,31 @@ TEST(TessellateSphere, FullSphereIsClosed) {
   }
 }
 
+// Per-vertex derivatives of a tessellated sphere: close to the analytic dP/du = 2 pi r cos(lat)
+// (-sin phi, cos phi, 0) and dP/dv = pi r (-sin(lat) cos phi, -sin(lat) sin phi, cos lat) away from
+// the poles, and the same at both copies of a seam vertex (one group by position and normal).
+TEST(TessellateSphere, SmoothDerivativesAreSharedAndCloseToAnalytic) {
+  Mesh mesh = tessellateSphere(2.0f, -2.0f, 2.0f, 360.0f, 32, 16, glm::mat4(1.0f));
+  smoothSurfaceDerivatives(mesh);
+  ASSERT_EQ(mesh.dPdu.size(), mesh.P.size());
+  const float pi = std::numbers::pi_v<float>;
+  for (size_t i = 0; i < mesh.P.size(); ++i) {
+    const float u = mesh.uv[i].x, v = mesh.uv[i].y;
+    if (v < 0.1f || v > 0.9f) continue;
+    const float lat = -pi / 2 + v * pi, phi = u * 2 * pi;
+    const glm::vec3 du = 2 * pi * 2.0f * std::cos(lat) * glm::vec3(-std::sin(phi), std::cos(phi), 0);
+    const glm::vec3 dv = pi * 2.0f * glm::vec3(-std::sin(lat) * std::cos(phi), -std::sin(lat) * std::sin(phi), std::cos(lat));
+    EXPECT_LT(glm::length(mesh.dPdu[i] - du), 0.02f * glm::length(du)) << i;
+    EXPECT_LT(glm::length(mesh.dPdv[i] - dv), 0.02f * glm::length(dv)) << i;
+  }
+  // The seam: vertex (row j, u = 1) copies (row j, u = 0) and gets its derivatives.
+  for (int j = 0; j <= 16; ++j) {
+    const size_t first = size_t(j) * 33, last = first + 32;
+    ASSERT_EQ(mesh.P[first], mesh.P[last]);
+    EXPECT_EQ(mesh.dPdu[first], mesh.dPdu[last]) << j;
+    EXPECT_EQ(mesh.dPdv[first], mesh.dPdv[last]) << j;
+  }
+}
+
 }  // namespace
 }  // namespace relief

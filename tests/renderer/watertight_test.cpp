@@ -111,10 +111,11 @@ TEST_P(WatertightSphere, RaysThroughVerticesAndEdgesAllHit) {
 // 0.01: whole runs of long edges kept whole and interiors split 1-to-3.
 INSTANTIATE_TEST_SUITE_P(Flatness, WatertightSphere, ::testing::Values(0.0f, 0.002f, 0.01f));
 
-// Displacing along Ng: on a smooth surface (a quadric, patch, NURBS or subdivision surface) the
-// shader's Ng at a vertex is its N, shared by every triangle around it, so the displaced sphere is
-// closed. With the facets' own Ng (as polygons keep) the same shader tears it apart, which is
-// what makes the test meaningful.
+// Displacing along Ng, or along a tangent (dPdu): on a smooth surface (a quadric, patch, NURBS or
+// subdivision surface) the shader's Ng at a vertex is its N and its dPdu the mean of the
+// triangles' around it (smoothSurfaceDerivatives), both shared by every triangle there, so the
+// displaced sphere stays closed. With the facets' own Ng and dPdu (as polygons keep) the same
+// shaders tear it apart, which is what makes the test meaningful.
 void ngEntry(const RlfShadingBatch* b, const void*, RlfStatus*) {
   for (uint32_t i = 0; i < b->count; ++i) {
     const glm::vec3 ng(b->Ng.x[i], b->Ng.y[i], b->Ng.z[i]);
@@ -123,23 +124,36 @@ void ngEntry(const RlfShadingBatch* b, const void*, RlfStatus*) {
     b->Nout.x[i] = b->N.x[i], b->Nout.y[i] = b->N.y[i], b->Nout.z[i] = b->N.z[i];
   }
 }
+void tangentEntry(const RlfShadingBatch* b, const void*, RlfStatus*) {
+  for (uint32_t i = 0; i < b->count; ++i) {
+    const glm::vec3 t(b->dPdu.x[i], b->dPdu.y[i], b->dPdu.z[i]), n(b->N.x[i], b->N.y[i], b->N.z[i]);
+    const float len = glm::length(t);
+    const glm::vec3 p = glm::vec3(b->P.x[i], b->P.y[i], b->P.z[i]) + 0.05f * n +
+                        (len > 0.0f ? 0.05f * std::sin(8.0f * b->v[i]) / len : 0.0f) * t;
+    b->Pout.x[i] = p.x, b->Pout.y[i] = p.y, b->Pout.z[i] = p.z;
+    b->Nout.x[i] = n.x, b->Nout.y[i] = n.y, b->Nout.z[i] = n.z;
+  }
+}
 
-TEST(Watertight, DisplacingAlongNgKeepsASmoothSurfaceClosed) {
-  SphereOptions o = watertightOptions();
-  o.entry = ngEntry;
-  for (bool smooth : {true, false}) {
-    Scene scene = makeSphereScene(o);
-    scene.meshes[0].smoothSurface = smooth;
-    auto accel = makeGridAccelerator(scene, AccelOptions{});
-    int misses = 0;
-    for (const Ray& ray : testing::randomRays(4000, 20261129, 3.0f, 0.0f)) {
-      auto hit = accel->intersect(ray);
-      misses += !hit || glm::dot(ray.origin + hit->t * ray.direction, ray.direction) > 0.0f;
+TEST(Watertight, DisplacingAlongNgOrATangentKeepsASmoothSurfaceClosed) {
+  for (RlfShaderEntry entry : {ngEntry, tangentEntry}) {
+    SphereOptions o = watertightOptions();
+    o.entry = entry;
+    for (bool smooth : {true, false}) {
+      Scene scene = makeSphereScene(o);
+      scene.meshes[0].smoothSurface = smooth;
+      if (smooth) smoothSurfaceDerivatives(scene.meshes[0]);
+      auto accel = makeGridAccelerator(scene, AccelOptions{});
+      int misses = 0;
+      for (const Ray& ray : testing::randomRays(4000, 20261129, 3.0f, 0.0f)) {
+        auto hit = accel->intersect(ray);
+        misses += !hit || glm::dot(ray.origin + hit->t * ray.direction, ray.direction) > 0.0f;
+      }
+      if (smooth)
+        EXPECT_EQ(misses, 0) << (entry == ngEntry ? "Ng" : "dPdu");
+      else
+        EXPECT_GT(misses, entry == ngEntry ? 20 : 0) << (entry == ngEntry ? "Ng" : "dPdu");
     }
-    if (smooth)
-      EXPECT_EQ(misses, 0);
-    else
-      EXPECT_GT(misses, 40);
   }
 }
 
