@@ -177,6 +177,9 @@ struct FunctionDecl {
   // where a too-large expansion is explained.
   SourceRange overLimitCall;
   const FunctionDecl* overLimitCallee = nullptr;
+  // The longest chain of user-function calls from its body, itself counted: code generation
+  // inlines through it recursively, so it is bounded (TypeChecker::kMaxCallDepth).
+  uint32_t callDepth = 1;
 };
 
 struct TranslationUnit {

@@ -337,13 +337,15 @@ void Preprocessor::include(const Token& name, const std::vector<Token>& line) {
   }
   if (stack_.size() > size_t(kMaxIncludeDepth)) {
     diags_.report(DiagId::ErrIncludeDepth, nameTok->loc).arg(kMaxIncludeDepth).range(nameTok->range());
+    // A file including itself: everything it defines would be redefined at every level.
+    fatal_ = true;
     return;
   }
   std::vector<std::string> dirs;
   if (!angled) dirs.push_back(stack_.back().dir);
   for (const std::string& d : options_.includeDirs) dirs.push_back(d);
   if (!options_.builtinIncludeDir.empty()) dirs.push_back(options_.builtinIncludeDir);
-  std::string found;
+  std::string found, notRegular;
   bool builtin = false;
   for (size_t k = 0; k < dirs.size(); ++k) {
     const std::string& d = dirs[k];
@@ -354,10 +356,18 @@ void Preprocessor::include(const Token& name, const std::vector<Token>& line) {
       builtin = !options_.builtinIncludeDir.empty() && k + 1 == dirs.size();
       break;
     }
+    if (notRegular.empty() && std::filesystem::exists(candidate, ec)) notRegular = candidate.string();
   }
   // The built-in directory's files are the prelude, compiled with every shader (prelude.cpp):
   // including one adds nothing, and including its text again would redefine every function in it.
   if (builtin && std::filesystem::path(found).extension() == ".disp") return;
+  if (found.empty() && !notRegular.empty()) {
+    // A directory or a device by that name: "not found" would send the user looking elsewhere.
+    diags_.report(DiagId::FatalIncludeUnreadable, nameTok->loc).arg(file).arg("'" + notRegular + "' is not a regular file")
+        .range(nameTok->range());
+    fatal_ = true;
+    return;
+  }
   if (found.empty()) {
     diags_.report(DiagId::FatalIncludeNotFound, nameTok->loc).arg(file).range(nameTok->range());
     fatal_ = true;  // compilation stops: later errors would only be noise
@@ -367,7 +377,7 @@ void Preprocessor::include(const Token& name, const std::vector<Token>& line) {
   SourceManager::FileId id;
   std::string error;
   if (!sm_.addFile(found, &id, &error, name.loc)) {
-    diags_.report(DiagId::FatalIncludeNotFound, nameTok->loc).arg(file).range(nameTok->range());
+    diags_.report(DiagId::FatalIncludeUnreadable, nameTok->loc).arg(file).arg(error).range(nameTok->range());
     fatal_ = true;
     return;
   }

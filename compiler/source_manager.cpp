@@ -28,6 +28,17 @@ bool SourceManager::addFile(const std::string& path, FileId* id, std::string* er
     *error = "cannot open file: it is a directory";
     return false;
   }
+  // A device or a pipe (/dev/zero) would be read for ever; a source file is a regular file, and
+  // one larger than any shader could be is a mistake, not something to read into memory.
+  const std::filesystem::file_status status = std::filesystem::status(path, ec);
+  if (!ec && std::filesystem::exists(status) && !std::filesystem::is_regular_file(status)) {
+    *error = "cannot open file: not a regular file";
+    return false;
+  }
+  if (const uintmax_t size = std::filesystem::file_size(path, ec); !ec && size > kMaxSourceBytes) {
+    *error = "cannot open file: it is larger than " + std::to_string(kMaxSourceBytes >> 20) + " MiB";
+    return false;
+  }
   std::ifstream in(path, std::ios::binary);
   if (!in) {
     *error = std::string("cannot open file: ") + std::strerror(errno);

@@ -37,6 +37,8 @@ struct PresumedLoc {
 class SourceManager {
  public:
   using FileId = uint32_t;
+  // The largest source file read (addFile): 64 MiB, far beyond any shader.
+  static constexpr uintmax_t kMaxSourceBytes = uintmax_t(64) << 20;
 
   // Adds a buffer named `name` (what diagnostics print) and returns its id.
   FileId addBuffer(std::string name, std::string text, SourceLoc includedFrom = {});

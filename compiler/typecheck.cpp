@@ -1349,6 +1349,14 @@ class Checker {
       }
     }
     markWrites(f->writesP, f->writesN, f->writesOwnN);
+    // Inlining recurses through a chain of calls: a chain thousands of functions long would
+    // overflow the compiler's stack (16,000 did) long before its code passed the size limit.
+    if (function_ && !suppress_) function_->callDepth = std::max(function_->callDepth, f->callDepth + 1);
+    if (f->callDepth + 1 > kMaxCallDepth && !callDepthReported_) {
+      callDepthReported_ = true;
+      report(DiagId::ErrCallChainTooDeep, e.range.begin).arg(e.text).arg(static_cast<long long>(kMaxCallDepth)).range(e.opRange);
+      return set(e, kError);
+    }
     // User functions are inlined at every call: bound the code a call chain may expand to. Only
     // the shader's own body is generated, so a function's cost is an error only where the shader
     // (or a function it calls) calls it: a library of functions never called costs nothing.
@@ -1974,6 +1982,8 @@ class Checker {
   // Inlining budget per shader or function: far above real shaders, far below what exhausts
   // memory or compile time (each call of a function copies its body).
   static constexpr uint64_t kMaxInlineCost = 200000;
+  static constexpr uint32_t kMaxCallDepth = 1000;
+  bool callDepthReported_ = false;
 };
 
 }  // namespace

@@ -155,6 +155,11 @@ ContributorGrid::ContributorGrid(const Scene& scene, const AccelOptions& options
     }
   };
   layOut(n);
+  auto voxels = [&] { return uint64_t(resolution_.x) * uint64_t(resolution_.y) * uint64_t(resolution_.z); };
+  while (voxels() > kMaxGridVoxels && n > 1) {
+    n = std::max(1, std::min(n - 1, int(double(n) * std::cbrt(double(kMaxGridVoxels) / double(voxels())))));
+    layOut(n);
+  }
   auto cellRange = [&](const Bounds3& box, glm::ivec3& lo, glm::ivec3& hi) {
     const glm::vec3 a = (box.lo - glm::vec3(padding_) - bounds_.lo) / voxelSize_;
     const glm::vec3 b = (box.hi + glm::vec3(padding_) - bounds_.lo) / voxelSize_;

@@ -62,6 +62,9 @@ constexpr float kMinVoxelBounds = 2.0f;
 constexpr int kMaxAutoGridResolution = 128;
 // Explicit resolutions are clamped too: beyond this the per-voxel arrays alone exceed memory.
 constexpr int kMaxGridResolution = 1024;
+// And so is the whole grid's voxel count (about 30 bytes a voxel before any geometry: 1 GB here;
+// 1024 voxels along each axis made 19 GB): a resolution asking for more is lowered until it fits.
+constexpr uint64_t kMaxGridVoxels = uint64_t(1) << 25;
 // An automatic resolution is halved until the grid lists at most this many entries per
 // triangle on average, or kMinEntryLimit in all (a few big triangles may cover many voxels).
 constexpr int kMaxEntriesPerTriangle = 64;

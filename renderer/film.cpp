@@ -6,9 +6,12 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cerrno>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <system_error>
 #include <thread>
 
@@ -136,6 +139,19 @@ bool Film::write(const std::string& path, std::string* error, const ImageWriteOp
 
 bool commitStagedImage(const std::string& stagedPath, const std::string& path, std::string* error) {
   std::error_code ec;
+  const fs::file_status target = fs::status(path, ec);
+  if (!ec && fs::exists(target) && !fs::is_regular_file(target) && !fs::is_directory(target)) {
+    // A device or a pipe (/dev/null, a FIFO): written through, as compilers do. Renaming over it
+    // would replace it with a regular file (as root, even /dev/null).
+    std::ifstream in(stagedPath, std::ios::binary);
+    std::ofstream out(path, std::ios::binary | std::ios::trunc);
+    if (out) out << in.rdbuf();
+    const bool ok = in && out.good();
+    std::error_code ignored;
+    fs::remove(stagedPath, ignored);
+    if (!ok) *error = "cannot write '" + path + "': " + std::strerror(errno);
+    return ok;
+  }
   fs::rename(stagedPath, path, ec);
   if (!ec) return true;
   std::error_code ignored;

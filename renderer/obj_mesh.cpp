@@ -2,8 +2,11 @@
 #include "renderer/obj_mesh.h"
 
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <map>
+#include <sstream>
 #include <tuple>
 
 #include <tiny_obj_loader.h>
@@ -12,24 +15,72 @@
 
 namespace relief {
 
+namespace {
+
+// tinyobjloader reads "nan", "inf" and missing coordinates as 0, so a broken file would render as
+// a plausible one: vertex lines ("v", "vn", "vt") are checked here first. Empty if all are fine.
+std::string checkVertexLines(const std::string& text) {
+  std::istringstream lines(text);
+  std::string line;
+  for (size_t number = 1; std::getline(lines, line); ++number) {
+    std::istringstream words(line);
+    std::string kind;
+    if (!(words >> kind) || (kind != "v" && kind != "vn" && kind != "vt")) continue;
+    const size_t minimum = kind == "vt" ? 1 : 3;
+    size_t count = 0;
+    for (std::string word; words >> word; ++count) {
+      char* end = nullptr;
+      const double d = std::strtod(word.c_str(), &end);
+      if (end == word.c_str() || *end || !std::isfinite(d) || !std::isfinite(float(d)))
+        return "line " + std::to_string(number) + ": '" + word + "' is not a finite number";
+    }
+    if (count < minimum)
+      return "line " + std::to_string(number) + ": '" + kind + "' needs at least " + std::to_string(minimum) +
+             " numbers, got " + std::to_string(count);
+    if (kind == "vn" && count >= 3) {
+      std::istringstream again(line);
+      double x = 0, y = 0, z = 0;
+      again >> kind >> x >> y >> z;
+      if (x == 0 && y == 0 && z == 0) return "line " + std::to_string(number) + ": zero-length normal";
+    }
+  }
+  return {};
+}
+
+}  // namespace
+
 bool loadObjMesh(const std::string& path, Mesh* mesh, std::string* error, std::string* warning) {
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec)) {
     *error = "cannot open mesh '" + path + "'";
     return false;
   }
-  tinyobj::ObjReaderConfig config;
-  config.triangulate = false;  // ear clipping below keeps concave faces right
-  config.vertex_color = false;
-  config.mtl_search_path = std::filesystem::path(path).parent_path().string();
-  tinyobj::ObjReader reader;
-  if (!reader.ParseFromFile(path, config)) {
-    *error = "cannot read mesh '" + path + "': " + reader.Error();
+  std::ifstream file(path, std::ios::binary);
+  std::ostringstream buffer;
+  buffer << file.rdbuf();
+  if (!file) {
+    *error = "cannot read mesh '" + path + "'";
+    return false;
+  }
+  const std::string text = buffer.str();
+  if (const std::string problem = checkVertexLines(text); !problem.empty()) {
+    *error = "mesh '" + path + "', " + problem;
+    return false;
+  }
+  // Materials are not used (shading comes from the scene), so "mtllib" is not followed: without a
+  // material reader tinyobjloader skips it, and a .mtl that is missing, or a device, costs nothing.
+  tinyobj::attrib_t attrib;
+  std::vector<tinyobj::shape_t> shapes;
+  std::vector<tinyobj::material_t> materials;
+  std::string objWarning, objError;
+  std::istringstream in(text);
+  if (!tinyobj::LoadObj(&attrib, &shapes, &materials, &objWarning, &objError, &in, nullptr,
+                        /*triangulate=*/false, /*default_vcols_fallback=*/false)) {
+    *error = "cannot read mesh '" + path + "': " + objError;
     while (!error->empty() && (error->back() == '\n' || error->back() == '\r')) error->pop_back();
     return false;
   }
-  *warning = reader.Warning();
-  const tinyobj::attrib_t& attrib = reader.GetAttrib();
+  *warning = objWarning;
   const size_t numPositions = attrib.vertices.size() / 3;
   const size_t numNormals = attrib.normals.size() / 3;
   const size_t numTexcoords = attrib.texcoords.size() / 2;
@@ -39,7 +90,7 @@ bool loadObjMesh(const std::string& path, Mesh* mesh, std::string* error, std::s
   bool allNormals = true;
   std::map<std::tuple<int, int, int>, uint32_t> corners;
   std::vector<glm::vec3> normals;  // per output vertex, zero where a corner had none
-  for (const tinyobj::shape_t& shape : reader.GetShapes()) {
+  for (const tinyobj::shape_t& shape : shapes) {
     size_t offset = 0;
     for (unsigned char faceSize : shape.mesh.num_face_vertices) {
       std::vector<uint32_t> face;

@@ -451,7 +451,13 @@ class RibParser {
       bool end = false;
       if (!nextCall(&call, &end)) return false;
       if (end) return true;
-      if (!execute(call)) return false;
+      try {
+        if (!execute(call)) return false;
+      } catch (const std::bad_alloc&) {
+        // Named at the request that ran out (the innermost archive's, when they nest).
+        return fail(call.line, "out of memory at '" + call.name + "' (" + std::to_string(inputTriangles_) +
+                                   " input triangles read so far)");
+      }
     }
   }
 
@@ -1033,7 +1039,8 @@ class RibParser {
   int instanceDepth_ = 0;
   // Budgets on what a scene expands to (execute, addMesh), past which reading stops with an error.
   static constexpr uint64_t kMaxExpandedRequests = uint64_t(1) << 24;
-  static constexpr uint64_t kMaxInputTriangles = uint64_t(1) << 28;
+  // 2^26 input triangles take about 4 GB as meshes, before the grid lists them.
+  static constexpr uint64_t kMaxInputTriangles = uint64_t(1) << 26;
   uint64_t executedCalls_ = 0, inputTriangles_ = 0;
   int frameDepth_ = 0;
   int frameLine_ = 0;
@@ -1400,7 +1407,13 @@ bool RibParser::executeCamera(const Call& call, bool* handled) {
           path.push_back(dir);
         }
       }
-      previous = std::move(path);
+      // A directory named twice is searched once, at its first place: "&:&" repeated would
+      // otherwise double the path each time (30 times: a billion entries).
+      std::vector<std::string> unique;
+      std::set<std::string> seen;
+      for (std::string& dir : path)
+        if (seen.insert(dir).second) unique.push_back(std::move(dir));
+      previous = std::move(unique);
     }
   } else if (n == "WorldBegin") {
     if (inWorld_) return fail(call.line, "nested 'WorldBegin'");
@@ -2103,6 +2116,11 @@ bool RibParser::executeGeometry(const Call& call, bool* handled) {
       "Geometry",       "SubdivisionMesh", "NuPatch"};
   if (kShapes.count(n)) {
     if (!requireWorld(call)) return false;
+    for (int c = 0; c < 4; ++c)
+      for (int r = 0; r < 4; ++r)
+        if (!std::isfinite(attr_.ctm[c][r]))
+          return fail(call.line, "'" + n + "': the current transform is not finite (transforms overflowed float: " +
+                                     "a Scale or ConcatTransform too large?)");
     if (singular(attr_.ctm)) {
       warnOnce(call.line, "singular/" + n,
                "'" + n + "' under a singular transform (such as Scale 0 0 0) skipped");
@@ -3720,6 +3738,14 @@ std::optional<Scene> readRibString(std::string_view text, const std::string& fil
 namespace {
 
 bool readSceneText(const std::string& path, std::string* text, SceneError* error) {
+  // A device or a pipe (/dev/zero) would be read for ever.
+  std::error_code ec;
+  const std::filesystem::file_status status = std::filesystem::status(path, ec);
+  if (!ec && std::filesystem::exists(status) && !std::filesystem::is_regular_file(status) &&
+      !std::filesystem::is_directory(status)) {
+    *error = SceneError{path, 0, "cannot open scene file: not a regular file"};
+    return false;
+  }
   std::ifstream in(path, std::ios::binary);
   if (!in) {
     *error = SceneError{path, 0, std::string("cannot open scene file: ") + std::strerror(errno)};

@@ -1090,6 +1090,13 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
     accel = relief::makeEmbreeAccelerator(scene, accelOptions, embree);
   }
   const double buildSeconds = secondsSince(buildStart);
+  if (cl.accel == "grid" && cl.gridResolution > 0) {
+    const glm::ivec3 r = accel->stats().gridResolution;
+    const int longest = std::max({r.x, r.y, r.z});
+    if (longest < cl.gridResolution && warnings)
+      *warnings << "relief: warning: --grid-resolution " << cl.gridResolution << " would make more than "
+                << relief::kMaxGridVoxels << " voxels in this scene; using " << longest << " along its longest axis\n";
+  }
 
   relief::RenderOptions renderOptions;
   renderOptions.order = cl.order;

@@ -1,5 +1,6 @@
 // reliefc: checks and compiles .disp shaders (language.md §8); optionally evaluates one point.
 // Exit codes: 0 success (warnings allowed), 1 compile errors, 2 usage or I/O error, 3 internal error.
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -84,6 +85,19 @@ bool parseCount(const char* text, uint32_t* out) {
 // Writes `text` to `path` under a temporary name in the same directory, then renames it into
 // place: readers never see a partial file. False with *error set on failure (nothing left behind).
 bool writeFileAtomically(const std::string& path, const std::string& text, std::string* error) {
+  struct stat st;
+  if (::stat(path.c_str(), &st) == 0 && !S_ISREG(st.st_mode) && !S_ISDIR(st.st_mode)) {
+    // A device or a pipe (/dev/null, a FIFO): written through, as cc does. Renaming over it would
+    // replace it with a regular file (as root, even /dev/null).
+    FILE* f = std::fopen(path.c_str(), "wb");
+    const bool ok = f && std::fwrite(text.data(), 1, text.size(), f) == text.size();
+    const int savedErrno = errno;
+    if ((f && std::fclose(f) != 0) || !ok) {
+      *error = std::strerror(ok ? errno : savedErrno);
+      return false;
+    }
+    return true;
+  }
   const std::string tmp = path + ".reliefc-" + std::to_string(getpid());
   FILE* f = std::fopen(tmp.c_str(), "wb");
   if (!f) {
@@ -444,7 +458,17 @@ int main(int argc, char** argv) {
     CompileResult result;
     if (file == "-") {
       // Standard input, named "<stdin>" in diagnostics (as clang does).
-      std::string text((std::istreambuf_iterator<char>(std::cin)), std::istreambuf_iterator<char>());
+      // Read with the cap a file has (an endless pipe must not fill the memory).
+      std::string text;
+      char chunk[65536];
+      while (std::cin.read(chunk, sizeof chunk) || std::cin.gcount() > 0) {
+        text.append(chunk, size_t(std::cin.gcount()));
+        if (text.size() > relief::compiler::SourceManager::kMaxSourceBytes) {
+          std::cerr << "reliefc: error: standard input is larger than "
+                    << (relief::compiler::SourceManager::kMaxSourceBytes >> 20) << " MiB\n";
+          return 2;
+        }
+      }
       result = relief::compiler::compileSource("<stdin>", std::move(text), args.options, flags);
     } else {
       result = relief::compiler::compileFile(file, args.options, flags);

@@ -4,7 +4,12 @@
 #include <algorithm>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
+#include <mutex>
+#include <sstream>
 #include <string>
+#include <unordered_map>
+#include <vector>
 
 #include <OpenImageIO/imageio.h>
 #include <OpenImageIO/texture.h>
@@ -41,10 +46,48 @@ int32_t guarded(char* error, size_t errorSize, Body&& body) {
   return 0;
 }
 
+// The texture search path as last set (setTextureSearchPath), for regularFile.
+std::mutex searchPathMutex;
+std::string searchPathJoined;
+
+// Whether `name` names no device or pipe where OpenImageIO would look for it: its format probes
+// read a device such as /dev/zero for ever. Checked once per name and thread (names are ustrings,
+// so their text pointers identify them).
+bool regularFile(OIIO::ustring name) {
+  thread_local std::unordered_map<const char*, bool> known;
+  if (const auto it = known.find(name.c_str()); it != known.end()) return it->second;
+  std::vector<std::filesystem::path> candidates{std::filesystem::path(name.string())};
+  if (!candidates[0].is_absolute()) {
+    std::string joined;
+    {
+      std::lock_guard lock(searchPathMutex);
+      joined = searchPathJoined;
+    }
+    std::stringstream dirs(joined);
+    for (std::string dir; std::getline(dirs, dir, ':');)
+      if (!dir.empty()) candidates.push_back(std::filesystem::path(dir) / name.string());
+  }
+  bool regular = true;
+  for (const std::filesystem::path& candidate : candidates) {
+    std::error_code ec;
+    const std::filesystem::file_status status = std::filesystem::status(candidate, ec);
+    if (ec || !std::filesystem::exists(status)) continue;
+    regular = std::filesystem::is_regular_file(status);
+    break;
+  }
+  known.emplace(name.c_str(), regular);
+  return regular;
+}
+
 int32_t texture(const char* filename, float s, float t, float dsdx, float dtdx, float dsdy, float dtdy,
                 const RlfTextureOptions* options, int32_t nchannels, float* out, float* dout_ds, float* dout_dt,
                 char* why, size_t whySize) {
   return guarded(why, whySize, [&]() -> int32_t {
+    const OIIO::ustring name(filename);
+    if (!regularFile(name)) {
+      copyMessage("not a regular file", why, whySize);
+      return 0;
+    }
     OIIO::TextureOpt opt;
     if (options) {
       opt.sblur = options->sblur;
@@ -56,7 +99,7 @@ int32_t texture(const char* filename, float s, float t, float dsdx, float dtdx, 
       if (options->swrap) opt.swrap = OIIO::TextureOpt::decode_wrapmode(options->swrap);
       if (options->twrap) opt.twrap = OIIO::TextureOpt::decode_wrapmode(options->twrap);
     }
-    if (textureSystem()->texture(OIIO::ustring(filename), opt, s, t, dsdx, dtdx, dsdy, dtdy, nchannels, out, dout_ds,
+    if (textureSystem()->texture(name, opt, s, t, dsdx, dtdx, dsdy, dtdy, nchannels, out, dout_ds,
                                  dout_dt))
       return 1;
     // Taking the message also clears it from this thread's error state.
@@ -69,6 +112,10 @@ int32_t texture(const char* filename, float s, float t, float dsdx, float dtdx, 
 
 void setTextureSearchPath(const char* joined) {
   try {
+    {
+      std::lock_guard lock(searchPathMutex);
+      searchPathJoined = joined ? joined : "";
+    }
     textureSystem()->attribute("searchpath", std::string(joined ? joined : ""));
   } catch (...) {
   }

@@ -2,6 +2,7 @@
 // (stderr byte for byte, exit code 1 with errors, 0 with warnings only), JSON diagnostics, usage
 // and I/O exit codes, and --eval printing the displaced P and N.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -323,7 +324,34 @@ TEST(CliTest, OutputFileIsWrittenOnlyWhenEveryInputCompiles) {
   size_t files = 0;
   for (const auto& e : fs::directory_iterator(dir)) files += e.is_regular_file();
   EXPECT_EQ(files, 4u);
+
+  // A device is written through, not replaced by a renamed regular file (as root, that turned
+  // /dev/null into a file).
+  const CliRun devnull = reliefc("lift.disp -o /dev/null", dir);
+  EXPECT_EQ(devnull.exitCode, 0) << devnull.err;
+  struct stat st;
+  ASSERT_EQ(::stat("/dev/null", &st), 0);
+  EXPECT_TRUE(S_ISCHR(st.st_mode));
   fs::remove_all(dir);
+}
+
+// Inputs that are no regular files (a device read for ever, a directory) are I/O errors before any
+// reading; a chain of calls deeper than code generation can inline is a located error, not a
+// crash (16,000 nested calls overflowed the stack).
+TEST(CliTest, DevicesAndDeepCallChainsAreErrors) {
+  const CliRun zero = reliefc("/dev/zero");
+  EXPECT_NE(zero.exitCode, 0);
+  EXPECT_NE(zero.err.find("/dev/zero: error: cannot open file: not a regular file"), std::string::npos) << zero.err;
+  std::string chain = "float f0(float x) { return x; }\n";
+  for (int i = 1; i <= 1200; ++i)
+    chain += "float f" + std::to_string(i) + "(float x) { return f" + std::to_string(i - 1) + "(x) + 1; }\n";
+  chain += "displacement deep(float Km = 1) { P += Km * f1200(s) * N; }\n";
+  const fs::path deep = writeTemp("relief_deep.disp", chain);
+  const CliRun r = reliefc(quote(deep.string()));
+  EXPECT_EQ(r.exitCode, 1);
+  EXPECT_NE(r.err.find(":1001:"), std::string::npos) << r.err.substr(0, 400);  // f1000 calling f999
+  EXPECT_NE(r.err.find("starts a chain of function calls nested too deeply (more than 1000 levels)"), std::string::npos)
+      << r.err.substr(0, 400);
 }
 
 // §7: the loop limit is a run-time error: said as one, with exit code 1.

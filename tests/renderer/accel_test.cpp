@@ -297,6 +297,22 @@ TEST(ContributorGrid, FineDisplacementGetsVoxelsForItsMicroTriangles) {
   EXPECT_LT(capped.voxelSize(), kVoxelsPerBound * o.km);
 }
 
+// An explicit resolution is lowered until the grid has at most kMaxGridVoxels voxels: 1024 along
+// each axis of a sphere's box made a billion voxels (19 GB before any geometry).
+TEST(ContributorGrid, ExplicitResolutionsStayWithinTheVoxelBudget) {
+  SphereOptions o;
+  o.nu = 8, o.nv = 4;
+  const Scene scene = makeSphereScene(o);
+  AccelOptions options;
+  options.gridResolution = 1024;
+  const ContributorGrid grid(scene, options);
+  const glm::ivec3 r = grid.resolution();
+  EXPECT_LE(uint64_t(r.x) * uint64_t(r.y) * uint64_t(r.z), kMaxGridVoxels);
+  EXPECT_GT(uint64_t(r.x) * uint64_t(r.y) * uint64_t(r.z), kMaxGridVoxels / 2);  // lowered, not collapsed
+  options.gridResolution = 64;  // within the budget: as asked
+  EXPECT_EQ(ContributorGrid(scene, options).resolution().x, 64);
+}
+
 // Big triangles stacked on one another would each be listed in thousands of voxels of a
 // resolution chosen by their count: the automatic resolution is halved until the entries are
 // bounded, and the coarser grid still finds them.

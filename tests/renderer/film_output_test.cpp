@@ -129,6 +129,17 @@ TEST(FilmOutput, FailedWriteLeavesNoFile) {
   EXPECT_TRUE(fs::is_empty(dir));
 }
 
+// A staged image committed onto a device (/dev/null) is written through it: renaming would have
+// replaced the device with a regular file (as root, /dev/null itself).
+TEST(FilmOutput, CommitOntoADeviceWritesThroughIt) {
+  const fs::path dir = scratch();
+  std::string staged, error;
+  ASSERT_TRUE(testFilm().writeStaged((dir / "out.png").string(), &staged, &error, ImageWriteOptions{})) << error;
+  ASSERT_TRUE(commitStagedImage(staged, "/dev/null", &error)) << error;
+  EXPECT_TRUE(fs::is_character_file("/dev/null"));
+  EXPECT_TRUE(fs::is_empty(dir));  // the staged file is gone
+}
+
 TEST(FilmOutput, ReplacesAnExistingFile) {
   const fs::path path = scratch() / "out.png";
   std::string error;

@@ -519,8 +519,15 @@ TEST(RibReader, SearchPathExpandsAmpersandAtAndRelativeDirectories) {
                           world("Displacement \"push\""),
                       &shaders, {"/default"});
   ASSERT_TRUE(r.scene) << r.error.format();
-  const std::vector<std::string> expected = {"/abs", "/scenes/a", "/default", "/default"};
+  // "/default" came by "&" and again by "@": searched once, at its first place.
+  const std::vector<std::string> expected = {"/abs", "/scenes/a", "/default"};
   EXPECT_EQ(shaders.lastSearchPath, expected);
+  // "&:&" thirty times over would double the path thirty times; it stays one entry per directory.
+  std::string doubling;
+  for (int i = 0; i < 30; ++i) doubling += "Option \"searchpath\" \"string shader\" [\"&:&\"]\n";
+  ReadResult d = read(doubling + world("Displacement \"push\""), &shaders, {"/default"});
+  ASSERT_TRUE(d.scene) << d.error.format();
+  EXPECT_EQ(shaders.lastSearchPath, std::vector<std::string>{"/default"});
 }
 
 TEST(RibReader, PointsPolygonsTriangulatesAndReadsPrimvars) {

@@ -1159,6 +1159,32 @@ TEST(RibObjMesh, LoadsAnObjFileRelativeToTheScene) {
   const std::string wrongType =
       dir.write("wrong.rib", world("Geometry \"objmesh\" \"float filename\" [1]"));
   EXPECT_FALSE(readRibFile(wrongType, RibReadOptions{}, &error));
+  // tinyobjloader reads nan, inf and a missing coordinate as 0: such files are errors naming the
+  // line, not a plausible mesh. A material library is not followed (materials are unused), so a
+  // missing one costs nothing.
+  for (const auto& [text, message] : std::vector<std::pair<std::string, std::string>>{
+           {"v nan 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "line 1: 'nan' is not a finite number"},
+           {"v 0 0 0\nv 1 0 0\nv inf 1 0\nf 1 2 3\n", "line 3: 'inf' is not a finite number"},
+           {"v 0 0 0\nv 1 0\nv 0 1 0\nf 1 2 3\n", "line 2: 'v' needs at least 3 numbers, got 2"},
+           {"v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 0\nf 1//1 2//1 3//1\n", "line 4: zero-length normal"}}) {
+    dir.write("meshes/bad.obj", text);
+    const std::string bad = dir.write("bad.rib", world("Geometry \"objmesh\" \"string filename\" [\"meshes/bad.obj\"]"));
+    EXPECT_FALSE(readRibFile(bad, RibReadOptions{}, &error)) << text;
+    EXPECT_NE(error.message.find(message), std::string::npos) << error.message;
+  }
+  dir.write("meshes/withmtl.obj", "mtllib nowhere.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl stone\nf 1 2 3\n");
+  const std::string withMtl =
+      dir.write("withmtl.rib", world("Geometry \"objmesh\" \"string filename\" [\"meshes/withmtl.obj\"]"));
+  EXPECT_TRUE(readRibFile(withMtl, RibReadOptions{}, &error)) << error.format();
+}
+
+// Transforms that overflow float (two Scale 1e38) make geometry an error at its line, not
+// "singular" geometry quietly skipped.
+TEST(RibErrors, OverflowedTransformsAreErrors) {
+  ReadResult r = read(world("Scale 1e38 1e38 1e38\nScale 1e38 1e38 1e38\nSphere 1 -1 1 360\n"));
+  ASSERT_FALSE(r.scene);
+  EXPECT_NE(r.error.format().find(":4: error: 'Sphere': the current transform is not finite"), std::string::npos)
+      << r.error.format();
 }
 
 // --- Input written for other renderers ---
