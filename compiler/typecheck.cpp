@@ -1352,9 +1352,12 @@ class Checker {
     // Inlining recurses through a chain of calls: a chain thousands of functions long would
     // overflow the compiler's stack (16,000 did) long before its code passed the size limit.
     if (function_ && !suppress_) function_->callDepth = std::max(function_->callDepth, f->callDepth + 1);
-    if (f->callDepth + 1 > kMaxCallDepth && !callDepthReported_) {
-      callDepthReported_ = true;
-      report(DiagId::ErrCallChainTooDeep, e.range.begin).arg(e.text).arg(static_cast<long long>(kMaxCallDepth)).range(e.opRange);
+    if (f->callDepth + 1 > kMaxCallDepth) {
+      // Always an error (a silent probe's pass must not let the real one through); reported once.
+      if (!suppress_ && !callDepthReported_) {
+        callDepthReported_ = true;
+        report(DiagId::ErrCallChainTooDeep, e.range.begin).arg(e.text).arg(static_cast<long long>(kMaxCallDepth)).range(e.opRange);
+      }
       return set(e, kError);
     }
     // User functions are inlined at every call: bound the code a call chain may expand to. Only

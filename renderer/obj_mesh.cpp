@@ -23,6 +23,7 @@ std::string checkVertexLines(const std::string& text) {
   std::istringstream lines(text);
   std::string line;
   for (size_t number = 1; std::getline(lines, line); ++number) {
+    if (const size_t hash = line.find('#'); hash != std::string::npos) line.resize(hash);  // a comment
     std::istringstream words(line);
     std::string kind;
     if (!(words >> kind) || (kind != "v" && kind != "vn" && kind != "vt")) continue;

@@ -361,7 +361,7 @@ struct SubdivisionTopology {
         if (e.sharpness > 0.0f) {
           if (q.sharp < 2) q.sharpEnds[q.sharp] = p == e.a ? e.b : e.a;
           ++q.sharp;
-          q.sharpnessSum += std::min(e.sharpness, 1.0f);
+          q.sharpnessSum += std::min(e.sharpness, 1e6f);  // the mean is clamped to 1 (DeRose et al.)
         }
       }
     }

@@ -2603,7 +2603,8 @@ bool RibParser::doNuPatch(const Call& call) {
     H[i] = glm::vec4(glm::vec3(P[3 * i], P[3 * i + 1], P[3 * i + 2]) * w, w);
   }
   const size_t segU = size_t(nu - dir[0].order + 1), segV = size_t(nv - dir[1].order + 1);
-  PrimvarCounts counts{segU * segV, count, (segU + 1) * (segV + 1), 4 * segU * segV};
+  // RI: facevarying counts as varying on a NuPatch (one value per segment corner).
+  PrimvarCounts counts{segU * segV, count, (segU + 1) * (segV + 1), (segU + 1) * (segV + 1)};
   std::vector<Primvar> vars;
   if (!readPrimvars(call, params, counts, &vars)) return false;
   const Primvar *st = nullptr, *s = nullptr, *t = nullptr, *Cs = nullptr, *N = nullptr;
@@ -2955,6 +2956,16 @@ bool RibParser::doQuadric(const Call& call) {
       mesh.N.push_back(len > 0.0f ? normal / len : glm::vec3(0, 0, 1));
       mesh.uv.emplace_back(u, t);
     }
+  // A full sweep's last column is its first (cos and sin of 2 pi are not exactly 1 and 0): the same
+  // bits, so displacement cannot open the seam, and one group for smoothSurfaceDerivatives. So is a
+  // torus's last row when its tube goes all the way round.
+  const size_t row = size_t(nu) + 1;
+  if (std::fabs(thetamax) >= 2.0f * float(M_PI) * (1.0f - 1e-6f))
+    for (size_t j = 0; j <= size_t(nv); ++j)
+      mesh.P[j * row + size_t(nu)] = mesh.P[j * row], mesh.N[j * row + size_t(nu)] = mesh.N[j * row];
+  if (n == "Torus" && std::fabs(v[3] - v[2]) >= 360.0f * (1.0f - 1e-6f))
+    for (size_t i = 0; i < row; ++i)
+      mesh.P[size_t(nv) * row + i] = mesh.P[i], mesh.N[size_t(nv) * row + i] = mesh.N[i];
   for (int j = 0; j < nv; ++j)
     for (int i = 0; i < nu; ++i) {
       const uint32_t a = uint32_t(j * (nu + 1) + i), b = a + 1, c = a + uint32_t(nu + 1), d = c + 1;

@@ -199,11 +199,6 @@ struct TriangleFrame {
   float dsdu = 1, dsdv = 0, dtdu = 0, dtdv = 1;  // seeds of s and t
   float uExtent, vExtent;
   bool ngFollowsN = false;  // Mesh::smoothSurface: each vertex's Ng is its N
-  // The level the undisplaced triangle's subdivision reaches (undisplacedLevels): du and dv are
-  // never coarser than its spacing, since a corner made at level 0 ends up among micro-triangles
-  // of that size, and the extents' spacing would blur its filtered lookups (texture, filterstep)
-  // far more than its neighbours'.
-  int targetLevel = 0;
 };
 
 bool finite(glm::vec3 v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
@@ -271,14 +266,12 @@ TriangleFrame makeFrame(const glm::vec3 p[3], const glm::vec3 n[3], const glm::v
   return f;
 }
 
-// The frame of triangle corners p of `mesh` under `disp`, whose undisplaced subdivision reaches
-// level `targetLevel`.
+// The frame of triangle corners p of `mesh` under `disp`.
 TriangleFrame makeFrame(const Mesh& mesh, const glm::vec3 p[3], const glm::vec3 n[3], const glm::vec2 uv[3],
-                        const glm::vec2 st[3], const Displacement& disp, int targetLevel) {
+                        const glm::vec2 st[3], const Displacement& disp) {
   const bool smoothNormals = mesh.N.size() == mesh.P.size();
   TriangleFrame f = makeFrame(p, n, uv, st, smoothNormals, disp.reverseOrientation);
   f.ngFollowsN = mesh.smoothSurface && smoothNormals;
-  f.targetLevel = targetLevel;
   return f;
 }
 
@@ -316,7 +309,7 @@ void displaceBatch(const Displacement& disp, const TriangleFrame& frame, Vertice
     return table;
   }();
   for (uint32_t i = 0; i < n; ++i) {
-    const float sp = spacing[size_t(std::min<int>(std::max<int>(vs.level[first + i], frame.targetLevel), kMaxLevel))];
+    const float sp = spacing[size_t(std::min<int>(vs.level[first + i], kMaxLevel))];
     batch.du[i] = frame.uExtent * sp, batch.dv[i] = frame.vExtent * sp;
   }
   // The ABI has the shader write every output; preset them anyway so a shader that does not
@@ -679,7 +672,7 @@ bool displacedShadingNormal(const Mesh& mesh, uint32_t triangle, const Displacem
   pushCorners(vs, mesh, triangle, p, n, uv, st);
   const int target = undisplacedLevels(p, disp.edgeLength, std::clamp(disp.maxDepth, 0, kMaxSubdivisionDepth));
   addInteriorPoint(vs, 0, 1, 2, 1.0f - bary.x - bary.y, bary.x, bary.y, target);
-  const TriangleFrame frame = makeFrame(mesh, p, n, uv, st, disp, target);
+  const TriangleFrame frame = makeFrame(mesh, p, n, uv, st, disp);
   SubdivideCounters counters;  // shading-time evaluations stay out of the fill statistics
   RlfStatus status{};
   displace(disp, frame, vs, 3, batch, counters, &status);
@@ -724,7 +717,7 @@ void subdivideTriangle(const Mesh& mesh, uint32_t triangle, const Displacement* 
   if (displaced) {
     const Displacement& disp = *displacement;
     const int maxDepth = std::clamp(disp.maxDepth, 0, kMaxSubdivisionDepth);
-    const TriangleFrame frame = makeFrame(mesh, p, n, uv, st, disp, undisplacedLevels(p, disp.edgeLength, maxDepth));
+    const TriangleFrame frame = makeFrame(mesh, p, n, uv, st, disp);
     const float edgeLength2 = disp.edgeLength * disp.edgeLength;
     const uint64_t pointsBefore = counters.shaderPoints;
     displace(disp, frame, vs, 0, scratch.batch, counters);

@@ -30,7 +30,7 @@
 // micro-triangles; SubdivideCounters reports both counts.
 // Ng is each vertex's N on smooth surfaces (Mesh::smoothSurface), and dPdu/dPdv are per vertex
 // where the mesh has them (Mesh::dPdu), so shared exactly there; du/dv are the vertex level's
-// spacing, never coarser than the undisplaced subdivision's deepest level.
+// spacing of the input triangle's extents.
 // Known limit: a shader reading dNdu/dNdv, the s/t seeds, du/dv or a polygon's Ng or dPdu/dPdv
 // (per input triangle) may displace a shared edge differently from its two sides; P, N, u, v, s, t
 // are shared exactly.

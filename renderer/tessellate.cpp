@@ -115,7 +115,9 @@ void smoothSurfaceDerivatives(Mesh& mesh) {
     const glm::vec3 e1 = mesh.P[idx[1]] - mesh.P[idx[0]], e2 = mesh.P[idx[2]] - mesh.P[idx[0]];
     const glm::vec2 d1 = mesh.uv[idx[1]] - mesh.uv[idx[0]], d2 = mesh.uv[idx[2]] - mesh.uv[idx[0]];
     const float det = d1.x * d2.y - d1.y * d2.x;
-    if (!(std::fabs(det) > 1e-12f) || glm::length(glm::cross(e1, e2)) == 0.0f) continue;  // poles
+    // Degenerate relative to the map's own scale (poles; NURBS knots may span 1e-5).
+    if (!(std::fabs(det) > 1e-6f * glm::length(d1) * glm::length(d2)) || glm::length(glm::cross(e1, e2)) == 0.0f)
+      continue;
     const glm::vec3 du = (e1 * d2.y - e2 * d1.y) / det, dv = (e2 * d1.x - e1 * d2.x) / det;
     if (!std::isfinite(du.x + du.y + du.z + dv.x + dv.y + dv.z)) continue;
     for (int c = 0; c < 3; ++c) {

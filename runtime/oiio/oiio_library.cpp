@@ -2,6 +2,7 @@
 // table of runtime/image_library.h. The only file of the project that includes OpenImageIO
 // headers outside tests and benchmarks. Exceptions never leave it.
 #include <algorithm>
+#include <atomic>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
@@ -49,12 +50,17 @@ int32_t guarded(char* error, size_t errorSize, Body&& body) {
 // The texture search path as last set (setTextureSearchPath), for regularFile.
 std::mutex searchPathMutex;
 std::string searchPathJoined;
+std::atomic<uint64_t> searchPathGeneration{0};  // bumped by every setTextureSearchPath
 
 // Whether `name` names no device or pipe where OpenImageIO would look for it: its format probes
 // read a device such as /dev/zero for ever. Checked once per name and thread (names are ustrings,
 // so their text pointers identify them).
 bool regularFile(OIIO::ustring name) {
   thread_local std::unordered_map<const char*, bool> known;
+  thread_local uint64_t knownGeneration = 0;
+  // A new search path (a new frame's) may resolve a name elsewhere: what was learnt is dropped.
+  if (const uint64_t g = searchPathGeneration.load(std::memory_order_acquire); g != knownGeneration)
+    known.clear(), knownGeneration = g;
   if (const auto it = known.find(name.c_str()); it != known.end()) return it->second;
   std::vector<std::filesystem::path> candidates{std::filesystem::path(name.string())};
   if (!candidates[0].is_absolute()) {
@@ -116,6 +122,7 @@ void setTextureSearchPath(const char* joined) {
       std::lock_guard lock(searchPathMutex);
       searchPathJoined = joined ? joined : "";
     }
+    searchPathGeneration.fetch_add(1, std::memory_order_acq_rel);
     textureSystem()->attribute("searchpath", std::string(joined ? joined : ""));
   } catch (...) {
   }

@@ -352,6 +352,15 @@ TEST(CliTest, DevicesAndDeepCallChainsAreErrors) {
   EXPECT_NE(r.err.find(":1001:"), std::string::npos) << r.err.substr(0, 400);  // f1000 calling f999
   EXPECT_NE(r.err.find("starts a chain of function calls nested too deeply (more than 1000 levels)"), std::string::npos)
       << r.err.substr(0, 400);
+  // The same chain through an operator whose operands are first checked by a silent probe: the
+  // probe's pass must not use up the error and let the real one through (review finding).
+  std::string probed = "float g0(float x) { return x; }\n";
+  for (int i = 1; i <= 1200; ++i)
+    probed += "float g" + std::to_string(i) + "(float x) { return noise(x) * (g" + std::to_string(i - 1) + "(x) + noise(x)); }\n";
+  probed += "displacement deeper(float Km = 1) { P += Km * g1200(s) * N; }\n";
+  const CliRun p = reliefc(quote(writeTemp("relief_deeper.disp", probed).string()));
+  EXPECT_EQ(p.exitCode, 1) << p.err.substr(0, 400);
+  EXPECT_NE(p.err.find("nested too deeply (more than 1000 levels)"), std::string::npos) << p.err.substr(0, 400);
 }
 
 // §7: the loop limit is a run-time error: said as one, with exit code 1.

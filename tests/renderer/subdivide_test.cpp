@@ -257,40 +257,6 @@ TEST(Subdivide, HostSuppliesDerivativeSeeds) {
   EXPECT_NEAR(mm.P[0].z, 0.0f, 1e-5f);
 }
 
-// du and dv are the parametric spacing of the tessellation a vertex belongs to (spec §5): never
-// coarser than the level the undisplaced triangle reaches, also at its corners (level 0), which
-// once saw the whole triangle's extent and blurred their filtered lookups (texture, filterstep)
-// far more than their neighbours. Deeper vertices keep their own level's spacing.
-std::vector<std::pair<float, float>> recordedDu;  // (du, dv) per evaluated point
-void duEntry(const RlfShadingBatch* b, const void*, RlfStatus*) {
-  for (uint32_t i = 0; i < b->count; ++i) {
-    recordedDu.emplace_back(b->du[i], b->dv[i]);
-    // Wavy enough to subdivide past the target level in places.
-    const float h = 0.05f * std::sin(40.0f * b->u[i]);
-    b->Pout.x[i] = b->P.x[i], b->Pout.y[i] = b->P.y[i], b->Pout.z[i] = b->P.z[i] + h;
-    b->Nout.x[i] = b->N.x[i], b->Nout.y[i] = b->N.y[i], b->Nout.z[i] = b->N.z[i];
-  }
-}
-
-TEST(Subdivide, DuIsNeverCoarserThanTheUndisplacedTargetLevel) {
-  const Mesh quad = makeQuad();
-  // Edge length 0.1 and the longest edge 1.41: 4 halvings (1.41 / 16 = 0.088), du <= 1/16.
-  const Displacement d = makeDisplacement(duEntry, 0.0f, 0.0f, 0.1f, 8);
-  recordedDu.clear();
-  MicroMesh mm;
-  SubdivideCounters counters;
-  subdivideTriangle(quad, 0, &d, mm, counters);
-  ASSERT_GT(recordedDu.size(), 3u);
-  std::set<float> spacings;
-  for (const auto& [du, dv] : recordedDu) {
-    EXPECT_LE(du, 1.0f / 16) << "corner or coarse vertex with the triangle's extent";
-    EXPECT_EQ(du, dv);  // the triangle spans 1 x 1 in (u, v)
-    spacings.insert(du);
-  }
-  EXPECT_EQ(*spacings.rbegin(), 1.0f / 16);
-  EXPECT_LT(*spacings.begin(), 1.0f / 16);  // deeper vertices, finer spacing
-}
-
 TEST(Subdivide, DeterministicAcrossCalls) {
   const Mesh quad = makeQuad();
   const Displacement d = makeDisplacement(testing::bumpyEntry, 0.2f, 3.0f, 0.04f, 10);
