@@ -1247,6 +1247,7 @@ bool RibParser::executeCamera(const Call& call, bool* handled) {
     if (!(v[0] < v[1]) || !(v[2] < v[3]))
       return fail(call.line, "'CropWindow' expects xmin < xmax and ymin < ymax within [0, 1]");
     std::copy(v.begin(), v.begin() + 4, scene_.cropWindow);
+    scene_.cropSource = fileName_ + ":" + std::to_string(call.line);
   } else if (n == "Exposure") {
     if (!positionalNumbers(call, 2, &v, &next)) return false;
     if (!std::isfinite(v[0]) || v[0] < 0.0f || !std::isfinite(v[1]) || !(v[1] > 0.0f))
@@ -1952,7 +1953,8 @@ bool RibParser::doSurface(const Call& call) {
   constexpr float kMinRoughness = 1e-3f;
   if (!(m.roughness >= kMinRoughness)) {
     warn(call.line, "'" + name + "': 'roughness' " + formatNumber(m.roughness) +
-                        " is not positive; using " + formatNumber(kMinRoughness));
+                        (m.roughness > 0.0f ? " is below " + formatNumber(kMinRoughness) : std::string(" is not positive")) +
+                        "; using " + formatNumber(kMinRoughness));
     m.roughness = kMinRoughness;
   }
   if (!(m.eta > 0.0f)) return fail(call.line, "'" + name + "': 'eta' must be positive");

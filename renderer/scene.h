@@ -180,6 +180,7 @@ struct Scene {
   // RI CropWindow xmin xmax ymin ymax, fractions of the image: only that part is rendered and
   // written (cropPixels).
   float cropWindow[4] = {0.0f, 1.0f, 0.0f, 1.0f};
+  std::string cropSource;  // "file:line" of the CropWindow call, for its errors; empty: none
   int pixelSamples = 1;
   // RI Exposure: colour outputs are (colour * gain)^(1 / gamma). A gamma other than 1 is the
   // display transfer the scene asks for, so 8-bit outputs then take it instead of sRGB.

@@ -1123,7 +1123,7 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
   // RI CropWindow: the film and the images written hold the crop only.
   const relief::PixelRect crop = relief::cropPixels(scene.cropWindow, scene.width, scene.height);
   if (crop.w == 0 || crop.h == 0) {
-    std::cerr << "relief: error: " << cl.scene << ": the 'CropWindow' covers no pixel of the "
+    std::cerr << (scene.cropSource.empty() ? cl.scene : scene.cropSource) << ": error: the 'CropWindow' covers no pixel of the "
               << scene.width << "x" << scene.height << " image\n";
     return 1;
   }

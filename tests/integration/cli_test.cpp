@@ -614,7 +614,8 @@ TEST(Relief, CropWindowWritesTheCropWithItsDataWindow) {
   EXPECT_NE(r.err.find("small.rib:2: error: 'CropWindow' expects xmin < xmax"), std::string::npos) << r.err;
   r = run(kRelief + " " + smallScene(dir, "CropWindow 0.01 0.02 0 1\n").string() + " --quiet -o " + image.string());
   EXPECT_EQ(r.exitCode, 1);
-  EXPECT_NE(r.err.find("'CropWindow' covers no pixel of the 16x12 image"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("small.rib:2: error: the 'CropWindow' covers no pixel of the 16x12 image"), std::string::npos)
+      << r.err;
 }
 
 // -I directories come before RELIEF_SHADER_PATH, which comes before the scene's directory: a

@@ -1366,6 +1366,10 @@ TEST(RibForeign, ExtraNumbersAndZeroRoughnessWarn) {
   EXPECT_NE(r.warnings.find(":4: warning: 'plastic': 'roughness' 0 is not positive; using 0.001"),
             std::string::npos)
       << r.warnings;
+  // A tiny positive roughness is not "not positive" (a fuzzing probe's 1e-38).
+  ReadResult tiny = read(world("Surface \"plastic\" \"float roughness\" [1e-38]\nSphere 1 -1 1 360\n"));
+  ASSERT_TRUE(tiny.scene) << tiny.error.format();
+  EXPECT_NE(tiny.warnings.find("'roughness' 1e-38 is below 0.001; using 0.001"), std::string::npos) << tiny.warnings;
 }
 
 // --- The feature scene ---
