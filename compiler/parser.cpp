@@ -707,7 +707,21 @@ StmtPtr Parser::parseIf() {
   s->then = parseStatement();
   if (!s->then) return nullptr;
   if (accept(Tok::KwElse)) {
-    s->otherwise = parseStatement();
+    // An `else if` continues a chain rather than nesting a level: long chains of cases are
+    // common, and only the chain's length is bounded (the later passes recurse along it).
+    if (tok().is(Tok::KwIf)) {
+      if (elseChain_ >= kMaxElseChain) {
+        diags_.report(DiagId::ErrElseChainTooLong, tok().loc).arg(kMaxElseChain).range(tok().range());
+        while (!tok().is(Tok::Eof)) consume();  // every enclosing link would report again
+        stopped_ = true;
+        return nullptr;
+      }
+      ++elseChain_;
+      s->otherwise = parseIf();
+      --elseChain_;
+    } else {
+      s->otherwise = parseStatement();
+    }
     if (!s->otherwise) return nullptr;
   }
   s->range.end = prev().end();

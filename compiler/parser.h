@@ -22,6 +22,8 @@ namespace relief::compiler {
 // a few KiB even in a sanitizer build.
 inline constexpr int kMaxNesting = 256;
 inline constexpr uint32_t kMaxExpressionDepth = 16384;
+// `else if` links being parsed at once; they do not count as nesting.
+inline constexpr int kMaxElseChain = 4096;
 
 class Parser {
  public:
@@ -92,6 +94,7 @@ class Parser {
   std::unique_ptr<TranslationUnit> unit_;
   bool recovering_ = false;  // a statement was kept despite an error: resync after it
   int nesting_ = 0;          // recursion depth of statements and unary expressions
+  int elseChain_ = 0;        // `else if` links being parsed (kMaxElseChain)
   bool stopped_ = false;     // gave up on the file (nesting limit): report nothing more
   bool tooDeep(const char* what);
   ExprPtr bounded(ExprPtr e);

@@ -97,6 +97,23 @@ std::array<double, 3> normalized(std::array<double, 3> a) {
   return {a[0] / l, a[1] / l, a[2] / l};
 }
 
+// Each link of a long `else if` chain is reached by exactly its own case.
+TEST(JitTest, LongElseIfChainTakesItsOwnBranch) {
+  std::string source = "displacement d(float k = 0) {\n  float h = -1;\n  if (k == 0) h = 0;\n";
+  for (int i = 1; i < 1000; ++i) source += "  else if (k == " + std::to_string(i) + ") h = " + std::to_string(i) + ";\n";
+  source += "  else h = 5000;\n  P = point(h, 0, 0);\n}\n";
+  const auto shader = compileOne(source);
+  ASSERT_TRUE(shader);
+  for (float k : {0.0f, 1.0f, 517.0f, 999.0f, 1000.0f}) {
+    runtime::ShaderInstance instance(shader);
+    std::string error;
+    ASSERT_TRUE(instance.bind({"k", runtime::ParamType::Float, {k}, {}}, &error)) << error;
+    TestBatch b(1);
+    evaluateAtSpherePoint(instance, b, 0.3, 0.4);
+    EXPECT_EQ(b.Pout[0][0], k < 1000 ? k : 5000.0f) << k;
+  }
+}
+
 TEST(JitTest, BumpsMatchesHandWrittenVersion) {
   CompileResult r = compileFile(RELIEF_SOURCE_DIR "/examples/shaders/bumps.disp");
   ASSERT_TRUE(r.success()) << renderDiagnostics(r) << r.internalError;

@@ -197,6 +197,18 @@ TEST(ParserTest, HostileNestingGivesOneErrorNotACrash) {
       << errors;
 }
 
+// `else if` chains are not nesting (a shader may list thousands of cases); only their length
+// is bounded, with its own message.
+TEST(ParserTest, ElseIfChainsAreBoundedByLengthNotNesting) {
+  auto chainOf = [](int links) {
+    std::string s = "displacement d(float k = 1) {\n  float h = 0;\n  if (k == 0) h = 0;\n";
+    for (int i = 1; i < links; ++i) s += "  else if (k == " + std::to_string(i) + ") h = " + std::to_string(i) + ";\n";
+    return s + "  P += h * N;\n}\n";
+  };
+  EXPECT_EQ(errorsOf(chainOf(4000)), "");
+  EXPECT_EQ(errorsOf(chainOf(5000)), "4100:8: 'else if' chain too long (the limit is 4096 links)\n");
+}
+
 TEST(ParserTest, LongButAllowedChainsCompileAndRun) {
   std::string chain = "displacement d() { float a = 0";
   for (int i = 0; i < 5000; ++i) chain += " + u";
