@@ -92,6 +92,10 @@ typedef struct RlfHostServices {
                  float* dsdu_out, float* dtdu_out);
   // A message from printf() in a shader; may be null.
   void (*print)(void* context, const char* text);
+  // Where the host bound the shader ("scene.rib:12") and what it is ("displacement shader
+  // 'bumps'), prefixed to runtime errors such as an unreadable texture; each may be null.
+  const char* origin;
+  const char* subject;
 } RlfHostServices;
 
 // The signature of every compiled shader entry point. `params` points at the instance's parameter

@@ -29,13 +29,18 @@ FailureLog& failureLog() {
   static FailureLog log;
   return log;
 }
-void recordFailure(const char* filename, const std::string& why) {
+// Said at the scene line that bound the shader when the host tells it (the first shader to miss
+// the file is named), else under the program's name.
+void recordFailure(const char* filename, const std::string& why, const RlfHostServices* services) {
   FailureLog& log = failureLog();
   std::lock_guard lock(log.mutex);
   if (!log.seen.insert(filename).second) return;
   log.pending.push_back(filename);
-  std::fprintf(stderr, "%s: error: cannot read texture '%s'%s%s; using the fill value\n",
-               log.program.c_str(), filename, why.empty() ? "" : ": ", why.c_str());
+  const char* origin = services && services->origin ? services->origin : log.program.c_str();
+  const bool subject = services && services->subject;
+  std::fprintf(stderr, "%s: error: %s%scannot read texture '%s'%s%s; using the fill value\n", origin,
+               subject ? services->subject : "", subject ? ": " : "", filename, why.empty() ? "" : ": ",
+               why.c_str());
 }
 
 // The texture search path, handed to the library when it is loaded and whenever it changes after.
@@ -97,7 +102,7 @@ extern "C" int32_t rlf_texture(const RlfHostServices* services, const char* file
         return 1;
       why = message;
     }
-    if (!options || !options->hasMissingColor) recordFailure(named ? filename : "", why);
+    if (!options || !options->hasMissingColor) recordFailure(named ? filename : "", why, services);
   } catch (...) {
   }
   fillMissing(options, nchannels, out, dout_ds, dout_dt);

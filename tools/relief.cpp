@@ -9,6 +9,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <deque>
 #include <cstdlib>
 #include <string_view>
 #include <cstring>
@@ -847,9 +848,17 @@ int run(const CommandLine& cl) {
 // A shader prints at every point it displaces, so an unlimited stream would bury everything else.
 class ShaderPrinter {
  public:
-  ShaderPrinter() { services_.context = this, services_.print = &ShaderPrinter::print; }
   void setLimit(uint64_t limit) { limit_ = limit; }
-  const RlfHostServices* services() const { return &services_; }
+  // The services for a shader bound at `origin` ("file:line") as `subject`, which runtime errors
+  // name. Kept for the whole run (a few per frame).
+  const RlfHostServices* services(std::string origin, std::string subject) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    Bound& b = bound_.emplace_back();
+    b.origin = std::move(origin), b.subject = std::move(subject);
+    b.services.context = this, b.services.print = &ShaderPrinter::print;
+    b.services.origin = b.origin.c_str(), b.services.subject = b.subject.c_str();
+    return &b.services;
+  }
   uint64_t dropped() const {
     std::lock_guard<std::mutex> lock(mutex_);
     return dropped_;
@@ -866,7 +875,11 @@ class ShaderPrinter {
     ++self->shown_;
     std::fputs(text, stdout);
   }
-  RlfHostServices services_{};
+  struct Bound {
+    std::string origin, subject;
+    RlfHostServices services{};
+  };
+  std::deque<Bound> bound_;  // a deque: services handed out stay where they are
   mutable std::mutex mutex_;
   uint64_t limit_ = 0, shown_ = 0, dropped_ = 0;
 };
@@ -892,7 +905,10 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
   if (cl.edgeLength > 0.0f)
     for (relief::Displacement& d : scene.displacements) d.edgeLength = cl.edgeLength;
   shaderPrinter().setLimit(cl.printLimit);
-  for (relief::Displacement& d : scene.displacements) d.services = shaderPrinter().services();
+  for (relief::Displacement& d : scene.displacements)
+    d.services = shaderPrinter().services(d.sourceFile.empty() ? std::string("relief")
+                                                              : d.sourceFile + ":" + std::to_string(d.sourceLine),
+                                          "displacement shader '" + (d.shader ? d.shader->name() : std::string()) + "'");
   const uint64_t droppedBefore = shaderPrinter().dropped();
 
   // -o replaces the main display's file; the scene's other displays (AOVs) are still written.

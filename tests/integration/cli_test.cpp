@@ -719,7 +719,8 @@ TEST(Relief, TexturesFollowTheSearchPathAndAMissingOneIsOneError) {
           (dir / "missing.png").string());
   ASSERT_EQ(r.exitCode, 0) << r.err;
   EXPECT_TRUE(fs::exists(dir / "missing.png"));
-  const std::string message = "relief: error: cannot read texture 'nothere.tif'";
+  // Said where the scene bound the shader.
+  const std::string message = "small.rib:11: error: displacement shader 'lift': cannot read texture 'nothere.tif'";
   const size_t first = r.err.find(message);
   EXPECT_NE(first, std::string::npos) << r.err;
   EXPECT_EQ(r.err.find(message, first + 1), std::string::npos) << r.err;  // once per file
@@ -728,7 +729,7 @@ TEST(Relief, TexturesFollowTheSearchPathAndAMissingOneIsOneError) {
   // An empty name is an unreadable file like any other: said once, and why.
   r = run(kRelief + " " + sceneWith("empty", "").string() + " --quiet -o " + (dir / "empty.png").string());
   ASSERT_EQ(r.exitCode, 0) << r.err;
-  const std::string empty = "relief: error: cannot read texture '': the file name is empty";
+  const std::string empty = "small.rib:11: error: displacement shader 'lift': cannot read texture '': the file name is empty";
   const size_t at = r.err.find(empty);
   EXPECT_NE(at, std::string::npos) << r.err;
   EXPECT_EQ(r.err.find(empty, at + 1), std::string::npos) << r.err;
