@@ -1754,6 +1754,7 @@ bool RibParser::doLight(const Call& call) {
   if (!known || singular(attr_.ctm)) {
     // Skipped before its parameters are read (they belong to a shader Relief does not have). The
     // handle is remembered so that an Illuminate of it is a no-op rather than an error.
+    ++scene_.skippedLights;
     if (call.name == "AreaLightSource")
       warnOnce(call.line, "AreaLightSource",
                "'AreaLightSource' is not supported (use LightSource \"arealight\"); skipped");
@@ -3203,8 +3204,9 @@ bool RibParser::buildPolygonMesh(const Call& call, const std::vector<int>& nloop
       const float* v = valueOf(*st, face, point, corner);
       mesh.st.emplace_back(v[0], v[1]);
     } else if (s || t) {
-      mesh.st.emplace_back(s ? valueOf(*s, face, point, corner)[0] : 0.0f,
-                           t ? valueOf(*t, face, point, corner)[0] : 0.0f);
+      // The one not given keeps its default, (u, v), as on every other primitive.
+      mesh.st.emplace_back(s ? valueOf(*s, face, point, corner)[0] : P[3 * point],
+                           t ? valueOf(*t, face, point, corner)[0] : P[3 * point + 1]);
     }
     if (Cs) {
       const float* c = valueOf(*Cs, face, point, corner);

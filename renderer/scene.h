@@ -190,6 +190,7 @@ struct Scene {
   std::vector<DistantLight> distantLights;  // older view of `lights` (see Light)
   float ambient = 0.0f;                // grey level of ambientColor
   glm::vec3 ambientColor{0.0f};        // sum of ambient lights, colour times intensity
+  uint32_t skippedLights = 0;          // light sources the reader skipped (unsupported, singular)
   std::vector<Material> materials;
   std::vector<Displacement> displacements;
   std::vector<Mesh> meshes;

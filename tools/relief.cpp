@@ -946,9 +946,14 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
   const bool anyLitSurface = std::any_of(scene.meshes.begin(), scene.meshes.end(), [&](const relief::Mesh& m) {
     return m.materialIndex >= scene.materials.size() || scene.materials[m.materialIndex].type != relief::SurfaceType::Constant;
   });
-  if (!anyLight && anyLitSurface && warnings)
-    *warnings << cl.scene << ": warning: the scene has no LightSource, so its surfaces (other than "
-              << "Surface \"constant\") render black\n";
+  if (!anyLight && anyLitSurface && warnings) {
+    if (scene.skippedLights)
+      *warnings << cl.scene << ": warning: none of the scene's light sources is one Relief renders (see the "
+                << "warnings above), so its surfaces (other than Surface \"constant\") render black\n";
+    else
+      *warnings << cl.scene << ": warning: the scene has no LightSource, so its surfaces (other than "
+                << "Surface \"constant\") render black\n";
+  }
   std::vector<std::string> outputKeys;
   for (size_t i = 0; i < outputs.size(); ++i) {
     std::error_code ignored;

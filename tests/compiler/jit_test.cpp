@@ -97,6 +97,19 @@ std::array<double, 3> normalized(std::array<double, 3> a) {
   return {a[0] / l, a[1] / l, a[2] / l};
 }
 
+// hypot as C's: no overflow or underflow in the squares (it was inf at 1e20, 0 at 1e-25).
+TEST(JitTest, HypotNeitherOverflowsNorUnderflows) {
+  const auto shader = compileOne(
+      "displacement d(float a = 1e20, b = 1e-25) { P = point(hypot(a, a), hypot(b, b, b), hypot(3, 4)); }");
+  ASSERT_TRUE(shader);
+  runtime::ShaderInstance instance(shader);
+  TestBatch b(1);
+  evaluateAtSpherePoint(instance, b, 0.3, 0.4);
+  EXPECT_NEAR(b.Pout[0][0], std::sqrt(2.0) * 1e20, 1e14);
+  EXPECT_NEAR(b.Pout[1][0], std::sqrt(3.0) * 1e-25, 1e-31);
+  EXPECT_EQ(b.Pout[2][0], 5.0f);
+}
+
 // Each link of a long `else if` chain is reached by exactly its own case.
 TEST(JitTest, LongElseIfChainTakesItsOwnBranch) {
   std::string source = "displacement d(float k = 0) {\n  float h = -1;\n  if (k == 0) h = 0;\n";

@@ -208,6 +208,17 @@ TEST(Relief, SceneWithoutLightsAndReplacedDisplayName) {
   ASSERT_EQ(r.exitCode, 0) << r.err;
   EXPECT_NE(r.err.find(scene.string() + ": warning: the scene has no LightSource"), std::string::npos) << r.err;
   EXPECT_EQ(r.err.find("no image extension"), std::string::npos) << r.err;
+  // Lights that are all unsupported: it is not that the scene has none.
+  const fs::path spot = writeFile(dir / "spot.rib",
+                                  "Format 16 12 1\nWorldBegin\nLightSource \"shadowspot\" 1\n"
+                                  "Translate 0 0 5\nSphere 1 -1 1 360\nWorldEnd\n");
+  r = run(kRelief + " " + spot.string() + " -o " + (dir / "spot.png").string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_EQ(r.err.find("has no LightSource"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("light source 'shadowspot' is not supported"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find(spot.string() + ": warning: none of the scene's light sources is one Relief renders"),
+            std::string::npos)
+      << r.err;
   // Lit, or only constant surfaces: nothing to say.
   for (const auto& [name, world] : {std::pair<std::string, std::string>{"lit", "LightSource \"ambientlight\" 1\n"},
                                     {"constant", "Surface \"constant\"\n"}}) {

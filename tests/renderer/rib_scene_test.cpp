@@ -742,6 +742,25 @@ TEST(RibPolygons, PrimvarClasses) {
                           " \"Cs\" [1 0 0 1]")).scene);
 }
 
+// s and t are separate primitive variables: the one not given keeps its default, (u, v), the
+// object-space (x, y) on polygons (it was 0).
+TEST(RibPolygons, SOrTAloneLeavesTheOtherAtItsDefault) {
+  ReadResult r = read(world("Polygon \"P\" [-1 -1 0  1 -1 0  1 1 0  -1 1 0] \"s\" [0 1 1 0]\n"
+                            "PointsPolygons [4] [0 1 2 3] \"P\" [-1 -1 0  1 -1 0  1 1 0  -1 1 0]"
+                            " \"uniform float t\" [7]\n"));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  ASSERT_EQ(r.scene->meshes.size(), 2u);
+  for (int m = 0; m < 2; ++m) {
+    const Mesh& mesh = r.scene->meshes[size_t(m)];
+    ASSERT_EQ(mesh.st.size(), mesh.P.size());
+    for (size_t i = 0; i < mesh.P.size(); ++i) {
+      const float expectedS[4] = {0, 1, 1, 0};
+      if (m == 0) EXPECT_EQ(mesh.st[i], glm::vec2(expectedS[i % 4], mesh.uv[i].y)) << i;
+      else EXPECT_EQ(mesh.st[i], glm::vec2(mesh.uv[i].x, 7.0f)) << i;
+    }
+  }
+}
+
 TEST(RibPolygons, QuadricPrimvarsAreConstantOrCornerValues) {
   ReadResult r = read(world("Sphere 1 -1 1 360 \"constant color Cs\" [1 0 0]\n"
                             "Cylinder 1 0 1 360 \"st\" [0 0  2 0  0 3  2 3]\n"));
