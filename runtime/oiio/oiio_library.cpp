@@ -105,6 +105,12 @@ int32_t texture(const char* filename, float s, float t, float dsdx, float dtdx, 
       if (options->swrap) opt.swrap = OIIO::TextureOpt::decode_wrapmode(options->swrap);
       if (options->twrap) opt.twrap = OIIO::TextureOpt::decode_wrapmode(options->twrap);
     }
+    // A lookup with no footprint ("width" 0, or coordinates that do not vary) and no blur is a
+    // point sample, as in RenderMan: bilinear between texels, so a texel's centre returns it.
+    // OpenImageIO's default would magnify with a B-spline, which blurs even there.
+    const bool noS = opt.swidth == 0.0f || (dsdx == 0.0f && dsdy == 0.0f);
+    const bool noT = opt.twidth == 0.0f || (dtdx == 0.0f && dtdy == 0.0f);
+    if (noS && noT && opt.sblur == 0.0f && opt.tblur == 0.0f) opt.interpmode = OIIO::TextureOpt::InterpBilinear;
     if (textureSystem()->texture(name, opt, s, t, dsdx, dtdx, dsdy, dtdy, nchannels, out, dout_ds,
                                  dout_dt))
       return 1;

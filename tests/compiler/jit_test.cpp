@@ -1035,6 +1035,59 @@ displacement tex(string a = ""; string b = ""; string missing = "/no/such/textur
   EXPECT_EQ(status.textureErrors, 2u);  // one failing lookup per point; "missingcolor" is silent
 }
 
+// A lookup without footprint ("width" 0, or s and t that do not vary) is a point sample: a texel's
+// centre gives the texel, a boundary between equal texels gives them (OpenImageIO's default
+// B-spline magnification blurred 1 into 0.69 there); with a footprint, filtering is as before.
+TEST(JitTest, TextureWithoutFootprintSamplesTexelsExactly) {
+  const std::string path = ::testing::TempDir() + "/relief_block.exr";
+  {
+    std::vector<float> pixels(16, 0.5f);
+    for (int y = 0; y < 2; ++y)
+      for (int x = 0; x < 2; ++x) pixels[size_t(4 * y + x)] = 1.0f;  // a white 2x2 block, top left
+    auto out = OIIO::ImageOutput::create(path);
+    ASSERT_TRUE(out);
+    ASSERT_TRUE(out->open(path, OIIO::ImageSpec(4, 4, 1, OIIO::TypeDesc::FLOAT)));
+    ASSERT_TRUE(out->write_image(OIIO::TypeDesc::FLOAT, pixels.data()));
+    out->close();
+  }
+  const auto shader = compileOne(R"(
+displacement d(string file = ""; float ss = 0.125, tt = 0.125)
+{
+    float a = texture(file, s, t, "width", 0);
+    float b = texture(file, ss, tt);
+    float c = texture(file, s, t);
+    P = point(a, b, c);
+})");
+  ASSERT_TRUE(shader);
+  struct Case {
+    float s, t, inside;
+  };
+  for (const Case& c : {Case{0.125f, 0.125f, 1.0f}, Case{0.25f, 0.25f, 1.0f}, Case{0.625f, 0.375f, 0.5f}}) {
+    const struct {
+      float x, y;
+    } st{c.s, c.t};
+    const float inside = c.inside;
+    runtime::ShaderInstance instance(shader);
+    std::string error;
+    ASSERT_TRUE(instance.bind({"file", runtime::ParamType::String, {}, {path}}, &error)) << error;
+    ASSERT_TRUE(instance.bind({"ss", runtime::ParamType::Float, {st.x}, {}}, &error)) << error;
+    ASSERT_TRUE(instance.bind({"tt", runtime::ParamType::Float, {st.y}, {}}, &error)) << error;
+    TestBatch b(1);
+    fillSphere(b, 0, 0.3, 0.4);
+    b.s[0] = st.x, b.t[0] = st.y;
+    b.du[0] = b.dv[0] = 0.05f;
+    RlfStatus status{};
+    RlfShadingBatch view = b.all();
+    instance.evaluate(view, status);
+    EXPECT_FLOAT_EQ(b.Pout[0][0], inside) << st.x << " " << st.y;
+    EXPECT_FLOAT_EQ(b.Pout[1][0], inside) << st.x << " " << st.y;
+    if (inside == 1.0f && st.x == 0.125f) {
+      EXPECT_LT(b.Pout[2][0], 1.0f);  // a footprint filters
+    }
+    EXPECT_EQ(status.textureErrors, 0u);
+  }
+}
+
 TEST(JitTest, SpaceNamesMayBeRunTimeStrings) {
   auto shader = compileOne(R"(
 displacement d(string space = "object")
