@@ -2640,7 +2640,23 @@ bool RibParser::doNuPatch(const Call& call) {
     }
   if (!std::isfinite(hull)) return fail(call.line, "'NuPatch': control points must be finite");
   const float target = (attr_.displacement ? 16.0f : 4.0f) * attr_.edgeLength;
-  const int linear = dir[0].order <= 2 && dir[1].order <= 2;
+  // Order 2 both ways is bilinear per span, exactly two triangles where that map is affine: equal
+  // weights (else P is a projective function of (u, v)) and parallelogram spans (else the
+  // isoparametric lines bend, as on a bilinear Patch). Other spans are sampled like curved ones.
+  bool affine = true;
+  for (const glm::vec4& h : H) affine = affine && h.w == H[0].w;
+  for (int j = 0; j + 1 < nv && affine; ++j)
+    for (int i = 0; i + 1 < nu && affine; ++i) {
+      auto at = [&](int a, int b) {
+        const size_t k = 3 * (size_t(b) * size_t(nu) + size_t(a));
+        return glm::vec3(P[k], P[k + 1], P[k + 2]);
+      };
+      const glm::vec3 p00 = at(i, j), p10 = at(i + 1, j), p01 = at(i, j + 1), p11 = at(i + 1, j + 1);
+      const glm::vec3 skew = glm::abs((p00 + p11) - (p10 + p01));
+      const float scale = std::max({glm::length(p10 - p00), glm::length(p01 - p00), glm::length(p11 - p00)});
+      affine = std::max({skew.x, skew.y, skew.z}) <= 1e-5f * scale;
+    }
+  const int linear = dir[0].order <= 2 && dir[1].order <= 2 && affine;
   const int steps = linear ? 1 : std::clamp(int(std::ceil(hull * maxScale(m) * 3.0f / target)), 8, 32);
   std::vector<float> params1[2];
   for (int d = 0; d < 2; ++d) {

@@ -1040,6 +1040,21 @@ TEST(RibPatches, NuPatchRationalSphereSeamsPolesAndErrors) {
     EXPECT_EQ(flat.uv[i].y, 2.0f * flat.P[i].y);  // v runs over the knot range [0, 2]
   }
 
+  // A rational bilinear NuPatch is projective in (u, v): sampled, every vertex on the surface at
+  // its own (u, v) (two triangles put u = 0.25 at x = -0.5, not 0.538).
+  r = read(world("NuPatch 2 2 [0 0 1 1] 0 1 2 2 [0 0 1 1] 0 1 \"Pw\" [-1 -1 0 1  10 -10 0 10  -1 1 0 1  1 1 0 1]\n"));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  const Mesh& rational = r.scene->meshes[0];
+  EXPECT_GT(rational.numTriangles(), 2u);
+  for (size_t i = 0; i < rational.P.size(); ++i) {
+    const float u = rational.uv[i].x, v = rational.uv[i].y;
+    const float w = (1 - v) * ((1 - u) + 10 * u) + v;
+    const float x = ((1 - v) * (-(1 - u) + 10 * u) + v * (-(1 - u) + u)) / w;
+    const float y = ((1 - v) * (-(1 - u) - 10 * u) + v) / w;
+    EXPECT_NEAR(rational.P[i].x, x, 1e-5f) << u << " " << v;
+    EXPECT_NEAR(rational.P[i].y, y, 1e-5f) << u << " " << v;
+  }
+
   const std::pair<const char*, const char*> bad[] = {
       {"NuPatch 2 2 [0 0 1] 0 1 2 2 [0 0 1 1] 0 1 \"P\" [0 0 0 1 0 0 0 1 0 1 1 0]", "uknot needs nu + uorder = 4 values, got 3"},
       {"NuPatch 2 3 [0 0 0 1 1] 0 1 2 2 [0 0 1 1] 0 1 \"P\" [0 0 0 1 0 0 0 1 0 1 1 0]", "at most the count"},
