@@ -602,10 +602,18 @@ class Checker {
         for (auto& d : s.decls) {
           VarDecl* target = nullptr;
           if (!outerScopes_.empty()) {
-            const auto& outer = *outerScopes_.back();
-            for (auto it = outer.rbegin(); it != outer.rend() && !target; ++it) {
-              auto f = it->find(d->name);
-              if (f != it->end()) target = f->second;
+            // The nearest enclosing function's variables first, then those of the functions
+            // around it: lexical scope, so a function nested two deep reaches the shader's locals
+            // without the one between declaring them too.
+            // Each level's first scope is the globals' (see checkFunction): they come last.
+            for (auto level = outerScopes_.rbegin(); level != outerScopes_.rend() && !target; ++level)
+              for (auto it = (*level)->rbegin(); it + 1 < (*level)->rend() && !target; ++it) {
+                auto f = it->find(d->name);
+                if (f != it->end()) target = f->second;
+              }
+            if (!target && !outerScopes_.front()->empty()) {
+              auto f = outerScopes_.front()->front().find(d->name);
+              if (f != outerScopes_.front()->front().end()) target = f->second;
             }
           } else {
             target = lookup(d->name);

@@ -508,6 +508,27 @@ displacement d()
   EXPECT_EQ(printed, "11 10 4 40 7 100\n");
 }
 
+TEST(FunctionTest, ExternReachesAcrossNestingLevelsInLexicalOrder) {
+  // A function nested two deep reaches the shader's local without the one between declaring it;
+  // the nearest enclosing declaration wins, locals before globals.
+  TestBatch b(1);
+  const std::string printed = evaluate(R"(
+displacement d()
+{
+    float k = 1, m = 3;
+    float outer() {
+        float m = 7;
+        float inner() { extern float k, m; k += 1; return 10 * k + m; }
+        return inner();
+    }
+    float got = outer();
+    float viaP() { float deeper() { extern point P; return P[0]; } return deeper(); }
+    printf("%g %g %g %g\n", got, k, m, viaP());
+})",
+                                       b);
+  EXPECT_EQ(printed, "27 2 3 0.25\n");
+}
+
 TEST(FunctionTest, SplineAndIndicesOverUnsizedArrayParameters) {
   // §6.6 takes `T k[]`; through an unsized parameter the knot count is known where the function
   // is inlined: used there, and a count the basis cannot use (or a constant index out of the
