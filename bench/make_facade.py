@@ -16,8 +16,8 @@ WIN_X = (-1.0, 1.0)   # window opening
 WIN_Y = (2.0, 4.0)
 RECESS = 0.3          # depth of the window reveal
 JOINT = 0.03          # open joint between stones, showing the backing wall
-EDGE = 0.0202         # world-space subdivision target: sets the displaced triangle count
-FLATNESS = 0.002      # simplification tolerance (paper 3.1): flat stretches stay coarser
+EDGE = 0.017          # world-space subdivision target: sets the displaced triangle count
+FLATNESS = 0.001      # simplification tolerance (paper 3.1): flat stretches stay coarser
 
 
 class Mesh:

@@ -192,13 +192,15 @@ struct Scratch {
 };
 
 // Frame of the input triangle shared by all its vertices: geometric normal, dP/du and dP/dv of its
-// (u, v) parameterisation, and the parameter extents that set du/dv per level.
+// (u, v) parameterisation, and the seeds.
 struct TriangleFrame {
   glm::vec3 Ng, dPdu, dPdv;
   glm::vec3 dNdu{0}, dNdv{0};  // derivative seeds of N (language.md 6.4): zero on flat faces
   float dsdu = 1, dsdv = 0, dtdu = 0, dtdv = 1;  // seeds of s and t
-  float uExtent, vExtent;
   bool ngFollowsN = false;  // Mesh::smoothSurface: each vertex's Ng is its N
+  // World length of a unit step of (u, v) on meshes without per-vertex derivatives (polygons and
+  // subdivision meshes, whose (u, v) is the object-space (x, y)): the object-to-current scale.
+  float paramScale = 1.0f;
 };
 
 bool finite(glm::vec3 v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
@@ -257,12 +259,6 @@ TriangleFrame makeFrame(const glm::vec3 p[3], const glm::vec3 n[3], const glm::v
     f.dPdv = glm::cross(f.Ng, f.dPdu);
   }
   if (!finite(f.dPdu) || !finite(f.dPdv)) f.dPdu = f.dPdv = glm::vec3(0);
-  auto extent = [&](int c) {
-    float lo = std::min({uv[0][c], uv[1][c], uv[2][c]}), hi = std::max({uv[0][c], uv[1][c], uv[2][c]});
-    return hi - lo > 0.0f ? hi - lo : 1.0f;
-  };
-  f.uExtent = extent(0);
-  f.vExtent = extent(1);
   return f;
 }
 
@@ -272,11 +268,12 @@ TriangleFrame makeFrame(const Mesh& mesh, const glm::vec3 p[3], const glm::vec3 
   const bool smoothNormals = mesh.N.size() == mesh.P.size();
   TriangleFrame f = makeFrame(p, n, uv, st, smoothNormals, disp.reverseOrientation);
   f.ngFollowsN = mesh.smoothSurface && smoothNormals;
+  const float* m = disp.spaces.currentFromObject;  // column-major
+  const glm::mat3 linear(m[0], m[1], m[2], m[4], m[5], m[6], m[8], m[9], m[10]);
+  const float scale = std::cbrt(std::fabs(glm::determinant(linear)));
+  f.paramScale = scale > 0.0f && std::isfinite(scale) ? scale : 1.0f;
   return f;
 }
-
-// Deepest vertex level: the depth limit plus the interior samples below it.
-constexpr int kMaxLevel = 40;
 
 // Points per shader call. A round of a fine subdivision makes hundreds of thousands of vertices,
 // and a batch for all of them held ~110 bytes a point per thread (9 MB of a 10%-budget render's
@@ -302,15 +299,26 @@ void displaceBatch(const Displacement& disp, const TriangleFrame& frame, Vertice
     batch.dtdu[i] = frame.dtdu, batch.dtdv[i] = frame.dtdv;
   }
   batch.constCount = std::max(batch.constCount, n);
-  // Parametric spacing per level: 2^-level of the triangle's extents.
-  static const auto spacing = [] {
-    std::array<float, kMaxLevel + 1> table{};
-    for (int l = 0; l <= kMaxLevel; ++l) table[size_t(l)] = std::ldexp(1.0f, -l);
-    return table;
-  }();
-  for (uint32_t i = 0; i < n; ++i) {
-    const float sp = spacing[size_t(std::min<int>(vs.level[first + i], kMaxLevel))];
-    batch.du[i] = frame.uExtent * sp, batch.dv[i] = frame.vExtent * sp;
+  // du and dv: the parametric step that moves the undisplaced surface by the target edge length,
+  // the spacing of the finished tessellation. A function of the vertex alone (its own dPdu and
+  // dPdv where the mesh has them, else the mesh's scale), never of its level or of the input
+  // triangle: filtered lookups (filterwidth, area, texture footprints) then vary smoothly and agree
+  // on both sides of every shared edge, so a shader displacing by them neither cracks nor jumps
+  // between levels. Where a derivative vanishes (a pole), the other one's step stands in.
+  const float edge = disp.edgeLength > 0.0f && std::isfinite(disp.edgeLength) ? disp.edgeLength : 1.0f;
+  auto step = [edge](float own, float other) {
+    const float length = own > 0.0f ? own : other > 0.0f ? other : 1.0f;
+    const float d = edge / length;
+    return d > 0.0f && std::isfinite(d) ? d : edge;
+  };
+  if (vs.derivatives) {
+    for (uint32_t i = 0; i < n; ++i) {
+      const float lu = glm::length(vs.dPdu.get(first + i)), lv = glm::length(vs.dPdv.get(first + i));
+      batch.du[i] = step(lu, lv), batch.dv[i] = step(lv, lu);
+    }
+  } else {
+    const float d = step(frame.paramScale, 0.0f);
+    std::fill_n(batch.du.data(), n, d), std::fill_n(batch.dv.data(), n, d);
   }
   // The ABI has the shader write every output; preset them anyway so a shader that does not
   // cannot leak an earlier batch's values (thread-dependent) into the geometry.

@@ -29,11 +29,12 @@
 // otherwise. Simplification costs shader evaluations (the lookahead and samples) and saves
 // micro-triangles; SubdivideCounters reports both counts.
 // Ng is each vertex's N on smooth surfaces (Mesh::smoothSurface), and dPdu/dPdv are per vertex
-// where the mesh has them (Mesh::dPdu), so shared exactly there; du/dv are the vertex level's
-// spacing of the input triangle's extents.
-// Known limit: a shader reading dNdu/dNdv, the s/t seeds, du/dv or a polygon's Ng or dPdu/dPdv
-// (per input triangle) may displace a shared edge differently from its two sides; P, N, u, v, s, t
-// are shared exactly.
+// where the mesh has them (Mesh::dPdu), so shared exactly there; du/dv are the parametric step
+// that moves the surface by the edge length (from the vertex's own dPdu/dPdv, or the mesh's
+// scale), so shared exactly too.
+// Known limit: a shader reading dNdu/dNdv, the s/t seeds or a polygon's Ng or dPdu/dPdv (per
+// input triangle) may displace a shared edge differently from its two sides; P, N, u, v, s, t, du
+// and dv are shared exactly.
 #pragma once
 
 #include <atomic>

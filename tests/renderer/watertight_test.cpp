@@ -157,6 +157,40 @@ TEST(Watertight, DisplacingAlongNgOrATangentKeepsASmoothSurfaceClosed) {
   }
 }
 
+// Displacing by a filter width, as antialiased shaders do (sqrt(area(P)) = the footprint of
+// du and dv): du and dv are a function of the vertex alone (the parametric step of the edge
+// length along its own dPdu and dPdv), so both sides of every edge agree and the sphere stays
+// closed. They were 2^-level of each input triangle's extents, which differ between a coarse
+// corner and its fine neighbours and across input triangles: such shaders cracked.
+void footprintEntry(const RlfShadingBatch* b, const void*, RlfStatus*) {
+  for (uint32_t i = 0; i < b->count; ++i) {
+    const glm::vec3 dpdu(b->dPdu.x[i], b->dPdu.y[i], b->dPdu.z[i]), dpdv(b->dPdv.x[i], b->dPdv.y[i], b->dPdv.z[i]);
+    const glm::vec3 n(b->N.x[i], b->N.y[i], b->N.z[i]);
+    const float width = std::sqrt(glm::length(glm::cross(dpdu * b->du[i], dpdv * b->dv[i])));
+    const glm::vec3 p = glm::vec3(b->P.x[i], b->P.y[i], b->P.z[i]) + (0.02f + 2.0f * width) * n;
+    b->Pout.x[i] = p.x, b->Pout.y[i] = p.y, b->Pout.z[i] = p.z;
+    b->Nout.x[i] = n.x, b->Nout.y[i] = n.y, b->Nout.z[i] = n.z;
+  }
+}
+
+TEST(Watertight, DisplacingByTheFilterFootprintKeepsASmoothSurfaceClosed) {
+  SphereOptions o = watertightOptions();
+  o.entry = footprintEntry;
+  Scene scene = makeSphereScene(o);
+  // u warped, so neighbouring input triangles span different extents of it (as on meshes whose
+  // triangles differ in size), which the old spacing could not agree on.
+  for (glm::vec2& uv : scene.meshes[0].uv) uv.x *= uv.x;
+  scene.meshes[0].smoothSurface = true;
+  smoothSurfaceDerivatives(scene.meshes[0]);
+  auto accel = makeGridAccelerator(scene, AccelOptions{});
+  int misses = 0;
+  for (const Ray& ray : testing::randomRays(4000, 20261129, 3.0f, 0.0f)) {
+    auto hit = accel->intersect(ray);
+    misses += !hit || glm::dot(ray.origin + hit->t * ray.direction, ray.direction) > 0.0f;
+  }
+  EXPECT_EQ(misses, 0);
+}
+
 // Simplification removes a good share of the triangles without moving the surface much.
 TEST(Watertight, SimplificationReducesTriangles) {
   const Scene full = makeSphereScene(watertightOptions(0.0f));
