@@ -111,6 +111,30 @@ int32_t texture(const char* filename, float s, float t, float dsdx, float dtdx, 
     const bool noS = opt.swidth == 0.0f || (dsdx == 0.0f && dsdy == 0.0f);
     const bool noT = opt.twidth == 0.0f || (dtdx == 0.0f && dtdy == 0.0f);
     if (noS && noT && opt.sblur == 0.0f && opt.tblur == 0.0f) opt.interpmode = OIIO::TextureOpt::InterpBilinear;
+    // Channels the file lacks are `fill` (language.md 6.7). OpenImageIO handles that past the
+    // first channel, but a first channel beyond the file's asserts (and reads out of bounds), so
+    // such a lookup is answered here. The count is cached per name and thread (ustring text
+    // pointers identify names); the first channel is 0 in most lookups and then needs no count.
+    if (opt.firstchannel > 0) {
+      thread_local std::unordered_map<const char*, int> channelsOf;
+      auto found = channelsOf.find(name.c_str());
+      if (found == channelsOf.end()) {
+        int channels = 0;
+        if (!textureSystem()->get_texture_info(name, 0, OIIO::ustring("channels"), OIIO::TypeDesc::INT, &channels)) {
+          (void)textureSystem()->geterror();  // the lookup below reports the unreadable file
+          channels = -1;
+        }
+        found = channelsOf.emplace(name.c_str(), channels).first;
+      }
+      if (found->second >= 0 && opt.firstchannel >= found->second) {
+        for (int32_t c = 0; c < nchannels; ++c) {
+          out[c] = opt.fill;
+          if (dout_ds) dout_ds[c] = 0.0f;
+          if (dout_dt) dout_dt[c] = 0.0f;
+        }
+        return 1;
+      }
+    }
     if (textureSystem()->texture(name, opt, s, t, dsdx, dtdx, dsdy, dtdy, nchannels, out, dout_ds,
                                  dout_dt))
       return 1;

@@ -1088,6 +1088,51 @@ displacement d(string file = ""; float ss = 0.125, tt = 0.125)
   }
 }
 
+// A channel the file does not have is the fill value (language.md 6.7), also as the first
+// channel: OpenImageIO asserted there (and read out of bounds) when minifying.
+TEST(JitTest, TextureChannelsBeyondTheFileAreTheFill) {
+  const std::string path = ::testing::TempDir() + "/relief_gray64.tif";
+  {
+    std::vector<float> pixels(64 * 64, 0.75f);
+    auto out = OIIO::ImageOutput::create(path);
+    ASSERT_TRUE(out);
+    OIIO::ImageSpec spec(64, 64, 1, OIIO::TypeDesc::UINT8);
+    spec.attribute("oiio:ColorSpace", "Linear");
+    ASSERT_TRUE(out->open(path, spec));
+    ASSERT_TRUE(out->write_image(OIIO::TypeDesc::FLOAT, pixels.data()));
+    out->close();
+  }
+  const auto shader = compileOne(R"(
+displacement d(string file = "")
+{
+    float a = texture(file[1], s, t);
+    float b = texture(file, s, t, "firstchannel", 2, "fill", 0.5);
+    color c = texture(file, s, t, "firstchannel", 1, "fill", 0.25);
+    float g = texture(file[0], s, t, "wrap", "clamp");
+    P = point(a, b, g);
+    N = normal(c);
+})");
+  ASSERT_TRUE(shader);
+  runtime::ShaderInstance instance(shader);
+  std::string error;
+  ASSERT_TRUE(instance.bind({"file", runtime::ParamType::String, {}, {path}}, &error)) << error;
+  TestBatch b(3);
+  fillSphere(b, 0, 0.3, 0.4);
+  fillSphere(b, 1, 0.6, 0.7);
+  fillSphere(b, 2, 0.999, 0.999);  // the last texel of the last tile
+  for (size_t i = 0; i < 3; ++i) b.du[i] = b.dv[i] = 0.3f;  // a footprint of many texels: minified
+  RlfStatus status{};
+  RlfShadingBatch view = b.all();
+  instance.evaluate(view, status);
+  for (size_t i = 0; i < 3; ++i) {
+    EXPECT_EQ(b.Pout[0][i], 0.0f);
+    EXPECT_EQ(b.Pout[1][i], 0.5f);
+    EXPECT_NEAR(b.Pout[2][i], 0.75f, 0.003f);
+    for (int k = 0; k < 3; ++k) EXPECT_EQ(b.Nout[k][i], 0.25f);
+  }
+  EXPECT_EQ(status.textureErrors, 0u);
+}
+
 TEST(JitTest, SpaceNamesMayBeRunTimeStrings) {
   auto shader = compileOne(R"(
 displacement d(string space = "object")
