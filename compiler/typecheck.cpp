@@ -1499,6 +1499,9 @@ class Checker {
         e.isVarying = true;
         noteVaryingSource();
         break;
+      case BuiltinShape::Arraylength:
+        e.isVarying = false;  // the length is the declaration's, whatever the elements hold
+        break;
       case BuiltinShape::Comp: {
         const bool m = args[0]->type.kind == TypeKind::Matrix;
         if (badConstantIndex(*args[1], m ? 4 : 3, args[0]->type) || (m && badConstantIndex(*args[2], 4, args[0]->type)))

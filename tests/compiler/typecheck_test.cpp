@@ -210,5 +210,12 @@ TEST(TypeCheckTest, TheInlineLimitCountsOnlyWhatTheShaderCalls) {
   EXPECT_NE(text.find("note: 'f15' alone passes the limit here, with its calls of 'f14'"), std::string::npos) << text;
 }
 
+// arraylength is the declaration's length, uniform whatever the elements hold (RSL returns a
+// uniform float): a varying local array's length was rejected for a uniform variable.
+TEST(TypeCheckTest, ArraylengthIsUniform) {
+  EXPECT_EQ(check("float loc[4];\nloc[0] = u;\nuniform float m = arraylength(loc);\nP += m * loc[0] * N;").errors, "");
+  EXPECT_EQ(check("uniform float m = arraylength(k);\nP += m * N;", "float k[3] = {1, 2, 3}").errors, "");
+}
+
 }  // namespace
 }  // namespace relief::compiler
