@@ -696,8 +696,15 @@ class Checker {
         if (!d) {
           if (!suppress_ && initializing_ && initializing_->name == e.text)
             report(DiagId::ErrOwnInitializer, e.range.begin).arg(e.text).range(e.opRange);
-          else if (!suppress_ && undeclaredReported_.insert(e.text).second)
-            report(DiagId::ErrUndeclared, e.range.begin).arg(e.text).range(e.opRange);
+          else if (!suppress_ && undeclaredReported_.insert(e.text).second) {
+            // RSL's surface-shading globals (language.md 5 names them): say why they are missing.
+            static const std::set<std::string> kRslGlobals = {"I",    "E",     "L",       "Cl",    "Ol",
+                                                               "Cs",   "Os",    "Ci",      "Oi",    "time",
+                                                               "dtime", "dPdtime", "ncomps", "alpha"};
+            auto r = report(DiagId::ErrUndeclared, e.range.begin);
+            r.arg(e.text).range(e.opRange);
+            if (kRslGlobals.count(e.text)) r.note(DiagId::NoteRslGlobal, e.range.begin, {e.text}, e.opRange);
+          }
           return set(e, kError);
         }
         ++d->reads;
@@ -1504,8 +1511,18 @@ class Checker {
     }
     if (!b) {
       // Once per body, as undeclared variables: the first call says it.
-      if (!suppress_ && undeclaredReported_.insert(e.text + "()").second)
-        report(DiagId::ErrUndeclaredFunction, e.range.begin).arg(e.text).range(e.opRange);
+      if (!suppress_ && undeclaredReported_.insert(e.text + "()").second) {
+        // RSL built-ins of surface and light shading, or of the renderer's state.
+        static const std::set<std::string> kRslFunctions = {
+            "environment", "shadow",   "depth",       "textureinfo", "attribute",  "option",
+            "rendererinfo", "incident", "opposite",    "lightsource", "surface",    "atmosphere",
+            "trace",       "transmission", "occlusion", "indirectdiffuse", "gather", "diffuse",
+            "specular",    "specularbrdf", "ambient",  "phong",       "fresnel",    "bake3d",
+            "texture3d",   "ctransform", "match",     "shadername",  "bump",       "illuminance"};
+        auto r = report(DiagId::ErrUndeclaredFunction, e.range.begin);
+        r.arg(e.text).range(e.opRange);
+        if (kRslFunctions.count(e.text)) r.note(DiagId::NoteRslFunction, e.range.begin, {e.text}, e.opRange);
+      }
       return set(e, kError);
     }
     if (!ok) return set(e, kError);
