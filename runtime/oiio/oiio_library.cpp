@@ -23,6 +23,10 @@ OIIO::TextureSystem* textureSystem() {
   static OIIO::TextureSystem* ts = [] {
     OIIO::TextureSystem* t = OIIO::TextureSystem::create(true);
     t->attribute("automip", 1);
+    // Texture channels are data (heights, masks): an RGBA file's colour comes back as stored, not
+    // multiplied by its alpha (OpenImageIO associates alpha by default, so a height under alpha
+    // 0.5 read as half of itself).
+    t->attribute("unassociatedalpha", 1);
     return t;
   }();
   return ts;

@@ -1133,6 +1133,37 @@ displacement d(string file = "")
   EXPECT_EQ(status.textureErrors, 0u);
 }
 
+// Texture channels are data: an RGBA file's colour is read as stored, not multiplied by alpha.
+TEST(JitTest, TextureColourIsNotMultipliedByAlpha) {
+  const std::string path = ::testing::TempDir() + "/relief_rgba.png";
+  {
+    std::vector<uint8_t> pixels;
+    for (int i = 0; i < 16; ++i) pixels.insert(pixels.end(), {255, 200, 100, 128});
+    auto out = OIIO::ImageOutput::create(path);
+    ASSERT_TRUE(out);
+    OIIO::ImageSpec spec(4, 4, 4, OIIO::TypeDesc::UINT8);
+    spec.attribute("oiio:UnassociatedAlpha", 1);  // the bytes as given, not divided by alpha
+    ASSERT_TRUE(out->open(path, spec));
+    ASSERT_TRUE(out->write_image(OIIO::TypeDesc::UINT8, pixels.data()));
+    out->close();
+  }
+  const auto shader = compileOne(R"(
+displacement d(string file = "")
+{
+    color c = texture(file, 0.5, 0.5);
+    P = point(comp(c, 0), comp(c, 1), float texture(file[3], 0.5, 0.5));
+})");
+  ASSERT_TRUE(shader);
+  runtime::ShaderInstance instance(shader);
+  std::string error;
+  ASSERT_TRUE(instance.bind({"file", runtime::ParamType::String, {}, {path}}, &error)) << error;
+  TestBatch b(1);
+  evaluateAtSpherePoint(instance, b, 0.3, 0.4);
+  EXPECT_NEAR(b.Pout[0][0], 1.0f, 1e-3f);
+  EXPECT_NEAR(b.Pout[1][0], 200.0f / 255, 1e-3f);
+  EXPECT_NEAR(b.Pout[2][0], 128.0f / 255, 1e-3f);
+}
+
 TEST(JitTest, SpaceNamesMayBeRunTimeStrings) {
   auto shader = compileOne(R"(
 displacement d(string space = "object")
