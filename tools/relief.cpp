@@ -589,16 +589,21 @@ void reportOutOfMemory(const std::string& sceneFile, const relief::Scene& scene,
 
 // A budget that holds only a few of the largest voxels makes voxels evict each other in turn
 // (sphere_box at 50K triangles: its largest voxel holds 38K, and 79K refills took 475 s against
-// 0.7 s unlimited). Said once, after the render, when refills outnumbered first fills.
-void reportThinBudget(const std::string& scene, const relief::AccelStats& a, std::ostream& out) {
-  constexpr uint64_t kVoxels = 4;
-  if (a.budgetTriangles == UINT64_MAX || a.maxVoxelTriangles == 0) return;
-  if (a.budgetTriangles >= kVoxels * a.maxVoxelTriangles || a.capacityMisses <= a.compulsoryMisses) return;
+// 0.7 s unlimited; a generous displacement bound makes such voxels too). Said once: during the
+// render as soon as refills clearly outnumber first fills (Progress), since such a render may run
+// for minutes, else after it when refills outnumbered first fills at all.
+constexpr uint64_t kThinBudgetVoxels = 4;
+bool thinBudget(const relief::AccelStats& a) {
+  return a.budgetTriangles != UINT64_MAX && a.maxVoxelTriangles != 0 &&
+         a.budgetTriangles < kThinBudgetVoxels * a.maxVoxelTriangles && a.capacityMisses > a.compulsoryMisses;
+}
+void reportThinBudget(const std::string& scene, const relief::AccelStats& a, std::ostream& out, bool sofar = false) {
+  if (!thinBudget(a)) return;
   out << scene << ": warning: the cache budget of " << a.budgetTriangles
-      << " displaced triangles holds fewer than " << kVoxels << " of the largest voxels ("
+      << " displaced triangles holds fewer than " << kThinBudgetVoxels << " of the largest voxels ("
       << a.maxVoxelTriangles << " triangles), and voxels were refilled " << a.capacityMisses
-      << " times after " << a.compulsoryMisses
-      << " first fills: raise --cache-triangles, or --grid-resolution for smaller voxels\n";
+      << " times after " << a.compulsoryMisses << " first fills" << (sofar ? " so far (the render goes on, slowly)" : "")
+      << ": raise --cache-triangles, or --grid-resolution for smaller voxels\n";
 }
 
 // Whether a file can be made at `path`: its directory is created if missing (as -o promises),
@@ -660,10 +665,25 @@ std::string clock(double seconds) {
 // every 10% otherwise (logs, CI). Reads the cache statistics only to print them.
 class Progress {
  public:
-  Progress(const relief::Accelerator& accel, bool terminal)
-      : accel_(accel), terminal_(terminal), start_(std::chrono::steady_clock::now()) {}
+  // `thinBudgetTo`: where to say early that the budget thrashes (reportThinBudget), or null.
+  Progress(const relief::Accelerator& accel, bool terminal, const std::string& scene = "",
+           std::ostream* thinBudgetTo = nullptr)
+      : accel_(accel), terminal_(terminal), start_(std::chrono::steady_clock::now()), scene_(scene),
+        thinBudgetTo_(thinBudgetTo) {}
+  bool warnedThinBudget() const { return warnedThin_; }
 
   void update(int percent) {
+    // Called at each further percent: a thrashing budget is said as soon as it shows.
+    if (thinBudgetTo_ && !warnedThin_) {
+      const relief::AccelStats a = accel_.stats();
+      if (thinBudget(a) && a.capacityMisses > 2 * a.compulsoryMisses + 64) {
+        if (terminal_ && drawn_) std::fprintf(stderr, "\r%*s\r", 100, "");
+        std::fflush(stderr);
+        reportThinBudget(scene_, a, *thinBudgetTo_, true);
+        warnedThin_ = true;
+        drawn_ = false;
+      }
+    }
     const auto now = std::chrono::steady_clock::now();
     if (terminal_) {
       if (percent < 100 && drawn_ && now - lastDraw_ < std::chrono::milliseconds(100)) return;
@@ -703,6 +723,9 @@ class Progress {
   std::chrono::steady_clock::time_point start_, lastDraw_;
   bool drawn_ = false;
   int lastDecile_ = -1;
+  std::string scene_;
+  std::ostream* thinBudgetTo_;
+  bool warnedThin_ = false;
 };
 
 enum class OutputKind { Colour, Alpha, Depth, Normal, CacheMiss };
@@ -1138,7 +1161,7 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
   renderOptions.sharedWalk = cl.accel == "grid" && accelOptions.cacheBudgetTriangles != UINT64_MAX;
   if (const char* env = std::getenv("RELIEF_WALK"); env && cl.accel == "grid")
     renderOptions.sharedWalk = std::string_view(env) == "shared";
-  Progress progress(*accel, ::isatty(STDERR_FILENO) != 0);
+  Progress progress(*accel, ::isatty(STDERR_FILENO) != 0, cl.scene, warnings);
   if (!cl.quiet) renderOptions.progress = [&progress](int percent) { progress.update(percent); };
 
   // RI CropWindow: the film and the images written hold the crop only.
@@ -1299,7 +1322,7 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
   const relief::AccelStats accelStats = accel->stats();
   if (warnings) {
     reportShaderProblems(scene, *warnings);
-    reportThinBudget(cl.scene, accelStats, *warnings);
+    if (!progress.warnedThinBudget()) reportThinBudget(cl.scene, accelStats, *warnings);
   }
   const StatList stats =
       collectStats(cl, scene, accelStats, renderStats, renderOptions.order, loadSeconds, buildSeconds, inputTriangles);

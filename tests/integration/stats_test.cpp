@@ -291,6 +291,35 @@ TEST(Stats, ThrashingBudgetIsReported) {
   EXPECT_EQ(readFile(dir / "roomy.log").find("warning"), std::string::npos) << readFile(dir / "roomy.log");
 }
 
+// Voxels made coarse by a generous displacement bound thrash a budget from the start: the
+// warning comes while the render runs (it may run for minutes), once, and not again after it.
+TEST(Stats, ClearThrashingIsSaidDuringTheRender) {
+  const fs::path dir = scratchDir();
+  std::string scene = readFile(kSource + "/examples/scenes/sphere.rib");
+  const size_t bound = scene.find("\"float sphere\" [0.06]");
+  ASSERT_NE(bound, std::string::npos);
+  scene.replace(bound, std::string("\"float sphere\" [0.06]").size(), "\"float sphere\" [0.5]");
+  const size_t path = scene.find("Option \"searchpath\"");
+  ASSERT_NE(path, std::string::npos);
+  scene.erase(path, scene.find('\n', path) - path);
+  {
+    std::ofstream out(dir / "coarse.rib");
+    out << scene;
+  }
+  const fs::path log = dir / "coarse.log";
+  ASSERT_EQ(runCommand(kRelief + " " + (dir / "coarse.rib").string() + " -I " + kSource +
+                           "/examples/shaders --resolution 48x36 --threads 1 --cache-triangles 60000 -o " +
+                           (dir / "coarse.png").string(),
+                       log),
+            0)
+      << readFile(log);
+  const std::string text = readFile(log);
+  const size_t warning = text.find("so far (the render goes on, slowly): raise --cache-triangles");
+  ASSERT_NE(warning, std::string::npos) << text;
+  EXPECT_LT(warning, text.find("rendering 100%")) << text;
+  EXPECT_EQ(text.find("holds fewer than", text.find("holds fewer than") + 1), std::string::npos) << text;
+}
+
 TEST(Stats, HumanReadableStatsShowTheSameKeys) {
   const fs::path dir = scratchDir(), log = dir / "stats.txt";
   ASSERT_EQ(runCommand(kRelief + " " + kSphereScene + " --quiet --resolution 32x24 --stats -o " +
