@@ -51,21 +51,24 @@ int32_t guarded(char* error, size_t errorSize, Body&& body) {
   return 0;
 }
 
-// The texture search path as last set (setTextureSearchPath), for regularFile.
+// The texture search path as last set (setTextureSearchPath), for nameInfo.
 std::mutex searchPathMutex;
 std::string searchPathJoined;
 std::atomic<uint64_t> searchPathGeneration{0};  // bumped by every setTextureSearchPath
 
-// Whether `name` names no device or pipe where OpenImageIO would look for it: its format probes
-// read a device such as /dev/zero for ever. Checked once per name and thread (names are ustrings,
-// so their text pointers identify them).
-bool regularFile(OIIO::ustring name) {
-  thread_local std::unordered_map<const char*, bool> known;
+// What is known of a texture name on this thread, by the ustring text pointer that identifies
+// it; dropped when the search path changes (a new frame's may resolve the name elsewhere).
+struct NameInfo {
+  bool regular = true;  // no device or pipe where OpenImageIO would look (its probes read /dev/zero for ever)
+  int channels = -2;    // the file's channel count once asked (channelCount); -1: unreadable
+};
+NameInfo& nameInfo(OIIO::ustring name) {
+  thread_local std::unordered_map<const char*, NameInfo> known;
   thread_local uint64_t knownGeneration = 0;
-  // A new search path (a new frame's) may resolve a name elsewhere: what was learnt is dropped.
   if (const uint64_t g = searchPathGeneration.load(std::memory_order_acquire); g != knownGeneration)
     known.clear(), knownGeneration = g;
-  if (const auto it = known.find(name.c_str()); it != known.end()) return it->second;
+  const auto [it, added] = known.try_emplace(name.c_str());
+  if (!added) return it->second;
   std::vector<std::filesystem::path> candidates{std::filesystem::path(name.string())};
   if (!candidates[0].is_absolute()) {
     std::string joined;
@@ -77,16 +80,27 @@ bool regularFile(OIIO::ustring name) {
     for (std::string dir; std::getline(dirs, dir, ':');)
       if (!dir.empty()) candidates.push_back(std::filesystem::path(dir) / name.string());
   }
-  bool regular = true;
   for (const std::filesystem::path& candidate : candidates) {
     std::error_code ec;
     const std::filesystem::file_status status = std::filesystem::status(candidate, ec);
     if (ec || !std::filesystem::exists(status)) continue;
-    regular = std::filesystem::is_regular_file(status);
+    it->second.regular = std::filesystem::is_regular_file(status);
     break;
   }
-  known.emplace(name.c_str(), regular);
-  return regular;
+  return it->second;
+}
+
+// The file's channel count, or -1 when it cannot be read (the lookup itself then reports why).
+int channelCount(OIIO::ustring name, NameInfo& info) {
+  if (info.channels == -2) {
+    int channels = 0;
+    if (!textureSystem()->get_texture_info(name, 0, OIIO::ustring("channels"), OIIO::TypeDesc::INT, &channels)) {
+      (void)textureSystem()->geterror();
+      channels = -1;
+    }
+    info.channels = channels;
+  }
+  return info.channels;
 }
 
 int32_t texture(const char* filename, float s, float t, float dsdx, float dtdx, float dsdy, float dtdy,
@@ -94,7 +108,8 @@ int32_t texture(const char* filename, float s, float t, float dsdx, float dtdx, 
                 char* why, size_t whySize) {
   return guarded(why, whySize, [&]() -> int32_t {
     const OIIO::ustring name(filename);
-    if (!regularFile(name)) {
+    NameInfo& info = nameInfo(name);
+    if (!info.regular) {
       copyMessage("not a regular file", why, whySize);
       return 0;
     }
@@ -117,20 +132,10 @@ int32_t texture(const char* filename, float s, float t, float dsdx, float dtdx, 
     if (noS && noT && opt.sblur == 0.0f && opt.tblur == 0.0f) opt.interpmode = OIIO::TextureOpt::InterpBilinear;
     // Channels the file lacks are `fill` (language.md 6.7). OpenImageIO handles that past the
     // first channel, but a first channel beyond the file's asserts (and reads out of bounds), so
-    // such a lookup is answered here. The count is cached per name and thread (ustring text
-    // pointers identify names); the first channel is 0 in most lookups and then needs no count.
+    // such a lookup is answered here; the first channel is 0 in most lookups and needs no count.
     if (opt.firstchannel > 0) {
-      thread_local std::unordered_map<const char*, int> channelsOf;
-      auto found = channelsOf.find(name.c_str());
-      if (found == channelsOf.end()) {
-        int channels = 0;
-        if (!textureSystem()->get_texture_info(name, 0, OIIO::ustring("channels"), OIIO::TypeDesc::INT, &channels)) {
-          (void)textureSystem()->geterror();  // the lookup below reports the unreadable file
-          channels = -1;
-        }
-        found = channelsOf.emplace(name.c_str(), channels).first;
-      }
-      if (found->second >= 0 && opt.firstchannel >= found->second) {
+      const int channels = channelCount(name, info);
+      if (channels >= 0 && opt.firstchannel >= channels) {
         for (int32_t c = 0; c < nchannels; ++c) {
           out[c] = opt.fill;
           if (dout_ds) dout_ds[c] = 0.0f;
