@@ -1,4 +1,6 @@
-// Text dump of the syntax tree (tests, `reliefc --emit-ast`): one node per line, children indented.
+// Text dump of the syntax tree (tests, `reliefc --emit-ast`): one node per line, children indented;
+// and the folding of integer constant expressions, which the parser (array lengths) and the type
+// checker (-Winteger-division) share.
 #include "compiler/ast.h"
 
 namespace relief::compiler {
@@ -105,4 +107,27 @@ void dump(std::ostream& out, const TranslationUnit& unit) {
   }
 }
 
+bool foldIntConstant(const Expr& e, int64_t* value) {
+  int64_t a = 0, b = 0;
+  switch (e.kind) {
+    case ExprKind::IntLiteral: *value = e.intValue; return true;
+    case ExprKind::Unary:
+      if ((e.op != Tok::Minus && e.op != Tok::Plus) || !foldIntConstant(*e.operands[0], &a)) return false;
+      *value = e.op == Tok::Minus ? -a : a;
+      break;
+    case ExprKind::Binary:
+      if (!foldIntConstant(*e.operands[0], &a) || !foldIntConstant(*e.operands[1], &b)) return false;
+      switch (e.op) {
+        case Tok::Plus: *value = a + b; break;
+        case Tok::Minus: *value = a - b; break;
+        case Tok::Star: *value = a * b; break;
+        case Tok::Slash: *value = b ? a / b : 0; break;  // int division by 0 is 0 (§4.1)
+        case Tok::Percent: *value = b ? a % b : 0; break;
+        default: return false;
+      }
+      break;
+    default: return false;
+  }
+  return *value >= INT32_MIN && *value <= INT32_MAX;
+}
 }  // namespace relief::compiler

@@ -196,4 +196,9 @@ void dump(std::ostream& out, const FunctionDecl& f, int indent = 0);
 void dump(std::ostream& out, const Expr& e, int indent = 0);
 void dump(std::ostream& out, const Stmt& s, int indent = 0);
 
+// The value of an integer constant expression (int literals under + - * / % and unary - +, as
+// after macro expansion `N * 2 + 1`, division by 0 giving 0 as §4.1 says); false for anything
+// else or a result outside int.
+bool foldIntConstant(const Expr& e, int64_t* value);
+
 }  // namespace relief::compiler

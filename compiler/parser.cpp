@@ -40,31 +40,6 @@ bool isAssignOp(Tok k) {
 }
 SourceRange join(SourceLoc b, SourceLoc e) { return {b, e}; }
 
-// The value of an integer constant expression (int literals under + - * / % and unary - +, as
-// after macro expansion `N * 2 + 1`); false for anything else or a result outside int.
-bool foldIntConstant(const Expr& e, int64_t* value) {
-  int64_t a = 0, b = 0;
-  switch (e.kind) {
-    case ExprKind::IntLiteral: *value = e.intValue; return true;
-    case ExprKind::Unary:
-      if ((e.op != Tok::Minus && e.op != Tok::Plus) || !foldIntConstant(*e.operands[0], &a)) return false;
-      *value = e.op == Tok::Minus ? -a : a;
-      break;
-    case ExprKind::Binary:
-      if (!foldIntConstant(*e.operands[0], &a) || !foldIntConstant(*e.operands[1], &b)) return false;
-      switch (e.op) {
-        case Tok::Plus: *value = a + b; break;
-        case Tok::Minus: *value = a - b; break;
-        case Tok::Star: *value = a * b; break;
-        case Tok::Slash: *value = b ? a / b : 0; break;  // int division by 0 is 0 (§4.1)
-        case Tok::Percent: *value = b ? a % b : 0; break;
-        default: return false;
-      }
-      break;
-    default: return false;
-  }
-  return *value >= INT32_MIN && *value <= INT32_MAX;
-}
 }  // namespace
 
 Parser::Parser(std::vector<Token> tokens, std::string fileName, DiagnosticsEngine& diags)

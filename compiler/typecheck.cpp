@@ -923,7 +923,7 @@ class Checker {
     // brought over from RSL would silently lose the term. So would `-1/2`, `(N + 1)/2` with a
     // macro N, or `1/(1 + 1)`: any division of integer constant expressions that is inexact.
     int64_t lc = 0, rc = 0;
-    if (e.op == Tok::Slash && t.kind == TypeKind::Int && foldInt(l, &lc) && foldInt(r, &rc) && rc != 0 && lc % rc != 0) {
+    if (e.op == Tok::Slash && t.kind == TypeKind::Int && foldIntConstant(l, &lc) && foldIntConstant(r, &rc) && rc != 0 && lc % rc != 0) {
       const bool literals = l.kind == ExprKind::IntLiteral && r.kind == ExprKind::IntLiteral;
       report(DiagId::WarnIntegerDivision, e.opLoc)
           .arg(std::to_string(lc / rc))
@@ -933,42 +933,6 @@ class Checker {
           .range(r.range);
     }
     return set(e, t);
-  }
-
-  // The value of an int constant expression (literals under unary + and -, and + - * / %), if it
-  // is one and stays within 32 bits.
-  static bool foldInt(const Expr& e, int64_t* value) {
-    auto fits = [](int64_t v) { return v >= INT32_MIN && v <= INT32_MAX; };
-    if (e.kind == ExprKind::IntLiteral) {
-      *value = e.intValue;
-      return true;
-    }
-    if (e.kind == ExprKind::Unary && (e.op == Tok::Minus || e.op == Tok::Plus) && e.operands.size() == 1) {
-      int64_t a = 0;
-      if (!foldInt(*e.operands[0], &a)) return false;
-      *value = e.op == Tok::Minus ? -a : a;
-      return fits(*value);
-    }
-    if (e.kind == ExprKind::Binary && e.operands.size() == 2 &&
-        (e.op == Tok::Plus || e.op == Tok::Minus || e.op == Tok::Star || e.op == Tok::Slash || e.op == Tok::Percent)) {
-      int64_t a = 0, b = 0;
-      if (!foldInt(*e.operands[0], &a) || !foldInt(*e.operands[1], &b)) return false;
-      switch (e.op) {
-        case Tok::Plus: *value = a + b; break;
-        case Tok::Minus: *value = a - b; break;
-        case Tok::Star: *value = a * b; break;
-        case Tok::Slash:
-          if (b == 0) return false;
-          *value = a / b;
-          break;
-        default:
-          if (b == 0) return false;
-          *value = a % b;
-          break;
-      }
-      return fits(*value);
-    }
-    return false;
   }
 
   // An index must be an int (§4.1). RSL has no int type and indexes with floats (`float i; …
