@@ -9,7 +9,6 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <deque>
 #include <cstdlib>
 #include <string_view>
 #include <cstring>
@@ -18,6 +17,7 @@
 #include <fstream>
 #include <iostream>
 #include <new>
+#include <map>
 #include <mutex>
 #include <optional>
 #include <set>
@@ -873,14 +873,16 @@ class ShaderPrinter {
  public:
   void setLimit(uint64_t limit) { limit_ = limit; }
   // The services for a shader bound at `origin` ("file:line") as `subject`, which runtime errors
-  // name. Kept for the whole run (a few per frame).
-  const RlfHostServices* services(std::string origin, std::string subject) {
+  // name: one per distinct pair for the whole run, so frames that bind the same shaders reuse them.
+  const RlfHostServices* services(const std::string& origin, const std::string& subject) {
     std::lock_guard<std::mutex> lock(mutex_);
-    Bound& b = bound_.emplace_back();
-    b.origin = std::move(origin), b.subject = std::move(subject);
-    b.services.context = this, b.services.print = &ShaderPrinter::print;
-    b.services.origin = b.origin.c_str(), b.services.subject = b.subject.c_str();
-    return &b.services;
+    const auto [it, added] = bound_.try_emplace({origin, subject});
+    RlfHostServices& s = it->second;
+    if (added) {
+      s.context = this, s.print = &ShaderPrinter::print;
+      s.origin = it->first.first.c_str(), s.subject = it->first.second.c_str();
+    }
+    return &s;
   }
   uint64_t dropped() const {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -898,11 +900,7 @@ class ShaderPrinter {
     ++self->shown_;
     std::fputs(text, stdout);
   }
-  struct Bound {
-    std::string origin, subject;
-    RlfHostServices services{};
-  };
-  std::deque<Bound> bound_;  // a deque: services handed out stay where they are
+  std::map<std::pair<std::string, std::string>, RlfHostServices> bound_;  // nodes stay where they are
   mutable std::mutex mutex_;
   uint64_t limit_ = 0, shown_ = 0, dropped_ = 0;
 };
