@@ -2816,7 +2816,6 @@ bool RibParser::doNuPatch(const Call& call) {
       mesh.indices.insert(mesh.indices.end(), {a, b, d, a, d, c});
     }
   mesh.smoothSurface = !mesh.givenNormals && !mesh.N.empty();
-  if (mesh.smoothSurface) smoothSurfaceDerivatives(mesh);
   return addMesh(std::move(mesh), call.line);
 }
 
@@ -2855,7 +2854,6 @@ bool RibParser::doSphere(const Call& call) {
   Mesh mesh = tessellateSphere(radius, zmin, zmax, thetamax, nu, nv, attr_.ctm);
   applyQuadricPrimvars(vars, &mesh);
   mesh.smoothSurface = !mesh.N.empty();
-  if (mesh.smoothSurface) smoothSurfaceDerivatives(mesh);
   return addMesh(std::move(mesh), call.line, /*wound=*/true);
 }
 
@@ -2992,7 +2990,6 @@ bool RibParser::doQuadric(const Call& call) {
     }
   applyQuadricPrimvars(vars, &mesh);
   mesh.smoothSurface = !mesh.N.empty();
-  if (mesh.smoothSurface) smoothSurfaceDerivatives(mesh);
   return addMesh(std::move(mesh), call.line);
 }
 
@@ -3552,7 +3549,6 @@ bool RibParser::buildPatchMesh(const Call& call, bool bicubic, int nu, bool uPer
   if (!normalsOk) mesh.N.clear();
   mesh.givenNormals = N != nullptr && !mesh.N.empty();
   mesh.smoothSurface = !mesh.givenNormals && !mesh.N.empty();
-  if (mesh.smoothSurface) smoothSurfaceDerivatives(mesh);
   return addMesh(std::move(mesh), call.line);
 }
 
@@ -3748,6 +3744,9 @@ bool RibParser::addMesh(Mesh mesh, int line, bool wound) {
   for (const glm::vec3& p : mesh.P)
     if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
       return fail(line, "geometry has non-finite coordinates after transformation");
+  // Smooth surfaces with one (u, v) over the whole surface (quadrics, patches, NURBS) get shared
+  // per-vertex derivatives; subdivision meshes are marked smooth after this and keep their facets'.
+  if (mesh.smoothSurface && mesh.dPdu.empty()) smoothSurfaceDerivatives(mesh);
   mesh.materialIndex = materialIndex();
   mesh.lights = attr_.lightsOn;
   mesh.lightsSet = true;
