@@ -982,20 +982,26 @@ displacement d()
   EXPECT_FLOAT_EQ(b.Nout[2][0], 0);
 }
 
-// Writes a constant image of `channels` channels with OIIO.
-std::string writeConstantImage(const std::string& name, const std::vector<float>& value) {
+// Writes `pixels` (of type `given`) as the image `spec` describes, in the test's temporary
+// directory; returns its path.
+std::string writeImage(const std::string& name, const OIIO::ImageSpec& spec, OIIO::TypeDesc given,
+                       const void* pixels) {
   const std::string path = ::testing::TempDir() + "/" + name;
-  const int channels = int(value.size());
-  std::vector<float> pixels;
-  for (int i = 0; i < 16; ++i) pixels.insert(pixels.end(), value.begin(), value.end());
   auto out = OIIO::ImageOutput::create(path);
   EXPECT_TRUE(out);
   if (!out) return path;
-  OIIO::ImageSpec spec(4, 4, channels, OIIO::TypeDesc::FLOAT);
   EXPECT_TRUE(out->open(path, spec));
-  EXPECT_TRUE(out->write_image(OIIO::TypeDesc::FLOAT, pixels.data()));
+  EXPECT_TRUE(out->write_image(given, pixels));
   out->close();
   return path;
+}
+
+// Writes a constant 4x4 float image of `value.size()` channels.
+std::string writeConstantImage(const std::string& name, const std::vector<float>& value) {
+  std::vector<float> pixels;
+  for (int i = 0; i < 16; ++i) pixels.insert(pixels.end(), value.begin(), value.end());
+  return writeImage(name, OIIO::ImageSpec(4, 4, int(value.size()), OIIO::TypeDesc::FLOAT), OIIO::TypeDesc::FLOAT,
+                    pixels.data());
 }
 
 TEST(JitTest, TextureLookupsReadFilesAndReportMissingOnes) {
@@ -1039,17 +1045,11 @@ displacement tex(string a = ""; string b = ""; string missing = "/no/such/textur
 // centre gives the texel, a boundary between equal texels gives them (OpenImageIO's default
 // B-spline magnification blurred 1 into 0.69 there); with a footprint, filtering is as before.
 TEST(JitTest, TextureWithoutFootprintSamplesTexelsExactly) {
-  const std::string path = ::testing::TempDir() + "/relief_block.exr";
-  {
-    std::vector<float> pixels(16, 0.5f);
-    for (int y = 0; y < 2; ++y)
-      for (int x = 0; x < 2; ++x) pixels[size_t(4 * y + x)] = 1.0f;  // a white 2x2 block, top left
-    auto out = OIIO::ImageOutput::create(path);
-    ASSERT_TRUE(out);
-    ASSERT_TRUE(out->open(path, OIIO::ImageSpec(4, 4, 1, OIIO::TypeDesc::FLOAT)));
-    ASSERT_TRUE(out->write_image(OIIO::TypeDesc::FLOAT, pixels.data()));
-    out->close();
-  }
+  std::vector<float> pixels(16, 0.5f);
+  for (int y = 0; y < 2; ++y)
+    for (int x = 0; x < 2; ++x) pixels[size_t(4 * y + x)] = 1.0f;  // a white 2x2 block, top left
+  const std::string path = writeImage("relief_block.exr", OIIO::ImageSpec(4, 4, 1, OIIO::TypeDesc::FLOAT),
+                                      OIIO::TypeDesc::FLOAT, pixels.data());
   const auto shader = compileOne(R"(
 displacement d(string file = ""; float ss = 0.125, tt = 0.125)
 {
@@ -1091,17 +1091,10 @@ displacement d(string file = ""; float ss = 0.125, tt = 0.125)
 // A channel the file does not have is the fill value (language.md 6.7), also as the first
 // channel: OpenImageIO asserted there (and read out of bounds) when minifying.
 TEST(JitTest, TextureChannelsBeyondTheFileAreTheFill) {
-  const std::string path = ::testing::TempDir() + "/relief_gray64.tif";
-  {
-    std::vector<float> pixels(64 * 64, 0.75f);
-    auto out = OIIO::ImageOutput::create(path);
-    ASSERT_TRUE(out);
-    OIIO::ImageSpec spec(64, 64, 1, OIIO::TypeDesc::UINT8);
-    spec.attribute("oiio:ColorSpace", "Linear");
-    ASSERT_TRUE(out->open(path, spec));
-    ASSERT_TRUE(out->write_image(OIIO::TypeDesc::FLOAT, pixels.data()));
-    out->close();
-  }
+  const std::vector<float> pixels(64 * 64, 0.75f);
+  OIIO::ImageSpec spec(64, 64, 1, OIIO::TypeDesc::UINT8);
+  spec.attribute("oiio:ColorSpace", "Linear");
+  const std::string path = writeImage("relief_gray64.tif", spec, OIIO::TypeDesc::FLOAT, pixels.data());
   const auto shader = compileOne(R"(
 displacement d(string file = "")
 {
@@ -1135,18 +1128,11 @@ displacement d(string file = "")
 
 // Texture channels are data: an RGBA file's colour is read as stored, not multiplied by alpha.
 TEST(JitTest, TextureColourIsNotMultipliedByAlpha) {
-  const std::string path = ::testing::TempDir() + "/relief_rgba.png";
-  {
-    std::vector<uint8_t> pixels;
-    for (int i = 0; i < 16; ++i) pixels.insert(pixels.end(), {255, 200, 100, 128});
-    auto out = OIIO::ImageOutput::create(path);
-    ASSERT_TRUE(out);
-    OIIO::ImageSpec spec(4, 4, 4, OIIO::TypeDesc::UINT8);
-    spec.attribute("oiio:UnassociatedAlpha", 1);  // the bytes as given, not divided by alpha
-    ASSERT_TRUE(out->open(path, spec));
-    ASSERT_TRUE(out->write_image(OIIO::TypeDesc::UINT8, pixels.data()));
-    out->close();
-  }
+  std::vector<uint8_t> pixels;
+  for (int i = 0; i < 16; ++i) pixels.insert(pixels.end(), {255, 200, 100, 128});
+  OIIO::ImageSpec spec(4, 4, 4, OIIO::TypeDesc::UINT8);
+  spec.attribute("oiio:UnassociatedAlpha", 1);  // the bytes as given, not divided by alpha
+  const std::string path = writeImage("relief_rgba.png", spec, OIIO::TypeDesc::UINT8, pixels.data());
   const auto shader = compileOne(R"(
 displacement d(string file = "")
 {
