@@ -155,6 +155,23 @@ ContributorGrid::ContributorGrid(const Scene& scene, const AccelOptions& options
     }
   };
   layOut(n);
+  // A budget holding only a few voxels thrashes: a ray's neighbourhood then needs more voxels
+  // than fit, and every refill remakes a whole heavy voxel (header, kVoxelsPerBudget). So an
+  // automatic resolution under a budget is raised until the heaviest voxel's estimate fits the
+  // budget that many times, whatever the displacement bound says.
+  const uint64_t budget = options.cacheBudgetTriangles;
+  if (options.gridResolution <= 0 && anyDisplaced_ && budget != UINT64_MAX && budget > 0) {
+    const double fits = double(budget) / kVoxelsPerBudget;
+    for (int attempt = 0; attempt < 4 && n < kMaxBudgetGridResolution; ++attempt) {
+      const double heaviest = heaviestVoxelEstimate(scene);
+      if (heaviest <= fits) break;
+      // A voxel's share of a surface falls as the square of the resolution.
+      const int raised = int(std::ceil(double(n) * std::sqrt(heaviest / fits)));
+      n = std::clamp(raised, n + 1, kMaxBudgetGridResolution);
+      layOut(n);
+      ++budgetRefinements_;
+    }
+  }
   auto voxels = [&] { return uint64_t(resolution_.x) * uint64_t(resolution_.y) * uint64_t(resolution_.z); };
   while (voxels() > kMaxGridVoxels && n > 1) {
     n = std::max(1, std::min(n - 1, int(double(n) * std::cbrt(double(kMaxGridVoxels) / double(voxels())))));
@@ -214,7 +231,11 @@ ContributorGrid::ContributorGrid(const Scene& scene, const AccelOptions& options
   const size_t entryLimit = std::max(kMinEntryLimit, size_t(kMaxEntriesPerTriangle) * inGrid);
   // A first guess from a sample of 64 triangles spread over the ids, so that a scene of big
   // triangles rarely pays for a full attempt at a resolution far too fine.
-  if (options.gridResolution <= 0 && n > 1 && inGrid > 64) {
+  // A resolution raised for the budget may have gone far past the limit where the bound is
+  // large against the voxels: entries then grow as the cube of the resolution (the bound's
+  // volume), not the square, so it steps down by cube roots, guess after guess, until the sample
+  // fits.
+  for (int guess = 0; options.gridResolution <= 0 && n > 1 && inGrid > 64 && guess < 8; ++guess) {
     uint64_t sampled = 0, counted = 0;
     const uint32_t stride = numTriangles() / 64;
     for (uint32_t id = 0; id < numTriangles() && counted < 64; id += std::max(1u, stride)) {
@@ -225,11 +246,12 @@ ContributorGrid::ContributorGrid(const Scene& scene, const AccelOptions& options
       forEachVoxel(id, lo, hi, [&](glm::ivec3) { ++sampled; });
     }
     const double expected = double(sampled) * double(inGrid) / double(std::max<uint64_t>(1, counted));
-    if (expected > double(entryLimit)) {
-      n = std::clamp(int(double(n) * std::sqrt(double(entryLimit) / expected)), 1, n);
-      layOut(n);
-      ++coarsenings_;
-    }
+    if (expected <= double(entryLimit)) break;
+    const double ratio = double(entryLimit) / expected;
+    n = std::clamp(int(double(n) * (budgetRefinements_ ? std::cbrt(ratio) : std::sqrt(ratio))), 1, n - 1);
+    layOut(n);
+    ++coarsenings_;
+    if (!budgetRefinements_) break;
   }
   std::vector<std::pair<uint32_t, uint32_t>> pairs;
   for (;;) {
@@ -250,7 +272,9 @@ ContributorGrid::ContributorGrid(const Scene& scene, const AccelOptions& options
     // of halvings, then one step).
     const double expected = double(pairs.size()) * double(inGrid) / double(std::max(1u, seen));
     const int fits = int(double(n) * std::sqrt(double(entryLimit) / expected));
-    n = std::clamp(fits, 1, std::max(1, n / 2));
+    // A resolution raised for the budget gives up only what the entries demand: halving it
+    // would bring back the heavy voxels it was raised to avoid.
+    n = std::clamp(fits, 1, std::max(1, budgetRefinements_ ? n - 1 : n / 2));
     layOut(n);
     ++coarsenings_;
   }
@@ -298,6 +322,44 @@ Bounds3 ContributorGrid::voxelBounds(uint32_t voxel) const {
   b.lo = bounds_.lo + glm::vec3(x, y, z) * voxelSize_ - glm::vec3(padding_);
   b.hi = bounds_.lo + glm::vec3(x + 1, y + 1, z + 1) * voxelSize_ + glm::vec3(padding_);
   return b;
+}
+
+double ContributorGrid::heaviestVoxelEstimate(const Scene& scene) const {
+  // Each displaced triangle's estimate (below) is spread evenly over
+  // the voxels of its undisplaced box: displaced geometry stays near its surface however generous
+  // its bound (the bound is what made the voxels too big). Per voxel, in float: an estimate.
+  std::vector<float> load(size_t(resolution_.x) * resolution_.y * resolution_.z, 0.0f);
+  float heaviest = 0.0f;
+  for (uint32_t m = 0; m < scene.meshes.size(); ++m) {
+    const Displacement* d = displacements_[m];
+    if (!d) continue;
+    const Mesh& mesh = scene.meshes[m];
+    for (uint32_t t = 0; t < mesh.numTriangles(); ++t) {
+      const Bounds3 box = triangleReach(mesh, t, 0.0f);
+      if (box.empty()) continue;
+      const glm::ivec3 lo = glm::clamp(glm::ivec3(glm::floor((box.lo - bounds_.lo) / voxelSize_)), glm::ivec3(0), resolution_ - 1);
+      const glm::ivec3 hi = glm::clamp(glm::ivec3(glm::floor((box.hi - bounds_.lo) / voxelSize_)), glm::ivec3(0), resolution_ - 1);
+      const glm::ivec3 cells = hi - lo + 1;
+      // 4^k overstates slivers (a UV sphere's poles): capped by the triangles its area and
+      // its longest edge ask for at the edge length.
+      const glm::vec3 a = mesh.P[mesh.indices[3 * size_t(t)]], b = mesh.P[mesh.indices[3 * size_t(t) + 1]],
+                      c = mesh.P[mesh.indices[3 * size_t(t) + 2]];
+      const float l = std::max(d->edgeLength, 1e-30f);
+      const float area = 0.5f * glm::length(glm::cross(b - a, c - a));
+      const float longest = std::sqrt(std::max({glm::dot(b - a, b - a), glm::dot(c - b, c - b), glm::dot(a - c, a - c)}));
+      const float byShape = std::max({1.0f, area / (0.25f * l * l), 2.0f * longest / l});
+      const float estimate = std::min(float(estimatedMicroTriangles(mesh, t, *d)), byShape);
+      const float share = estimate / float(cells.x * cells.y * cells.z);
+      for (int z = lo.z; z <= hi.z; ++z)
+        for (int y = lo.y; y <= hi.y; ++y)
+          for (int x = lo.x; x <= hi.x; ++x) {
+            float& v = load[voxelIndex({x, y, z})];
+            v += share;
+            heaviest = std::max(heaviest, v);
+          }
+    }
+  }
+  return double(heaviest);
 }
 
 }  // namespace relief

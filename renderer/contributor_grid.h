@@ -55,7 +55,18 @@ Bounds3 triangleReach(const Mesh& mesh, uint32_t triangle, float grow);
 // the example scenes at or near their measured best (the facade at 18 voxels); at a 4x finer edge
 // length (E 57M, 4.5-5M micro-triangles made) the rule gives 37, where 18 took 12.4 s and 115 MB
 // at a 10% budget and 36 took 10.3 s and 93 MB (docs/cache.md).
+//
+// Under a cache budget, the automatic resolution is also raised (up to kMaxBudgetGridResolution)
+// until the heaviest voxel's estimated micro-triangles (each input triangle's 4^k spread over the
+// voxels of its undisplaced box, capped for slivers by what its area and longest edge ask for)
+// fit the budget kVoxelsPerBudget times, the bound caps above notwithstanding; the entry limit
+// below still wins. Heavy voxels otherwise make a budget thrash: the example sphere with a bound
+// of 0.5 got 3 voxels across, 134K micro-triangles in the heaviest, and rendered in 258 s at a
+// budget of 60K against 0.66 s unlimited (8 across now: 5.2 s); the facade at a budget of 20K
+// took 60-67 s (37 across now: 2.1 s). Explicit resolutions are left as asked (docs/cache.md).
 constexpr float kAutoGridFactor = 2.0f;
+constexpr double kVoxelsPerBudget = 4.0;
+constexpr int kMaxBudgetGridResolution = 64;
 constexpr float kVoxelsPerBound = 4.0f;
 constexpr double kMicroTrianglesPerCell = 800.0;
 constexpr float kMinVoxelBounds = 2.0f;
@@ -112,6 +123,8 @@ class ContributorGrid {
   float padding() const { return padding_; }
   // Times the automatic resolution was halved to keep the entries in bounds (kMaxEntriesPerTriangle).
   int coarsenings() const { return coarsenings_; }
+  // Times the automatic resolution was raised to fit the cache budget (kVoxelsPerBudget).
+  int budgetRefinements() const { return budgetRefinements_; }
   // The voxel's contributors, less those refinement dropped. Reading the ids (not just the size)
   // while another thread may refine the voxel is a race: only the voxel's filler (which the
   // geometry cache makes exclusive) and single-threaded callers may do it.
@@ -147,6 +160,9 @@ class ContributorGrid {
   std::vector<uint32_t> ids_;
   std::vector<uint32_t> outside_;
   int coarsenings_ = 0;
+  int budgetRefinements_ = 0;
+  // The largest per-voxel sum of estimated micro-triangles at the current layout (see above).
+  double heaviestVoxelEstimate(const Scene& scene) const;
   // Per voxel: how many of its row's ids are live (refinement shrinks it).
   std::unique_ptr<std::atomic<uint32_t>[]> live_;
 };

@@ -1129,14 +1129,16 @@ int undisplacedLevels(const glm::vec3 p[3], float edgeLength, int maxDepth) {
   return k;
 }
 
-double estimatedMicroTriangles(const Mesh& mesh, const Displacement& disp) {
+double estimatedMicroTriangles(const Mesh& mesh, uint32_t t, const Displacement& disp) {
   const int maxDepth = std::clamp(disp.maxDepth, 0, kMaxSubdivisionDepth);
+  const glm::vec3 p[3] = {mesh.P[mesh.indices[3 * size_t(t)]], mesh.P[mesh.indices[3 * size_t(t) + 1]],
+                          mesh.P[mesh.indices[3 * size_t(t) + 2]]};
+  return std::ldexp(1.0, 2 * undisplacedLevels(p, disp.edgeLength, maxDepth));
+}
+
+double estimatedMicroTriangles(const Mesh& mesh, const Displacement& disp) {
   double sum = 0.0;
-  for (uint32_t t = 0; t < mesh.numTriangles(); ++t) {
-    const glm::vec3 p[3] = {mesh.P[mesh.indices[3 * size_t(t)]], mesh.P[mesh.indices[3 * size_t(t) + 1]],
-                            mesh.P[mesh.indices[3 * size_t(t) + 2]]};
-    sum += std::ldexp(1.0, 2 * undisplacedLevels(p, disp.edgeLength, maxDepth));
-  }
+  for (uint32_t t = 0; t < mesh.numTriangles(); ++t) sum += estimatedMicroTriangles(mesh, t, disp);
   return sum;
 }
 

@@ -197,6 +197,8 @@ bool displacedShadingNormal(const Mesh& mesh, uint32_t triangle, const Displacem
 // The sum of 4^k over the triangles of `mesh`: micro-triangles its undisplaced surface asks for at
 // disp's edge length, before simplification (an upper bound of what subdivision keeps).
 double estimatedMicroTriangles(const Mesh& mesh, const Displacement& disp);
+// The same for triangle `triangle` of `mesh` alone.
+double estimatedMicroTriangles(const Mesh& mesh, uint32_t triangle, const Displacement& disp);
 
 // Returns the estimate (the sum of 4^k) for each of scene.displacements, meshes without a shader
 // counting nothing, and arms the runaway guard of every Displacement (ShaderProblemCounts).

@@ -297,6 +297,47 @@ TEST(ContributorGrid, FineDisplacementGetsVoxelsForItsMicroTriangles) {
   EXPECT_LT(capped.voxelSize(), kVoxelsPerBound * o.km);
 }
 
+// A budget that holds only a few voxels makes every refill a heavy one, and a generous
+// displacement bound makes heavy voxels (the automatic grid keeps a voxel several bounds wide). So
+// under a budget the automatic resolution is raised, past the bound's cap, until the heaviest
+// voxel's estimate fits the budget kVoxelsPerBudget times: a sphere with a bound of 0.5 got 3
+// voxels across and rendered 390 times slower at a 7% budget than unlimited.
+TEST(ContributorGrid, ATightBudgetGetsVoxelsItCanHoldWhateverTheBound) {
+  SphereOptions o;
+  o.nu = 32, o.nv = 16;
+  o.km = 0.02f;
+  o.edgeLength = 0.03f;
+  Scene scene = makeSphereScene(o);
+  scene.displacements[0].boundWorld = 0.4f;  // 20 times what the shader needs
+  const std::vector<Ray> rays = randomRays(400, 11, 3.0f, 1.2f);
+  auto keysOf = [&](GridAccelerator& accel) { return testing::hitKeys(accel, rays); };
+  GridAccelerator unlimited(scene, AccelOptions{});
+  const auto expected = keysOf(unlimited);
+  const AccelStats full = unlimited.stats();
+  EXPECT_EQ(unlimited.grid().budgetRefinements(), 0);
+  const int capped = unlimited.grid().resolution().x;
+  ASSERT_LE(capped, 4);  // the bound's cap: a few voxels across
+
+  AccelOptions tight;
+  tight.cacheBudgetTriangles = full.uniqueDisplacedTriangles / 12;
+  GridAccelerator raised(scene, tight);
+  EXPECT_GT(raised.grid().budgetRefinements(), 0);
+  EXPECT_GT(raised.grid().resolution().x, capped);
+  EXPECT_LE(raised.grid().resolution().x, kMaxBudgetGridResolution);
+  EXPECT_EQ(keysOf(raised), expected);
+  // Voxels the budget holds (the estimate is about half of what a bumpy surface stores), so a
+  // refill remakes a fraction of what the capped grid's refills do.
+  EXPECT_LT(raised.maxVoxelTriangles(), tight.cacheBudgetTriangles);
+  AccelOptions sameGrid = tight;
+  sameGrid.gridResolution = capped;  // explicit resolutions are left as asked
+  GridAccelerator thrashing(scene, sameGrid);
+  EXPECT_EQ(thrashing.grid().resolution().x, capped);
+  EXPECT_EQ(keysOf(thrashing), expected);
+  EXPECT_GT(thrashing.maxVoxelTriangles(), tight.cacheBudgetTriangles);
+  EXPECT_LT(2 * raised.stats().displacedTrianglesCreated, thrashing.stats().displacedTrianglesCreated)
+      << raised.grid().resolution().x << " voxels across against " << capped;
+}
+
 // An explicit resolution is lowered until the grid has at most kMaxGridVoxels voxels: 1024 along
 // each axis of a sphere's box made a billion voxels (19 GB before any geometry).
 TEST(ContributorGrid, ExplicitResolutionsStayWithinTheVoxelBudget) {
