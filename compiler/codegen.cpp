@@ -2113,6 +2113,9 @@ class ShaderCodegen {
     const Dual xs = dmul(x, {spansF, nullptr, nullptr});
     Value* segF = intrinsic(llvm::Intrinsic::floor, {xs.v});
     segF = b_.CreateSelect(b_.CreateFCmpOGT(segF, lastSpan), lastSpan, segF);
+    // A NaN position passes the clamps above; its span is the first (the value stays NaN, for
+    // the host's non-finite handling) rather than an index from the conversion of NaN.
+    segF = b_.CreateSelect(b_.CreateFCmpOGE(segF, cf(0)), segF, cf(0));
     const Dual t = dsub(xs, {segF, nullptr, nullptr});
     Value* base = b_.CreateMul(b_.CreateFPToSI(segF, i32_), step);
     const Dual t2 = dmul(t, t);

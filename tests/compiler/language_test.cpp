@@ -564,6 +564,29 @@ displacement d()
   EXPECT_EQ(status.indexClamped, 1u);
 }
 
+// A NaN position passed every clamp of spline() and became a knot index from the conversion of
+// NaN: the load far outside the knots crashed the render. Now it is NaN, in every basis and for
+// listed and array knots, and infinities still clamp to the ends.
+TEST(FunctionTest, SplineAtANanPositionIsNanNotACrash) {
+  TestBatch b(1);
+  const std::string printed = evaluate(R"(
+displacement d()
+{
+    float big = exp(100);
+    float x = big * u - big * u;
+    float k[6] = {0, 1, 2, 3, 4, 5};
+    string basis = "bspline";
+    float a = spline(x, 0, 0.1, 0.2, 0.3);
+    float b = spline("linear", x, k);
+    float c = spline(basis, x, 7, 8, 9, 10);
+    color d = spline("bezier", x, color(0), color(1), color(2), color(3));
+    printf("%d %d %d %d %g %g\n", isnan(a), isnan(b), isnan(c), isnan(comp(d, 1)),
+           spline(big, 0, 0.1, 0.2, 0.3), spline(-big, 0, 0.1, 0.2, 0.3));
+})",
+                                       b);
+  EXPECT_EQ(printed, "1 1 1 1 0.2 0.1\n");
+}
+
 TEST(DisplaceTest, AmountInANamedSpaceScalesWithThatSpace) {
   // §6.8: displace(space, amp) moves amp * length(ntransform(space, normalize(N))) along N, so
   // 0.1 units of an object space scaled 2x (or of a shader space scaled 0.5x) are 0.2 (0.05) in
