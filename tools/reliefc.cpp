@@ -354,15 +354,24 @@ int main(int argc, char** argv) {
       const bool error = a.rfind("-Werror=", 0) == 0, noError = a.rfind("-Wno-error=", 0) == 0;
       const bool off = !noError && a.rfind("-Wno-", 0) == 0;
       const std::string name = a.substr(error ? 8 : noError ? 11 : off ? 5 : 2);
+      // As in clang, the last flag naming a warning wins: each one undoes what earlier ones said
+      // of it (-Werror=<name> also enables it).
       const auto known = relief::compiler::warningFlags();
-      if (std::find(known.begin(), known.end(), name) == known.end())
+      auto drop = [&name](std::vector<std::string>& list) { std::erase(list, name); };
+      if (std::find(known.begin(), known.end(), name) == known.end()) {
         optionWarnings.push_back("unknown warning option '" + a + "'");
-      else if (error)
+      } else if (error) {
+        drop(args.notErrorWarnings), drop(args.disabledWarnings);
         args.errorWarnings.push_back(name);
-      else if (noError)
+      } else if (noError) {
+        drop(args.errorWarnings);
         args.notErrorWarnings.push_back(name);
-      else if (off)
+      } else if (off) {
+        drop(args.disabledWarnings);
         args.disabledWarnings.push_back(name);
+      } else {
+        drop(args.disabledWarnings);
+      }
     } else if (a.rfind("-floop-limit=", 0) == 0) {
       uint32_t n = 0;
       if (!parseCount(a.c_str() + 13, &n) || n == 0)

@@ -131,6 +131,16 @@ TEST(CliTest, WerrorTurnsWarningsIntoExitCodeOne) {
                                 quote(three.string()));
   EXPECT_EQ(exempt.exitCode, 0) << exempt.err;
   EXPECT_EQ(count(exempt.err, ": warning: "), 3u) << exempt.err;
+  // The last flag naming a warning wins, as in clang (both had kept the first's effect).
+  const CliRun reenabled = reliefc("--color=never -Wno-unused-variable -Wunused-variable " + quote(three.string()));
+  EXPECT_EQ(count(reenabled.err, "unused variable 'unused'"), 1u) << reenabled.err;
+  const CliRun lastError = reliefc("--color=never -Wno-error=narrowing -Werror=narrowing " + quote(three.string()));
+  EXPECT_EQ(lastError.exitCode, 1) << lastError.err;
+  const CliRun lastWarning = reliefc("--color=never -Werror=narrowing -Wno-error=narrowing " + quote(three.string()));
+  EXPECT_EQ(lastWarning.exitCode, 0) << lastWarning.err;
+  EXPECT_EQ(count(lastWarning.err, ": warning: "), 3u) << lastWarning.err;
+  const CliRun errorEnables = reliefc("--color=never -Wno-narrowing -Werror=narrowing " + quote(three.string()));
+  EXPECT_EQ(count(errorEnables.err, ": error: "), 1u) << errorEnables.err;
 }
 
 TEST(CliTest, JsonDiagnosticsAreOneObjectPerLine) {
