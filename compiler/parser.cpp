@@ -231,8 +231,15 @@ bool Parser::startsDeclaration() const {
 }
 
 // file := { shader | function }
+// Characters the lexer reported (Tok::Unknown) where a statement or declaration would start are
+// dropped: the lexer has resumed after them (language.md §1), so the parser must too. Taken as the
+// start of a broken statement, one at a line's end made the parser skip the whole next line.
+void Parser::skipBadCharacters() {
+  while (tok().is(Tok::Unknown)) consume();
+}
+
 std::unique_ptr<TranslationUnit> Parser::parseTranslationUnit() {
-  while (!tok().is(Tok::Eof)) {
+  while (skipBadCharacters(), !tok().is(Tok::Eof)) {
     if (tok().is(Tok::KwDisplacement)) {
       parseShader();
     } else if (tok().is(Tok::Semi)) {
@@ -528,6 +535,7 @@ StmtPtr Parser::parseStatement() {
     ~Guard() { --n; }
   } guard{++nesting_};
   if (tooDeep("statements")) return nullptr;
+  skipBadCharacters();
   const Token& t = tok();
   switch (t.kind) {
     case Tok::LBrace: return parseBlock();
@@ -629,7 +637,7 @@ StmtPtr Parser::parseStatement() {
 StmtPtr Parser::parseBlock() {
   const Token open = consume();
   auto block = std::make_unique<Stmt>(StmtKind::Block, open.range());
-  while (!tok().is(Tok::RBrace) && !tok().is(Tok::Eof) && !atShaderHeader()) {
+  while (skipBadCharacters(), !tok().is(Tok::RBrace) && !tok().is(Tok::Eof) && !atShaderHeader()) {
     const size_t before = pos_;
     recovering_ = false;
     StmtPtr s = parseStatement();

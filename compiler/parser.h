@@ -50,6 +50,7 @@ class Parser {
   void errorExpectedExpression();
   bool missingSemiAtLineEnd() const;
   void syncStatement();
+  void skipBadCharacters();
   bool atShaderHeader() const;
   void syncTopLevel();
   bool isTypeKeyword(Tok k) const;
