@@ -8,6 +8,7 @@
 #include <climits>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <map>
 #include <set>
 #include <string>
@@ -1587,7 +1588,25 @@ class Checker {
     const uint32_t width = literal.range.end.offset - literal.range.begin.offset;
     if (width != spelled(literal.text.size()) + 2) return literal.range;  // a macro, a splice, ...
     const SourceLoc at = literal.range.begin.advanced(uint32_t(1 + spelled(index)));
-    return {at, at.advanced(uint32_t(length))};
+    return {at, at.advanced(uint32_t(spelled(index + length) - spelled(index)))};  // "\n" is 2 wide
+  }
+
+  // A conversion character as the message shows it: escapes as they are written, so a message
+  // stays on its line.
+  static std::string shownCharacter(char c) {
+    switch (c) {
+      case '\n': return "\\n";
+      case '\t': return "\\t";
+      case '\\': return "\\\\";
+      case '"': return "\\\"";
+      default: break;
+    }
+    if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) {
+      char hex[8];
+      std::snprintf(hex, sizeof hex, "\\x%02x", static_cast<unsigned char>(c));
+      return hex;
+    }
+    return std::string(1, c);
   }
 
   // -Wformat: a literal printf format against its arguments (§6.8).
@@ -1615,7 +1634,7 @@ class Checker {
       if (std::string("difgespcm").find(conv) == std::string::npos) {
         // The run time prints such a conversion verbatim (and skips its argument).
         const SourceRange r = literalCharRange(format, start, j + 1 - start);
-        report(DiagId::WarnFormatInvalid, r.begin).arg(f.substr(j, 1)).range(r);
+        report(DiagId::WarnFormatInvalid, r.begin).arg(shownCharacter(conv)).range(r);
       }
       if (arg >= args.size()) continue;
       const Expr& a = *args[arg++];
