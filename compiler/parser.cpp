@@ -1051,6 +1051,7 @@ ExprPtr Parser::parsePrimary() {
     }
     case Tok::LParen: {
       const Token open = consume();
+      const bool macroAroundArgument = !open.fromArgument && tok().fromArgument;
       ExprPtr first = parseExpression();
       if (!first) return nullptr;
       if (tok().is(Tok::Comma)) {
@@ -1067,8 +1068,9 @@ ExprPtr Parser::parsePrimary() {
       }
       // A missing ')' right before ';' is most likely just that: keep the expression.
       if (!expectClosing(Tok::RParen, open) && !tok().is(Tok::Semi)) return nullptr;
-      // Parentheses leave no node; widen the range so carets cover them.
-      first->range = join(open.loc, prev().end());
+      // Parentheses leave no node; widen the range so carets cover them (unless a macro's
+      // parentheses hold an argument written elsewhere: its own place says more).
+      if (!macroAroundArgument) first->range = join(open.loc, prev().end());
       return first;
     }
     default:

@@ -555,7 +555,7 @@ bool Preprocessor::evaluateCondition(const Token& directiveName, const std::vect
 }
 
 bool Preprocessor::collectArguments(std::vector<Token>& input, size_t& pos, bool fromSource,
-                                    std::vector<std::vector<Token>>& args, const Token& name) {
+                                    std::vector<std::vector<Token>>& args, const Token& name, SourceLoc* end) {
   auto next = [&](Token* t) {
     if (pos < input.size()) {
       *t = input[pos++];
@@ -578,7 +578,10 @@ bool Preprocessor::collectArguments(std::vector<Token>& input, size_t& pos, bool
     if (t.is(Tok::LParen)) {
       ++depth;
     } else if (t.is(Tok::RParen)) {
-      if (depth == 0) return true;
+      if (depth == 0) {
+        *end = t.end();
+        return true;
+      }
       --depth;
     } else if (t.is(Tok::Comma) && depth == 0) {
       args.emplace_back();
@@ -639,6 +642,7 @@ void Preprocessor::expand(std::vector<Token> input, std::vector<Token>& out, con
     if (expansionDepth_ == 1) outermost_ = name;  // what a "too deep" error names
     const Macro m = it->second;  // a copy: expansion never redefines, but keep it simple and safe
     std::vector<Token> replacement;
+    SourceLoc useEnd = t.end();  // after the name, or after the call's ')'
     if (!m.functionLike) {
       replacement = paste(m.body, t);
     } else {
@@ -658,7 +662,7 @@ void Preprocessor::expand(std::vector<Token> input, std::vector<Token>& out, con
         continue;
       }
       std::vector<std::vector<Token>> args;
-      if (!collectArguments(input, pos, fromSource, args, t)) continue;
+      if (!collectArguments(input, pos, fromSource, args, t, &useEnd)) continue;
       if (m.params.empty() && args.size() == 1 && args[0].empty()) args.clear();
       if (args.size() != m.params.size()) {
         diags_.report(DiagId::ErrMacroArgs, t.loc)
@@ -712,6 +716,7 @@ void Preprocessor::expand(std::vector<Token> input, std::vector<Token>& out, con
         }
         std::vector<Token> arg;
         expand(args[k], arg, disabled, false);
+        for (Token& a : arg) a.fromArgument = true;
         replacement.insert(replacement.end(), arg.begin(), arg.end());
       }
     }
@@ -752,13 +757,21 @@ void Preprocessor::expand(std::vector<Token> input, std::vector<Token>& out, con
         replacement.insert(replacement.end(), group.begin(), group.end());
       }
     }
-    // Expanded tokens sit at the macro use (§1.1).
+    // Expanded tokens sit at the macro use (§1.1), but for an argument's, which stay where the
+    // argument is written (as clang has it: an error in an argument of a call spanning lines is
+    // on the argument's line); the last ends where the use does.
     for (Token& r : replacement) {
-      r.loc = t.loc;
-      r.length = t.length;
+      if (!r.fromArgument) {
+        r.loc = t.loc;
+        r.length = t.length;
+        r.endLoc = {};
+      }
       r.atLineStart = false;
     }
-    if (!replacement.empty()) replacement.front().atLineStart = t.atLineStart;
+    if (!replacement.empty()) {
+      replacement.front().atLineStart = t.atLineStart;
+      replacement.back().endLoc = useEnd;
+    }
     std::set<std::string> inner = disabled;
     inner.insert(name);
     expand(std::move(replacement), out, inner, false);

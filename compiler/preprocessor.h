@@ -75,8 +75,9 @@ class Preprocessor {
   // macro whose '(' follows in the source.
   void expand(std::vector<Token> input, std::vector<Token>& out, const std::set<std::string>& disabled,
               bool fromSource);
+  // The arguments of the call of macro `name` whose '(' is next; `end` gets where its ')' ends.
   bool collectArguments(std::vector<Token>& input, size_t& pos, bool fromSource,
-                        std::vector<std::vector<Token>>& args, const Token& name);
+                        std::vector<std::vector<Token>>& args, const Token& name, SourceLoc* end);
   Token synthesize(const std::string& text, const Token& at);
   std::vector<Token> paste(std::vector<Token> toks, const Token& at);
   static bool isPaste(const std::vector<Token>& body, size_t i);

@@ -65,10 +65,16 @@ struct Token {
   // An empty macro argument beside `##` (C's placemarker): pasting with it gives the other
   // operand; what is left of it after pasting is dropped.
   bool placemarker = false;
+  // A macro argument's token in its macro's replacement: it keeps its own location (where an
+  // error in the argument is), while the macro's own tokens sit at the use (language.md §1.1).
+  bool fromArgument = false;
+  // The last token of a macro's replacement ends where the use ends (after the call's ')'), so
+  // what is missing after it ("expected ';'") is reported there, not inside the call.
+  SourceLoc endLoc;
 
   bool is(Tok k) const { return kind == k; }
   SourceRange range() const { return {loc, loc.advanced(length)}; }
-  SourceLoc end() const { return loc.advanced(length); }
+  SourceLoc end() const { return endLoc.isValid() ? endLoc : loc.advanced(length); }
 };
 
 }  // namespace relief::compiler
