@@ -2,6 +2,7 @@
 // the start of a line and end at the next token that starts a line.
 #include "compiler/preprocessor.h"
 
+#include <algorithm>
 #include <filesystem>
 
 namespace relief::compiler {
@@ -454,6 +455,10 @@ void Preprocessor::defineMacro(const std::vector<Token>& line) {
       ++i;
     } else {
       while (i < line.size() && line[i].is(Tok::Identifier)) {
+        if (std::find(m.params.begin(), m.params.end(), line[i].text) != m.params.end()) {
+          diags_.report(DiagId::ErrMacroDuplicateParam, line[i].loc).arg(line[i].text).range(line[i].range());
+          return;
+        }
         m.params.emplace_back(line[i].text);
         ++i;
         if (i < line.size() && line[i].is(Tok::Comma)) {
@@ -474,6 +479,27 @@ void Preprocessor::defineMacro(const std::vector<Token>& line) {
     bodyStart = i;
   }
   m.body.assign(line.begin() + long(bodyStart), line.end());
+  // The operators' misuses are errors at the definition, as in C (a use would only say "invalid
+  // character '#'", at the use, and once per expansion).
+  const size_t n = m.body.size();
+  if (n >= 2 && (isPaste(m.body, 0) || isPaste(m.body, n - 2))) {
+    const Token& at = isPaste(m.body, 0) ? m.body[0] : m.body[n - 2];
+    diags_.report(DiagId::ErrPasteAtEnd, at.loc).range({at.loc, at.loc.advanced(2)});
+    return;
+  }
+  for (size_t i = 0; m.functionLike && i < n; ++i) {
+    if (isPaste(m.body, i)) {
+      ++i;
+      continue;
+    }
+    if (!m.body[i].is(Tok::Hash)) continue;
+    const bool param = i + 1 < n && m.body[i + 1].is(Tok::Identifier) &&
+                       std::find(m.params.begin(), m.params.end(), m.body[i + 1].text) != m.params.end();
+    if (!param) {
+      diags_.report(DiagId::ErrStringizeNotParam, m.body[i].loc).range(m.body[i].range());
+      return;
+    }
+  }
   const std::string key = tokenText(name);
   auto it = macros_.find(key);
   if (it != macros_.end() && (spelling(it->second.body) != spelling(m.body) || it->second.params != m.params ||
