@@ -1743,11 +1743,13 @@ class ShaderCodegen {
     return dselect(zero, dconst(0), r);
   }
 
-  Dual noiseCall(const std::vector<Dual>& in, float offset) {
+  // Channel k (0..2) of a noise: the runtime's uncorrelated noise k on the same lattice.
+  Dual noiseCall(const std::vector<Dual>& in, int channel) {
     static const char* kNames[] = {"rlf_noise1", "rlf_noise2", "rlf_noise3", "rlf_noise4"};
     const size_t d = in.size();
     std::vector<llvm::Type*> params(d, f32_);
     params.push_back(ptr_);
+    params.push_back(i32_);
     llvm::FunctionCallee fnc =
         module_.getOrInsertFunction(kNames[d - 1], llvm::FunctionType::get(f32_, params, false));
     if (auto* fn = llvm::dyn_cast<llvm::Function>(fnc.getCallee())) {
@@ -1757,8 +1759,9 @@ class ShaderCodegen {
     }
     if (!gradient_) gradient_ = entryAlloca(llvm::ArrayType::get(f32_, 4), "grad");
     std::vector<Value*> args;
-    for (size_t i = 0; i < d; ++i) args.push_back(offset != 0 ? b_.CreateFAdd(in[i].v, cf(offset * float(i + 1))) : in[i].v);
+    for (size_t i = 0; i < d; ++i) args.push_back(in[i].v);
     args.push_back(gradient_);
+    args.push_back(ci(channel));
     Dual r;
     r.v = b_.CreateCall(fnc, args);
     for (size_t i = 0; i < d; ++i) {
@@ -1795,9 +1798,9 @@ class ShaderCodegen {
     return r;
   }
 
-  Dual pnoiseCall(const std::vector<Dual>& in, const std::vector<Value*>& periods, float offset) {
+  Dual pnoiseCall(const std::vector<Dual>& in, const std::vector<Value*>& periods, int channel) {
     llvm::FunctionCallee fnc =
-        module_.getOrInsertFunction("rlf_pnoise", llvm::FunctionType::get(f32_, {ptr_, ptr_, i32_, ptr_}, false));
+        module_.getOrInsertFunction("rlf_pnoise", llvm::FunctionType::get(f32_, {ptr_, ptr_, i32_, ptr_, i32_}, false));
     if (auto* fn = llvm::dyn_cast<llvm::Function>(fnc.getCallee())) {
       fn->setDoesNotThrow();
       fn->setWillReturn();
@@ -1808,13 +1811,11 @@ class ShaderCodegen {
     llvm::AllocaInst* p = entryAlloca(arr, "pnoise.p");
     llvm::AllocaInst* per = entryAlloca(arr, "pnoise.period");
     for (size_t i = 0; i < in.size(); ++i) {
-      // Channel offsets are whole periods apart only by accident; shift the domain, not the lattice.
-      Value* x = offset != 0 ? b_.CreateFAdd(in[i].v, cf(offset * float(i + 1))) : in[i].v;
-      b_.CreateStore(x, b_.CreateConstInBoundsGEP2_32(arr, p, 0, unsigned(i)));
+      b_.CreateStore(in[i].v, b_.CreateConstInBoundsGEP2_32(arr, p, 0, unsigned(i)));
       b_.CreateStore(periods[i], b_.CreateConstInBoundsGEP2_32(arr, per, 0, unsigned(i)));
     }
     Dual r;
-    r.v = b_.CreateCall(fnc, {p, per, ci(int32_t(in.size())), gradient_});
+    r.v = b_.CreateCall(fnc, {p, per, ci(int32_t(in.size())), gradient_, ci(channel)});
     for (size_t i = 0; i < in.size(); ++i) {
       if (!in[i].du && !in[i].dv) continue;
       Value* g = b_.CreateLoad(f32_, b_.CreateConstInBoundsGEP2_32(gradient_->getAllocatedType(), gradient_, 0, unsigned(i)));
@@ -1832,12 +1833,11 @@ class ShaderCodegen {
       else
         in.push_back(toFloatScalar(a).c[0]);
     }
-    // Triple results: three decorrelated channels from shifted domains.
-    static constexpr float kChannelOffsets[3] = {0.0f, 37.719f, -61.137f};
+    // Triple results: three decorrelated channels, each 0.5 at the lattice points (§6.5).
     Val r;
     r.type = result;
     for (int k = 0; k < numComponents(result); ++k) {
-      Dual n = noiseCall(in, kChannelOffsets[k]);
+      Dual n = noiseCall(in, k);
       if (isSigned) n = dsub(dmul(n, dconst(2)), dconst(1));
       r.c[k] = n;
     }
@@ -2327,9 +2327,8 @@ class ShaderCodegen {
         }
         Val r;
         r.type = rt;
-        static constexpr float kChannelOffsets[3] = {0.0f, 37.719f, -61.137f};
         for (int k = 0; k < numComponents(rt); ++k) {
-          Dual n = pnoiseCall(in, periods, kChannelOffsets[k]);
+          Dual n = pnoiseCall(in, periods, k);
           if (id == BuiltinId::Psnoise) n = dsub(dmul(n, dconst(2)), dconst(1));
           r.c[k] = n;
         }

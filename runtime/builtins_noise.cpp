@@ -38,14 +38,21 @@ int32_t cellOf(float x) {
 constexpr uint32_t kHashPrimes[4] = {0x8da6b343u, 0xd8163841u, 0xcb1ab31fu, 0x9e3779b1u};
 constexpr uint32_t kHashSeed = 0x27d4eb2du;
 
+// The hash seed of channel `channel` of a triple noise. Channels differ in their lattice gradients,
+// not in a shifted domain, so every channel is 0.5 at the lattice points (§6.5); channel 0 is the
+// float noise.
+uint32_t channelSeed(int channel) {
+  return channel == 0 ? kHashSeed : mix32(kHashSeed ^ (uint32_t(channel) * 0x9e3779b9u));
+}
+
 // The hash of a lattice corner is a chain over the axes, h = mix(...mix(seed ^ c0 P0) ^ c1 P1...),
 // so the 2^D corners of a cell share prefixes: computed level by level, a cell costs 2 + 4 + ... +
 // 2^D finalizers instead of D 2^D (14 instead of 24 in 3D). Corner k's bit i selects cell[i][1].
 // Always inlined: out of line, the call and the copies out of `level` cost a third of the noise.
 template <int D>
-[[gnu::always_inline]] inline void hashCorners(const int32_t (*cell)[2], uint32_t* out) {
+[[gnu::always_inline]] inline void hashCorners(const int32_t (*cell)[2], uint32_t* out, uint32_t seed) {
   uint32_t level[1 << D];
-  level[0] = kHashSeed;
+  level[0] = seed;
   int count = 1;
   for (int i = 0; i < D; ++i) {
     // Corners with bit i clear keep their slot; their bit-i twins go `count` slots up.
@@ -108,7 +115,7 @@ template <int D>
 constexpr float kScale = D == 1 ? 2.0f : D == 2 ? 1.41421356f : 1.0f;
 
 template <int D>
-float noise(const float* p, float* grad, const int32_t* period = nullptr) {
+float noise(const float* p, float* grad, uint32_t seed, const int32_t* period = nullptr) {
   for (int i = 0; i < D; ++i) {
     if (!std::isfinite(p[i])) {
       for (int k = 0; k < D; ++k) grad[k] = 0;
@@ -136,7 +143,7 @@ float noise(const float* p, float* grad, const int32_t* period = nullptr) {
       cells[i][c] = cell;
     }
   uint32_t hashes[1 << D];
-  hashCorners<D>(cells, hashes);
+  hashCorners<D>(cells, hashes, seed);
   float value = 0;
   float dvalue[D] = {};
   // Unrolled, the corners' arrays live in registers (4D noise: 167 -> 133 ns a call).
@@ -189,7 +196,7 @@ float noise3Result(float value, const float dvalue[3], float* grad) {
 // same function (same lattice, gradients and fade), rounded differently in the last bits.
 // noise3Avx2 below computes the very same operations eight corners at a time; the two must stay
 // bit-identical (tests/runtime/noise_test.cpp), since which one runs depends on the CPU.
-float noise3Portable(const float* p, float* grad) {
+float noise3Portable(const float* p, float* grad, uint32_t seed) {
   if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2])) {
     grad[0] = grad[1] = grad[2] = 0;
     return 0.5f;
@@ -205,7 +212,7 @@ float noise3Portable(const float* p, float* grad) {
     ds[i] = fadeDeriv(f[i]);
   }
   uint32_t hashes[8];
-  hashCorners<3>(cells, hashes);
+  hashCorners<3>(cells, hashes, seed);
   float n[8], gx[8], gy[8], gz[8];
   for (int k = 0; k < 8; ++k) {
     const float* g = kDirs3[(hashes[k] >> 8) % 12];
@@ -264,7 +271,7 @@ constexpr auto kDirColumns = [] {
   return _mm_add_ps(a, _mm_mul_ps(t, _mm_sub_ps(b, a)));
 }
 
-[[gnu::target("avx2")]] float noise3Avx2(const float* p, float* grad) {
+[[gnu::target("avx2")]] float noise3Avx2(const float* p, float* grad, uint32_t seed) {
   if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2])) {
     grad[0] = grad[1] = grad[2] = 0;
     return 0.5f;
@@ -295,7 +302,7 @@ constexpr auto kDirColumns = [] {
                                       _mm256_setr_epi32(0, 0, 1, 1, 0, 0, 1, 1));
   const __m256i cz = _mm256_add_epi32(_mm256_permutevar8x32_epi32(base8, _mm256_set1_epi32(2)),
                                       _mm256_setr_epi32(0, 0, 0, 0, 1, 1, 1, 1));
-  __m256i h = _mm256_set1_epi32(int32_t(kHashSeed));
+  __m256i h = _mm256_set1_epi32(int32_t(seed));
   h = mix32x8(_mm256_xor_si256(h, _mm256_mullo_epi32(cx, _mm256_set1_epi32(int32_t(kHashPrimes[0])))));
   h = mix32x8(_mm256_xor_si256(h, _mm256_mullo_epi32(cy, _mm256_set1_epi32(int32_t(kHashPrimes[1])))));
   h = mix32x8(_mm256_xor_si256(h, _mm256_mullo_epi32(cz, _mm256_set1_epi32(int32_t(kHashPrimes[2])))));
@@ -347,7 +354,7 @@ constexpr auto kDirColumns = [] {
 }
 #endif
 
-using Noise3Fn = float (*)(const float*, float*);
+using Noise3Fn = float (*)(const float*, float*, uint32_t);
 
 Noise3Fn pickNoise3() {
 #ifdef RELIEF_NOISE_AVX2
@@ -361,36 +368,37 @@ Noise3Fn pickNoise3() {
 
 extern "C" {
 
-float rlf_noise1(float x, float* dx) { return noise<1>(&x, dx); }
+float rlf_noise1(float x, float* dx, int channel) { return noise<1>(&x, dx, channelSeed(channel)); }
 
-float rlf_noise2(float x, float y, float* grad2) {
+float rlf_noise2(float x, float y, float* grad2, int channel) {
   const float p[2] = {x, y};
-  return noise<2>(p, grad2);
+  return noise<2>(p, grad2, channelSeed(channel));
 }
 
-float rlf_noise3(float x, float y, float z, float* grad3) {
+float rlf_noise3(float x, float y, float z, float* grad3, int channel) {
   static const Noise3Fn impl = pickNoise3();
   const float p[3] = {x, y, z};
-  return impl(p, grad3);
+  return impl(p, grad3, channelSeed(channel));
 }
 
-float rlf_noise4(float x, float y, float z, float w, float* grad4) {
+float rlf_noise4(float x, float y, float z, float w, float* grad4, int channel) {
   const float p[4] = {x, y, z, w};
-  return noise<4>(p, grad4);
+  return noise<4>(p, grad4, channelSeed(channel));
 }
 
-float rlf_pnoise(const float* p, const float* periods, int dims, float* grad) {
+float rlf_pnoise(const float* p, const float* periods, int dims, float* grad, int channel) {
   int32_t period[4];
   for (int i = 0; i < dims && i < 4; ++i) {
     // Periods are rounded to integers >= 1 (language.md §6.5).
     const float r = std::isfinite(periods[i]) ? std::round(periods[i]) : 1.0f;
     period[i] = r < 1 ? 1 : r > 1e9f ? 1000000000 : int32_t(r);
   }
+  const uint32_t seed = channelSeed(channel);
   switch (dims) {
-    case 1: return noise<1>(p, grad, period);
-    case 2: return noise<2>(p, grad, period);
-    case 3: return noise<3>(p, grad, period);
-    default: return noise<4>(p, grad, period);
+    case 1: return noise<1>(p, grad, seed, period);
+    case 2: return noise<2>(p, grad, seed, period);
+    case 3: return noise<3>(p, grad, seed, period);
+    default: return noise<4>(p, grad, seed, period);
   }
 }
 
@@ -417,15 +425,15 @@ float rlf_cellnoise(const float* p, int dims, int channel) {
 
 namespace relief::noise_detail {
 
-float noise3Portable(const float* p, float* grad) { return ::noise3Portable(p, grad); }
+float noise3Portable(const float* p, float* grad, int channel) { return ::noise3Portable(p, grad, channelSeed(channel)); }
 
 bool noise3Avx2Available() { return pickNoise3() != ::noise3Portable; }
 
-float noise3Avx2(const float* p, float* grad) {
+float noise3Avx2(const float* p, float* grad, int channel) {
 #ifdef RELIEF_NOISE_AVX2
-  return ::noise3Avx2(p, grad);
+  return ::noise3Avx2(p, grad, channelSeed(channel));
 #else
-  return ::noise3Portable(p, grad);
+  return ::noise3Portable(p, grad, channelSeed(channel));
 #endif
 }
 

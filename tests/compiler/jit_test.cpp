@@ -428,23 +428,25 @@ TEST(JitTest, HostContractAppendsNormalWhenOnlyPIsAssigned) {
 
 TEST(JitTest, NoiseIsInRangeHalfAtLatticeAndHasExactDerivative) {
   float grad[3];
-  EXPECT_FLOAT_EQ(rlf_noise3(3, -2, 7, grad), 0.5f);
-  EXPECT_FLOAT_EQ(rlf_noise1(-4, grad), 0.5f);
+  for (int channel = 0; channel < 3; ++channel) {
+    EXPECT_FLOAT_EQ(rlf_noise3(3, -2, 7, grad, channel), 0.5f);
+    EXPECT_FLOAT_EQ(rlf_noise1(-4, grad, channel), 0.5f);
+  }
   std::mt19937 rng(5);
   std::uniform_real_distribution<float> dist(-50, 50);
   for (int i = 0; i < 2000; ++i) {
     const float x = dist(rng), y = dist(rng), z = dist(rng);
-    const float n = rlf_noise3(x, y, z, grad);
+    const float n = rlf_noise3(x, y, z, grad, 0);
     ASSERT_GE(n, 0.0f);
     ASSERT_LE(n, 1.0f);
     // Central differences in double-spaced steps agree with the analytic gradient.
     const float h = 1e-3f;
     float g2[3];
-    const double fd = (double(rlf_noise3(x + h, y, z, g2)) - double(rlf_noise3(x - h, y, z, g2))) / (2 * h);
+    const double fd = (double(rlf_noise3(x + h, y, z, g2, 0)) - double(rlf_noise3(x - h, y, z, g2, 0))) / (2 * h);
     EXPECT_NEAR(grad[0], fd, 2e-2) << x << ' ' << y << ' ' << z;
   }
   // Deterministic: same input, same output.
-  EXPECT_EQ(rlf_noise3(1.25f, 2.5f, -3.75f, grad), rlf_noise3(1.25f, 2.5f, -3.75f, grad));
+  EXPECT_EQ(rlf_noise3(1.25f, 2.5f, -3.75f, grad, 0), rlf_noise3(1.25f, 2.5f, -3.75f, grad, 0));
 }
 
 TEST(JitTest, NoiseDerivativesFlowThroughShaders) {
@@ -460,7 +462,7 @@ displacement d()
   });
   for (size_t i = 0; i < 30; ++i) {
     float g[2];
-    const float n = rlf_noise2(b.u[i] * 7.3f, b.v[i] * 5.1f, g);
+    const float n = rlf_noise2(b.u[i] * 7.3f, b.v[i] * 5.1f, g, 0);
     EXPECT_FLOAT_EQ(b.Pout[0][i], n);
     EXPECT_NEAR(b.Pout[1][i], 7.3f * g[0], 1e-4);
     EXPECT_NEAR(b.Pout[2][i], 5.1f * g[1], 1e-4);

@@ -38,7 +38,7 @@ V3 normalized(const V3& a) {
 }
 double snoise3(double x, double y, double z) {
   float g[3];
-  return 2.0 * rlf_noise3(float(x), float(y), float(z), g) - 1.0;
+  return 2.0 * rlf_noise3(float(x), float(y), float(z), g, 0) - 1.0;
 }
 
 class SpecExamplesTest : public ::testing::Test {

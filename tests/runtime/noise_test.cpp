@@ -63,8 +63,9 @@ TEST(Noise3, VectorisedAgreesWithPortableToTheBit) {
   size_t compared = 0, clamped = 0;
   for (const auto& p : probePoints()) {
     float ga[3] = {-7, -7, -7}, gb[3] = {-9, -9, -9};
-    const float a = noise3Portable(p.data(), ga);
-    const float b = noise3Avx2(p.data(), gb);
+    const int channel = int(compared % 3);
+    const float a = noise3Portable(p.data(), ga, channel);
+    const float b = noise3Avx2(p.data(), gb, channel);
     ASSERT_EQ(bits(a), bits(b)) << p[0] << ' ' << p[1] << ' ' << p[2];
     for (int k = 0; k < 3; ++k) ASSERT_EQ(bits(ga[k]), bits(gb[k])) << k << ": " << p[0] << ' ' << p[1] << ' ' << p[2];
     ++compared;
@@ -80,8 +81,8 @@ TEST(Noise3, ShadersGetOneOfTheTwo) {
   for (int i = 0; i < 1000; ++i) {
     const float p[3] = {dist(rng), dist(rng), dist(rng)};
     float g[3], gp[3];
-    const float n = rlf_noise3(p[0], p[1], p[2], g);
-    ASSERT_EQ(bits(n), bits(noise3Portable(p, gp)));
+    const float n = rlf_noise3(p[0], p[1], p[2], g, i % 3);
+    ASSERT_EQ(bits(n), bits(noise3Portable(p, gp, i % 3)));
     for (int k = 0; k < 3; ++k) ASSERT_EQ(bits(g[k]), bits(gp[k]));
   }
 }
@@ -124,12 +125,12 @@ TEST(Noise, ValuesAreUnchangedBySpeedUps) {
       const float periods[4] = {3, 5.4f, 8, 2.6f};
       float v;
       switch (which) {
-        case 0: v = rlf_noise1(p[0], g); break;
-        case 1: v = rlf_noise2(p[0], p[1], g); break;
-        case 2: v = rlf_noise3(p[0], p[1], p[2], g); break;
-        case 3: v = rlf_noise4(p[0], p[1], p[2], p[3], g); break;
+        case 0: v = rlf_noise1(p[0], g, 0); break;
+        case 1: v = rlf_noise2(p[0], p[1], g, 0); break;
+        case 2: v = rlf_noise3(p[0], p[1], p[2], g, 0); break;
+        case 3: v = rlf_noise4(p[0], p[1], p[2], p[3], g, 0); break;
         case 8: v = rlf_cellnoise(p, 1 + i % 4, i % 3); break;
-        default: v = rlf_pnoise(p, periods, which - 3, g); break;
+        default: v = rlf_pnoise(p, periods, which - 3, g, 0); break;
       }
       mix(v);
       for (float x : g) mix(x);
