@@ -614,22 +614,27 @@ StmtPtr Parser::parseStatement() {
     return s;
   }
   if (startsDeclaration()) {
+    const size_t firstToken = pos_;
     auto s = parseDeclaration();
     if (!s) return nullptr;
     if (recovering_) return s;
     // Without its ';' the declaration is still complete: keep it, resync unless at a line end.
     if (!expectAfterPrev(Tok::Semi, "declaration") && !missingSemiAtLineEnd()) recovering_ = s->unterminated = true;
+    if (lexedBadly(firstToken, pos_)) s->unterminated = true;  // as for expression statements below
     s->range.end = prev().end();
     return s;
   }
   const SourceLoc start = t.loc;
+  const size_t firstToken = pos_;
   ExprPtr e = parseExpression();
   if (!e) return nullptr;
   const bool unterminated = !expectAfterPrev(Tok::Semi, "expression") && !missingSemiAtLineEnd();
   if (unterminated) recovering_ = true;
   auto s = std::make_unique<Stmt>(StmtKind::ExprStmt, join(start, prev().end()));
   s->expr = std::move(e);
-  s->unterminated = unterminated;
+  // A token the lexer reported (an unterminated string took the rest of its line) makes the
+  // statement a syntax error already reported: nothing more is said of it.
+  s->unterminated = unterminated || lexedBadly(firstToken, pos_);
   return s;
 }
 
