@@ -325,9 +325,9 @@ Bounds3 ContributorGrid::voxelBounds(uint32_t voxel) const {
 }
 
 double ContributorGrid::heaviestVoxelEstimate(const Scene& scene) const {
-  // Each displaced triangle's estimate (below) is spread evenly over
-  // the voxels of its undisplaced box: displaced geometry stays near its surface however generous
-  // its bound (the bound is what made the voxels too big). Per voxel, in float: an estimate.
+  // Each displaced triangle's estimate (below) is spread evenly over the voxels of its
+  // undisplaced box: displaced geometry stays near its surface however generous its bound (the
+  // bound is what made the voxels too big). Per voxel, in float: an estimate.
   std::vector<float> load(size_t(resolution_.x) * resolution_.y * resolution_.z, 0.0f);
   float heaviest = 0.0f;
   for (uint32_t m = 0; m < scene.meshes.size(); ++m) {
