@@ -372,9 +372,13 @@ void Integrator::illuminate(const Surface& s, uint64_t seed, RenderStats* stats,
 // two rays per hit and --max-depth 100 took minutes for a thumbnail (the tree is exponential in
 // depth, its total weight is not).
 constexpr float kMinRayWeight = 1.0f / 1024.0f;
+// Partly transparent surfaces one ray composites at most (each continues the ray by recursion, so
+// this bounds the stack, also under ASan); beyond, what lies behind is left out. Layers of Os 0.05
+// reach the weight cut above at about 135, of Os 0.5 at 10.
+constexpr int kMaxTransparentLayers = 256;
 
 glm::vec3 Integrator::shade(const Ray& ray, const Surface& s, int depth, uint64_t seed,
-                            RenderStats* stats, float weight, glm::vec3* opacity) const {
+                            RenderStats* stats, float weight, glm::vec3* opacity, int layers) const {
   const Material& m = *s.material;
   if (opacity) *opacity = m.type == SurfaceType::Glass ? glm::vec3(1.0f) : s.Os;
 
@@ -455,21 +459,24 @@ glm::vec3 Integrator::shade(const Ray& ray, const Surface& s, int depth, uint64_
       break;
   }
   Ci *= s.Os;
-  if (s.Os != glm::vec3(1.0f) && worth(largest(glm::vec3(1.0f) - s.Os))) {
-    // Partly transparent: composite what lies behind, continuing the same ray.
+  if (s.Os != glm::vec3(1.0f) && weight * largest(glm::vec3(1.0f) - s.Os) >= kMinRayWeight &&
+      layers < kMaxTransparentLayers) {
+    // Partly transparent: composite what lies behind, continuing the same ray at the same depth
+    // (RI: opacity is the hider's compositing; --max-depth counts reflections and refractions, and
+    // at --max-depth 0 a layer of Os 0.5 had hidden everything behind it).
     Ray behind = ray;
     behind.tMin = s.hit->t + s.epsilon / glm::length(ray.direction);
     glm::vec3 behindOpacity(0.0f);
-    Ci += (glm::vec3(1.0f) - s.Os) * radianceAt(behind, depth + 1, mix64(seed + 0x51ull), stats, nullptr,
+    Ci += (glm::vec3(1.0f) - s.Os) * radianceAt(behind, depth, mix64(seed + 0x51ull), stats, nullptr,
                                                 weight * largest(glm::vec3(1.0f) - s.Os),
-                                                opacity ? &behindOpacity : nullptr);
+                                                opacity ? &behindOpacity : nullptr, layers + 1);
     if (opacity) *opacity += (glm::vec3(1.0f) - s.Os) * behindOpacity;
   }
   return Ci;
 }
 
 glm::vec3 Integrator::radianceAt(const Ray& ray, int depth, uint64_t seed, RenderStats* stats,
-                                 SampleResult* first, float weight, glm::vec3* opacity) const {
+                                 SampleResult* first, float weight, glm::vec3* opacity, int layers) const {
   if (opacity) *opacity = glm::vec3(0.0f);
   const std::optional<Hit> hit = findHit(ray);
   if (!hit) return glm::vec3(0.0f);
@@ -481,7 +488,7 @@ glm::vec3 Integrator::radianceAt(const Ray& ray, int depth, uint64_t seed, Rende
     first->normal = s.N;
     opacity = opacity ? opacity : &own;
   }
-  const glm::vec3 c = shade(ray, s, depth, seed, stats, weight, opacity);
+  const glm::vec3 c = shade(ray, s, depth, seed, stats, weight, opacity, layers);
   if (first) {
     first->hit = true;
     first->alpha = std::clamp((opacity->r + opacity->g + opacity->b) / 3.0f, 0.0f, 1.0f);

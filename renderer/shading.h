@@ -129,10 +129,13 @@ class Integrator {
   // ray). Secondary rays whose weight would fall below kMinRayWeight are not traced.
   // `opacity` (may be null) receives the opacity accumulated along the ray through partly
   // transparent surfaces (0 where it hits nothing): the camera sample's alpha is its mean.
+  // `layers`: the partly transparent surfaces this ray has already passed (kMaxTransparentLayers);
+  // compositing through them is the hider's work, not ray recursion, so it does not use `depth`.
   glm::vec3 radianceAt(const Ray& ray, int depth, uint64_t seed, RenderStats* stats,
-                       SampleResult* first, float weight = 1.0f, glm::vec3* opacity = nullptr) const;
+                       SampleResult* first, float weight = 1.0f, glm::vec3* opacity = nullptr,
+                       int layers = 0) const;
   glm::vec3 shade(const Ray& ray, const Surface& s, int depth, uint64_t seed,
-                  RenderStats* stats, float weight, glm::vec3* opacity) const;
+                  RenderStats* stats, float weight, glm::vec3* opacity, int layers) const;
   // Ambient light reaching the surface (unshadowed) and shadowed samples of every other light
   // whose direction lies in the hemisphere around Nf.
   glm::vec3 ambient(const Surface& s) const;

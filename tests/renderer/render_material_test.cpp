@@ -295,6 +295,27 @@ TEST(RenderMaterial, OpacityCompositesWhatIsBehind) {
   EXPECT_NEAR(both.alpha(4, 4), 1.0f, 1e-6f);
 }
 
+// Compositing through partly transparent surfaces is the hider's (RI), not ray recursion: ten
+// layers of Os 0.1 over an opaque wall composite fully even at --max-depth 0 (each layer used to
+// take one level: at the default 5 the wall behind was lost, and at 0 everything behind the first).
+TEST(RenderMaterial, TransparentLayersDoNotUseTheRayDepth) {
+  Scene scene = test::orthoScene(8, 1.0f);
+  Material layer = test::constant({1, 0, 0});
+  layer.opacity = glm::vec3(0.1f);
+  const uint32_t f = test::addMaterial(&scene, layer);
+  const uint32_t b = test::addMaterial(&scene, test::constant({0, 0, 1}));
+  for (int k = 0; k < 10; ++k) scene.meshes.push_back(wall(f, -1.0f - 0.1f * float(k)));
+  scene.meshes.push_back(wall(b, 0.0f));
+  const float behind = std::pow(0.9f, 10.0f);
+  for (int maxDepth : {0, kDefaultMaxDepth}) {
+    SCOPED_TRACE(maxDepth);
+    const SampleResult r = traceOne(scene, rayFrom({0.5f, 0.5f, -20}, {0, 0, 1}), maxDepth);
+    EXPECT_NEAR(r.color.r, 1.0f - behind, 1e-5f);
+    EXPECT_NEAR(r.color.b, behind, 1e-5f);
+    EXPECT_NEAR(r.alpha, 1.0f, 1e-5f);
+  }
+}
+
 TEST(RenderMaterial, AlphaIsTheOpacityAccumulatedAlongTheRay) {
   // As RenderMan's Oi: one wall of opacity 0.25 over nothing gives alpha 0.25 (colour
   // premultiplied by it), two give 1 - 0.75^2, a fully transparent one gives 0. Coloured opacity
