@@ -399,6 +399,7 @@ class RibParser {
       *error = error_;
       return std::nullopt;
     }
+    warnLightsThatLightNothing();
     // The older view of the lights, for readers that have not moved to Scene::lights.
     for (const Light& light : scene_.lights) {
       if (light.type == LightType::Distant) {
@@ -541,6 +542,30 @@ class RibParser {
   void warn(int line, const std::string& message) {
     if (options_.warnings)
       *options_.warnings << fileName_ << ":" << line << ": warning: " << message << "\n";
+  }
+
+  // A light on for no geometry at all is most likely one declared inside an attribute block:
+  // RenderMan switches it off at the block's AttributeEnd, and features.rib lost two area lights
+  // so without a word.
+  void warnLightsThatLightNothing() {
+    if (!options_.warnings || scene_.meshes.empty()) return;
+    std::vector<uint8_t> used(scene_.lights.size(), 0);
+    for (const Mesh& mesh : scene_.meshes) {
+      if (!mesh.lightsSet) return;  // every light reaches it
+      for (uint32_t l : mesh.lights)
+        if (l < used.size()) used[l] = 1;
+    }
+    for (size_t l = 0; l < scene_.lights.size() && l < lightOrigins_.size(); ++l) {
+      if (used[l]) continue;
+      const Light& light = scene_.lights[l];
+      const std::string name = light.handle.empty() ? "a light" : "light '" + light.handle + "'";
+      *options_.warnings << lightOrigins_[l].first << ":" << lightOrigins_[l].second << ": warning: " << name
+                         << " lights no geometry: it is off wherever geometry is declared (RenderMan "
+                            "switches a light off at the AttributeEnd of the block declaring it; "
+                         << (light.handle.empty() ? std::string("give it a handle and Illuminate it")
+                                                  : "'Illuminate \"" + light.handle + "\" 1'")
+                         << " turns it on)\n";
+    }
   }
 
   void warnOnce(int line, const std::string& key, const std::string& message) {
@@ -1023,6 +1048,7 @@ class RibParser {
   std::map<std::string, uint32_t> lightHandles_;  // handle -> Scene::lights index
   std::set<std::string> skippedLightHandles_;      // of lights the reader skipped
   std::vector<size_t> lightsBeforeWorld_;          // in camera space until WorldBegin
+  std::vector<std::pair<std::string, int>> lightOrigins_;  // per Scene::lights entry: file, line
   // ObjectBegin/End: the recorded calls of each object, replayed by ObjectInstance.
   struct RecordedCall {
     Call call;
@@ -1870,6 +1896,7 @@ bool RibParser::doLight(const Call& call) {
   }
   const uint32_t index = uint32_t(scene_.lights.size());
   scene_.lights.push_back(light);
+  lightOrigins_.push_back({fileName_, call.line});
   if (!inWorld_) lightsBeforeWorld_.push_back(index);
   if (!handle.empty()) {
     lightHandles_[handle] = index;

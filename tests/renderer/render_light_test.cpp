@@ -243,6 +243,32 @@ TEST(RenderLight, IlluminateCanLeaveASurfaceUnlit) {
   EXPECT_EQ(centre(sphere + lights), glm::vec3(0.0f));
 }
 
+// A light declared inside an attribute block is off after its AttributeEnd, so it lights nothing
+// unless Illuminate turns it on again: the reader says so, at the light's line (features.rib had
+// lost two area lights without a word). A light that reaches something, or a scene whose meshes
+// take every light, is not mentioned.
+TEST(RenderLight, ALightSwitchedOffBeforeAnyGeometryIsReported) {
+  auto warningsOf = [](const std::string& world) {
+    SceneError error;
+    RibReadOptions options;
+    std::ostringstream log;
+    options.warnings = &log;
+    std::optional<Scene> scene =
+        readRibString("Format 9 9 1\nWorldBegin\n" + world + "WorldEnd\n", "lost.rib", options, &error);
+    EXPECT_TRUE(scene) << error.format();
+    return log.str();
+  };
+  const std::string blockLight =
+      "LightSource \"distantlight\" \"key\" \"from\" [0 0 0] \"to\" [0 0 1]\n"
+      "AttributeBegin\nLightSource \"pointlight\" \"lamp\" \"from\" [0 2 0]\nAttributeEnd\n";
+  const std::string sphere = "AttributeBegin\nTranslate 0 0 5\nSphere 0.8 -0.8 0.8 360\nAttributeEnd\n";
+  const std::string lost = warningsOf(blockLight + sphere);
+  EXPECT_NE(lost.find("lost.rib:5: warning: light 'lamp' lights no geometry"), std::string::npos) << lost;
+  EXPECT_NE(lost.find("'Illuminate \"lamp\" 1' turns it on"), std::string::npos) << lost;
+  EXPECT_EQ(lost.find("'key'"), std::string::npos) << lost;
+  EXPECT_EQ(warningsOf(blockLight + "Illuminate \"lamp\" 1\n" + sphere), "");
+}
+
 // BMRT's Attribute "light" "shadows": "off" makes the lights declared after it trace no shadow
 // rays (RenderMan's standard lights have no shadow() call), "on" restores them. A backdrop sphere
 // around everything then no longer darkens the scene.
