@@ -246,7 +246,7 @@ bool Film::writeStaged(const std::string& path, std::string* stagedPath, std::st
   bool ok;
   if (ownFormat(extension)) {
     const Image8 image{width_, height_, channels, bytes.data()};
-    ok = extension == ".png" ? writePng(temp.string(), image, options.srgb, options.metadata, &writeError, options.threads)
+    ok = extension == ".png" ? writePng(temp.string(), image, options.srgb, options.gamma, options.metadata, &writeError, options.threads)
                              : writePnm(temp.string(), image, &writeError);
   } else if (const RlfImageLibrary* library = runtime::imageLibrary(&writeError)) {
     std::vector<const char*> names, metadata;

@@ -26,6 +26,9 @@ struct ImageWriteOptions {
   std::vector<std::string> channelNames;  // empty: the format's defaults (R, G, B, A)
   // 8-bit formats: sRGB-encode (colour images) or scale linearly (data already mapped to [0, 1]).
   bool srgb = true;
+  // Without srgb, the power the values were encoded with (RiExposure's gamma; 1 for data): PNG
+  // records it (gAMA 1/gamma).
+  float gamma = 1.0f;
   // String attributes stored in the file's header where the format has one (EXR, TIFF).
   std::vector<std::pair<std::string, std::string>> metadata;
   // Threads that may convert to 8 bits and compress a PNG (the bytes do not depend on how many).

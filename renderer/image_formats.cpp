@@ -6,6 +6,7 @@
 #include <zlib.h>
 
 #include <algorithm>
+#include <cmath>
 #include <atomic>
 #include <cerrno>
 #include <cstdio>
@@ -147,7 +148,7 @@ bool deflateBand(const std::vector<uint8_t>& data, size_t begin, size_t end, boo
 
 }  // namespace
 
-bool writePng(const std::string& path, const Image8& image, bool srgb,
+bool writePng(const std::string& path, const Image8& image, bool srgb, float gamma,
               const std::vector<std::pair<std::string, std::string>>& text, std::string* error,
               int threads) {
   static const uint8_t kColourType[5] = {0, 0, 4, 2, 6};
@@ -196,9 +197,12 @@ bool writePng(const std::string& path, const Image8& image, bool srgb,
   header.insert(header.end(), {8, kColourType[image.channels], 0, 0, 0});
   writeChunk(file, "IHDR", header.data(), header.size());
   // Colour: sRGB, with the gAMA and cHRM the PNG specification recommends beside it for readers
-  // that do not know sRGB. Data (already mapped to [0, 1]): gamma 1, so nothing re-encodes it.
-  std::vector<uint8_t> gamma;
-  putU32(gamma, srgb ? 45455 : 100000);
+  // that do not know sRGB. Otherwise the power the values were encoded with: gamma 1 for data
+  // (already mapped to [0, 1]), so nothing re-encodes it; 1/g for RiExposure's gamma g, so a
+  // colour-managed viewer does not brighten it a second time.
+  std::vector<uint8_t> gAMA;
+  const double fileGamma = gamma > 0.0f && std::isfinite(gamma) ? 1.0 / double(gamma) : 1.0;
+  putU32(gAMA, srgb ? 45455u : uint32_t(std::clamp(std::lround(100000.0 * fileGamma), 1L, 4000000000L)));
   if (srgb) {
     const uint8_t perceptual = 0;
     writeChunk(file, "sRGB", &perceptual, 1);
@@ -206,7 +210,7 @@ bool writePng(const std::string& path, const Image8& image, bool srgb,
     for (uint32_t v : {31270u, 32900u, 64000u, 33000u, 30000u, 60000u, 15000u, 6000u}) putU32(chromaticities, v);
     writeChunk(file, "cHRM", chromaticities.data(), chromaticities.size());
   }
-  writeChunk(file, "gAMA", gamma.data(), gamma.size());
+  writeChunk(file, "gAMA", gAMA.data(), gAMA.size());
   std::vector<std::pair<std::string, std::string>> chunks = {{"Software", "relief"}};
   chunks.insert(chunks.end(), text.begin(), text.end());
   for (const auto& [keyword, value] : chunks) {

@@ -18,11 +18,12 @@ struct Image8 {
 };
 
 // PNG with zlib compression and per-row adaptive filters. `srgb`: a colour image (sRGB, gAMA and
-// cHRM chunks); otherwise data values (gAMA 1: linear). `text` pairs become
+// cHRM chunks); otherwise values encoded with the power 1/`gamma` (gAMA 1/gamma: 1 for data
+// already mapped to [0, 1], 1/2.2 for a colour image under RiExposure's gamma 2.2). `text` pairs become
 // tEXt chunks (keywords PNG cannot store are skipped). Returns false with the reason in *error.
 // The rows are compressed in bands of fixed height, up to `threads` bands at once: the file's
 // bytes depend on the image alone, never on the thread count.
-bool writePng(const std::string& path, const Image8& image, bool srgb,
+bool writePng(const std::string& path, const Image8& image, bool srgb, float gamma,
               const std::vector<std::pair<std::string, std::string>>& text, std::string* error,
               int threads = 1);
 

@@ -1255,6 +1255,7 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
       case OutputKind::Colour:
         writeOptions.alpha = modeHasAlpha(modes[i]);
         writeOptions.srgb = scene.exposureGamma == 1.0f;  // Exposure's gamma is the display transfer
+        writeOptions.gamma = scene.exposureGamma;
         break;
       case OutputKind::Alpha:  // coverage as the one channel, linear
         image = &mapped.emplace(relief::alphaForDisplay(film));

@@ -379,6 +379,18 @@ TEST(Relief, ExposureAndGreyPgm) {
   EXPECT_EQ(firstPixel(scene("exposed.rib", "Exposure 2 2.2\n"), "exposed.pgm", &header), 74);
   EXPECT_EQ(firstPixel(scene("exposed.rib", "Exposure 2 2.2\n"), "exposed.ppm", &header), 255);
   EXPECT_EQ(header, "P6\n4 4\n255\n");
+  // A PNG says how its values were encoded: gAMA 1/2.2 (45455), no sRGB chunk (it had said gamma
+  // 1, and colour-managed viewers brightened the image a second time).
+  auto pngChunks = [&](const std::string& out) {
+    EXPECT_EQ(run(kRelief + " " + scene("exposed.rib", "Exposure 2 2.2\n").string() + " --quiet -o " + (dir / out).string()).exitCode, 0);
+    std::ifstream in(dir / out, std::ios::binary);
+    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  };
+  const std::string png = pngChunks("exposed.png");
+  const size_t gama = png.find("gAMA");
+  ASSERT_NE(gama, std::string::npos);
+  EXPECT_EQ(png.substr(gama + 4, 4), std::string("\x00\x00\xb1\x8f", 4));  // 45455
+  EXPECT_EQ(png.find("sRGB"), std::string::npos);
   const RunResult bad = run(kRelief + " " + scene("bad.rib", "Exposure 1 0\n").string() + " --quiet -o " +
                             (dir / "bad.png").string());
   EXPECT_EQ(bad.exitCode, 1);
