@@ -942,7 +942,8 @@ class RibParser {
              a.Kd == b.Kd && a.Ks == b.Ks && a.roughness == b.roughness &&
              a.specularColor == b.specularColor && a.Kr == b.Kr && a.Kt == b.Kt &&
              a.eta == b.eta && a.transmitColor == b.transmitColor && a.twoSided == b.twoSided &&
-             a.reverseOrientation == b.reverseOrientation && a.castsShadows == b.castsShadows;
+             a.reverseOrientation == b.reverseOrientation && a.castsShadows == b.castsShadows &&
+             a.opaqueShadows == b.opaqueShadows;
     };
     for (size_t i = 0; i < scene_.materials.size(); ++i) {
       if (same(scene_.materials[i], m)) return uint32_t(i);
@@ -1744,10 +1745,12 @@ bool RibParser::executeAttributes(const Call& call, bool* handled) {
             return fail(call.line, "'visibility': unknown transmission '" + mode +
                                        "' (expected transparent, opaque, Os or shader)");
           attr_.material.castsShadows = mode != "transparent";
+          attr_.material.opaqueShadows = mode == "opaque";
         } else {
           float on = 1.0f;
           if (!floatParam(call, params, "transmission", &on)) return false;
           attr_.material.castsShadows = on != 0.0f;
+          attr_.material.opaqueShadows = false;
         }
       }
       for (const Param& q : params)
@@ -1926,6 +1929,7 @@ bool RibParser::doSurface(const Call& call) {
   m.opacity = attr_.material.opacity;
   m.twoSided = attr_.material.twoSided;
   m.castsShadows = attr_.material.castsShadows;
+  m.opaqueShadows = attr_.material.opaqueShadows;
   std::vector<std::string_view> known = {"Ka", "Kd"};
   if (name == "matte") {
   } else if (name == "plastic") {

@@ -79,6 +79,9 @@ struct Material {
   bool twoSided = true;             // Sides 2 (default) or 1
   bool reverseOrientation = false;  // Orientation "inside"/"rh" relative to the default
   bool castsShadows = true;  // Attribute "visibility" "transmission": false lets shadow rays pass
+  // "string transmission" ["opaque"]: a full shadow whatever the opacity ("Os", the default, lets
+  // 1 - Os through).
+  bool opaqueShadows = false;
 };
 
 // Runtime problems of one Displacement's shader (abi.h's RlfStatus), counted by whatever

@@ -239,6 +239,8 @@ glm::vec3 Integrator::transmittance(const Ray& ray, RenderStats* stats) const {
       const Material& m = *s.material;
       if (!m.castsShadows) {
         // invisible to shadow rays: Attribute "visibility" "int transmission" [0]
+      } else if (m.opaqueShadows) {
+        return glm::vec3(0.0f);  // "string transmission" ["opaque"]: whatever its opacity
       } else if (m.type == SurfaceType::Glass) {
         // Light crossing the interface: what Fresnel lets through, tinted once per object (on the
         // way in), as a camera ray refracted through it would be. The bending is ignored, as in

@@ -73,6 +73,14 @@ TEST(RenderLight, SurfaceThatCastsNoShadowsLetsShadowRaysThrough) {
   scene.materials[scene.meshes.back().materialIndex].castsShadows = true;
   const Film shadowed = test::renderWith(scene);
   EXPECT_EQ(shadowed.pixel(pixelAt(0.7f), 19).r, 0.0f);
+  // Half transparent, it lets half the light through; with "string transmission" ["opaque"]
+  // (older PRMan) it shadows fully whatever its opacity.
+  Material& blocker = scene.materials[scene.meshes.back().materialIndex];
+  blocker.opacity = glm::vec3(0.5f);
+  const float half = test::renderWith(scene).pixel(pixelAt(0.7f), 19).r;
+  EXPECT_NEAR(half, 0.5f * lit.pixel(pixelAt(0.7f), 19).r, 1e-5f);
+  blocker.opaqueShadows = true;
+  EXPECT_EQ(test::renderWith(scene).pixel(pixelAt(0.7f), 19).r, 0.0f);
 }
 
 float smoothstep(float lo, float hi, float x) {

@@ -500,6 +500,8 @@ TEST(RibSurfaces, VisibilityTransmissionControlsShadowCasting) {
   EXPECT_TRUE(materialOf(*r.scene, 0).castsShadows);
   EXPECT_FALSE(materialOf(*r.scene, 1).castsShadows);
   EXPECT_TRUE(materialOf(*r.scene, 2).castsShadows);
+  EXPECT_TRUE(materialOf(*r.scene, 2).opaqueShadows);  // "opaque": a full shadow whatever Os
+  EXPECT_FALSE(materialOf(*r.scene, 0).opaqueShadows);
   EXPECT_FALSE(materialOf(*r.scene, 3).castsShadows);
   EXPECT_TRUE(materialOf(*r.scene, 4).castsShadows);  // restored by AttributeEnd
   // A Surface after the attribute keeps it (it made a new material that cast shadows again).
