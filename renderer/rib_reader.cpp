@@ -3684,24 +3684,26 @@ bool RibParser::doObjectInstance(const Call& call) {
 
 // Option "relief": render settings carried by the scene (the command line overrides them).
 bool RibParser::doReliefOption(const Call& call, const std::vector<Param>& params) {
-  float budget = -1.0f, depth = -1.0f;
+  // A setting is given when its parameter is there, whatever its value (-1, the old "absent",
+  // had passed unchecked).
+  float budget = 0.0f, depth = 0.0f;
   std::string order;
   if (!floatParam(call, params, "cachebudget", &budget) ||
       !floatParam(call, params, "maxdepth", &depth) ||
       !stringParam(call, params, "order", &order))
     return false;
-  if (budget != -1.0f) {
+  if (findParam(params, "cachebudget")) {
     if (!(budget >= 1.0f && budget <= 1e15f) || budget != std::floor(budget))
       return fail(call.line, "'Option \"relief\"': 'cachebudget' must be a positive integer");
     scene_.cacheBudgetTriangles = uint64_t(budget);
   }
-  if (depth != -1.0f) {
+  if (findParam(params, "maxdepth")) {
     // The range of --max-depth: 0 (no secondary rays) to 100.
     if (!(depth >= 0.0f && depth <= 100.0f) || depth != std::floor(depth))
       return fail(call.line, "'Option \"relief\"': 'maxdepth' must be an integer from 0 to 100");
     scene_.maxDepth = int(depth);
   }
-  if (!order.empty()) {
+  if (findParam(params, "order")) {
     if (order != "scanline" && order != "bucket" && order != "hilbert")
       return fail(call.line, "'Option \"relief\"': 'order' must be scanline, bucket or hilbert");
     scene_.order = order;

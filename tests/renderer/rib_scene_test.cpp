@@ -129,6 +129,10 @@ TEST(RibOptions, ReliefOptionSetsRenderSettings) {
   EXPECT_EQ(r.error.line, 1);
   EXPECT_FALSE(read("Option \"relief\" \"int maxdepth\" [\"deep\"]\n" + world("")).scene);
   EXPECT_FALSE(read("Option \"relief\" \"int cachebudget\" [-5]\n" + world("")).scene);
+  // -1 and "" are values like any other (they had passed as "not given").
+  EXPECT_FALSE(read("Option \"relief\" \"int maxdepth\" [-1]\n" + world("")).scene);
+  EXPECT_FALSE(read("Option \"relief\" \"int cachebudget\" [-1]\n" + world("")).scene);
+  EXPECT_FALSE(read("Option \"relief\" \"string order\" [\"\"]\n" + world("")).scene);
 }
 
 TEST(RibOptions, PixelFilterChoosesTheReconstructionFilter) {
