@@ -356,6 +356,7 @@ class RibParser {
     baseDir_ = p.has_parent_path() ? p.parent_path().string() : std::string(".");
     archivePath_ = {baseDir_};
     scene_.camera.perspective = false;  // RenderMan's default projection
+    scene_.pixelSamples = 4;            // and its default PixelSamples 2 2
     scene_.texturePath = options.defaultTexturePath;
   }
 

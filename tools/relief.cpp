@@ -60,7 +60,7 @@ constexpr const char* kUsage =
     "                            (format from the extension: png, exr, tif, ...)\n"
     "  --frame N                 render only the frame of 'FrameBegin N' (default: every frame)\n"
     "  --resolution WxH          override the scene's Format\n"
-    "  --spp N                   samples per pixel (overrides PixelSamples)\n"
+    "  --spp N                   samples per pixel (overrides PixelSamples, whose default is 2 2)\n"
     "  --threads N               render threads, 1 to 256 (default: all cores)\n"
     "  --order ORDER             pixel order: scanline, bucket or hilbert (default)\n"
     "  --max-depth N             reflection/refraction depth (default 5; overrides the scene's\n"

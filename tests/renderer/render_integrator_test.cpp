@@ -86,7 +86,7 @@ TEST(RenderIntegrator, ColouredAmbientLight) {
 
 TEST(RenderIntegrator, VertexColoursAreInterpolated) {
   const Scene scene = load(
-      "Format 40 40 1\nProjection \"orthographic\"\nScreenWindow 0 1 0 1\nTranslate 0 0 5\n"
+      "Format 40 40 1\nPixelSamples 1 1\nProjection \"orthographic\"\nScreenWindow 0 1 0 1\nTranslate 0 0 5\n"
       "WorldBegin\nLightSource \"ambientlight\" 1\n"
       "Polygon \"P\" [0 0 0  1 0 0  0 1 0] \"Cs\" [1 0 0  0 1 0  0 0 1]\nWorldEnd\n");
   const Film film = renderScene(scene);
@@ -303,7 +303,7 @@ TEST_P(HugeGroundPlane, KeepsTheShadowAndStaysWhole) {
   const std::string displace = GetParam() ? "Displacement \"push\" \"Km\" [0.15]\n" : "";
   auto renderFloor = [&](const std::string& half) {
     return renderGridScene(
-        "Format 48 36 1\nProjection \"perspective\" \"fov\" [40]\n"
+        "Format 48 36 1\nPixelSamples 1 1\nProjection \"perspective\" \"fov\" [40]\n"
         "Translate 0 0 5\nRotate -20 1 0 0\nWorldBegin\n"
         "LightSource \"distantlight\" 1 \"from\" [-2 3 -1.5] \"to\" [0 0 0]\n"
         "LightSource \"ambientlight\" 2 \"intensity\" [0.1]\n"

@@ -237,7 +237,7 @@ TEST(RenderLight, IlluminateCanLeaveASurfaceUnlit) {
   auto centre = [](const std::string& world) {
     SceneError error;
     std::optional<Scene> scene = readRibString(
-        "Format 9 9 1\nWorldBegin\n" + world + "WorldEnd\n", "light.rib", RibReadOptions{}, &error);
+        "Format 9 9 1\nPixelSamples 1 1\nWorldBegin\n" + world + "WorldEnd\n", "light.rib", RibReadOptions{}, &error);
     EXPECT_TRUE(scene) << error.format();
     return scene ? test::renderWith(*scene).pixel(4, 4) : glm::vec3(-1.0f);
   };
@@ -262,7 +262,7 @@ TEST(RenderLight, ALightSwitchedOffBeforeAnyGeometryIsReported) {
     std::ostringstream log;
     options.warnings = &log;
     std::optional<Scene> scene =
-        readRibString("Format 9 9 1\nWorldBegin\n" + world + "WorldEnd\n", "lost.rib", options, &error);
+        readRibString("Format 9 9 1\nPixelSamples 1 1\nWorldBegin\n" + world + "WorldEnd\n", "lost.rib", options, &error);
     EXPECT_TRUE(scene) << error.format();
     return log.str();
   };
@@ -271,7 +271,7 @@ TEST(RenderLight, ALightSwitchedOffBeforeAnyGeometryIsReported) {
       "AttributeBegin\nLightSource \"pointlight\" \"lamp\" \"from\" [0 2 0]\nAttributeEnd\n";
   const std::string sphere = "AttributeBegin\nTranslate 0 0 5\nSphere 0.8 -0.8 0.8 360\nAttributeEnd\n";
   const std::string lost = warningsOf(blockLight + sphere);
-  EXPECT_NE(lost.find("lost.rib:5: warning: light 'lamp' lights no geometry"), std::string::npos) << lost;
+  EXPECT_NE(lost.find("lost.rib:6: warning: light 'lamp' lights no geometry"), std::string::npos) << lost;
   EXPECT_NE(lost.find("'Illuminate \"lamp\" 1' turns it on"), std::string::npos) << lost;
   EXPECT_EQ(lost.find("'key'"), std::string::npos) << lost;
   EXPECT_EQ(warningsOf(blockLight + "Illuminate \"lamp\" 1\n" + sphere), "");
@@ -286,7 +286,7 @@ TEST(RenderLight, LightShadowsAttributeSwitchesShadowRays) {
     RibReadOptions options;
     std::ostringstream log;
     options.warnings = &log;
-    std::optional<Scene> scene = readRibString("Format 9 9 1\nWorldBegin\n" + world + "WorldEnd\n", "light.rib", options, &error);
+    std::optional<Scene> scene = readRibString("Format 9 9 1\nPixelSamples 1 1\nWorldBegin\n" + world + "WorldEnd\n", "light.rib", options, &error);
     EXPECT_TRUE(scene) << error.format();
     if (warnings) *warnings = log.str();
     return scene ? test::renderWith(*scene).pixel(4, 4) : glm::vec3(-1.0f);
@@ -303,7 +303,7 @@ TEST(RenderLight, LightShadowsAttributeSwitchesShadowRays) {
   // A light whose from and to coincide has no direction: it lights nothing, with a warning.
   std::string warnings;
   EXPECT_EQ(centre("LightSource \"distantlight\" 1 \"to\" [0 0 0]\n" + sphere, &warnings), glm::vec3(0.0f));
-  EXPECT_NE(warnings.find("light.rib:3: warning: 'distantlight': 'from' and 'to' coincide"), std::string::npos)
+  EXPECT_NE(warnings.find("light.rib:4: warning: 'distantlight': 'from' and 'to' coincide"), std::string::npos)
       << warnings;
   SceneError error;
   EXPECT_FALSE(readRibString("WorldBegin\nAttribute \"light\" \"shadows\" [\"maybe\"]\nWorldEnd\n", "bad.rib",
