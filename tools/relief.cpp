@@ -1020,9 +1020,15 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
     if (!error.empty() ||
         !relief::canWriteFormat(outputs[i], modes[i] == "rgba" || modes[i] == "rgbaz", &error) ||
         !canCreateFile(outputs[i], &error)) {
-      // Located at the Display call when the scene named the file.
+      // Located at the Display call when the scene named the file. When -o named it, the mode
+      // may still be the scene's: say where it came from.
+      const bool modeFromScene = (sources.size() <= i || sources[i].empty()) && i < scene.displaySources.size() &&
+                                 !scene.displaySources[i].empty() && modes[i] != "rgb";
       std::cerr << (i < sources.size() && !sources[i].empty() ? sources[i] : std::string("relief")) << ": error: "
-                << error << "\n";
+                << error
+                << (modeFromScene ? " (display mode '" + modes[i] + "' from the Display at " + scene.displaySources[i] + ")"
+                                  : std::string())
+                << "\n";
       return 1;
     }
   }

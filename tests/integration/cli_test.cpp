@@ -982,6 +982,10 @@ TEST(Relief, AnUnwritableFormatFailsBeforeTheRender) {
   EXPECT_NE(r.err.find("PNM has no alpha channel"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find(rgba.string() + ":2: error: cannot write"), std::string::npos) << r.err;  // the Display line
   EXPECT_EQ(r.err.find("rendering"), std::string::npos) << r.err;
+  // With -o naming the file, the mode is still the Display's: the error says where it came from.
+  r = run(kRelief + " " + rgba.string() + " -o " + (dir / "b.ppm").string());
+  EXPECT_EQ(r.exitCode, 1);
+  EXPECT_NE(r.err.find("(display mode 'rgba' from the Display at " + rgba.string() + ":2)"), std::string::npos) << r.err;
   // Nor has JPEG: rgba to a .jpg is refused, not written as rgb in silence.
   const fs::path jpeg = smallScene(dir, "Display \"" + (dir / "a.jpg").string() + "\" \"file\" \"rgba\"\n");
   r = run(kRelief + " " + jpeg.string());
