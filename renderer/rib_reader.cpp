@@ -4,6 +4,8 @@
 #include "renderer/rib_reader.h"
 
 #include <algorithm>
+#include <array>
+#include <bit>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
@@ -3015,6 +3017,21 @@ bool RibParser::doQuadric(const Call& call) {
   if (n == "Torus" && std::fabs(v[3] - v[2]) >= 360.0f * (1.0f - 1e-6f))
     for (size_t i = 0; i < row; ++i)
       mesh.P[size_t(nv) * row + i] = mesh.P[i], mesh.N[size_t(nv) * row + i] = mesh.N[i];
+  // A row collapsed to one point (a cone's or paraboloid's apex, where a hyperboloid crosses the
+  // axis, a disk's centre): its copies take their mean normal. Each had its own column's normal,
+  // nudged off the apex, and displaced along them the apex opened into a hole.
+  for (size_t j = 0; j <= size_t(nv); ++j) {
+    const glm::vec3 first = mesh.P[j * row];
+    bool collapsed = true;
+    glm::vec3 sum(0.0f);
+    for (size_t i = 0; i < row && collapsed; ++i) {
+      collapsed = mesh.P[j * row + i] == first;
+      sum += mesh.N[j * row + i];
+    }
+    const float len = glm::length(sum);
+    if (!collapsed || !(len > 1e-6f) || !std::isfinite(len)) continue;
+    for (size_t i = 0; i < row; ++i) mesh.N[j * row + i] = sum / len;
+  }
   for (int j = 0; j < nv; ++j)
     for (int i = 0; i < nu; ++i) {
       const uint32_t a = uint32_t(j * (nu + 1) + i), b = a + 1, c = a + uint32_t(nu + 1), d = c + 1;
@@ -3528,6 +3545,48 @@ bool RibParser::buildPatchMesh(const Call& call, bool bicubic, int nu, bool uPer
         gridCs[k] = glm::vec3(value[0], value[1], value[2]);
       }
     }
+  // Degenerate points of a surface's own normals (a pole, a row collapsed to a point: the cross
+  // product vanishes) take the sum of their grid neighbours' normals, and the copies of one point
+  // (within a millionth of the grid's size: the basis rounds them apart) become one point with the
+  // sum of all their sums, so they move alike when displaced. Clearing every normal of the
+  // primitive for one such point (as before) displaced the whole patch along facet normals, which
+  // opened every edge.
+  if (!N) {
+    // Degenerate relative to the grid's largest normal: at a collapsed row the cross product is
+    // zero only up to rounding, and such a remainder points anywhere.
+    float largest = 0.0f;
+    for (const glm::vec3& n : gridN)
+      if (const float len = glm::length(n); std::isfinite(len)) largest = std::max(largest, len);
+    auto ok = [&](const glm::vec3& n) {
+      const float len = glm::length(n);
+      return len > 1e-20f && len > 1e-5f * largest && std::isfinite(len);
+    };
+    glm::vec3 lo(std::numeric_limits<float>::max()), hi(-std::numeric_limits<float>::max());
+    for (const glm::vec3& p : gridP) lo = glm::min(lo, p), hi = glm::max(hi, p);
+    const float tolerance = 1e-6f * glm::length(hi - lo);
+    struct Pole {
+      glm::vec3 at, normal;
+    };
+    std::vector<Pole> poles;
+    std::vector<std::pair<size_t, size_t>> members;  // (grid point, pole)
+    for (size_t k = 0; k < gridSize; ++k) {
+      if (ok(gridN[k])) continue;
+      const int row = int(k / size_t(columns)), col = int(k % size_t(columns));
+      glm::vec3 sum(0.0f);
+      for (const auto& [dr, dc] : {std::pair{-1, 0}, {1, 0}, {0, -1}, {0, 1}}) {
+        const int r = row + dr, c = col + dc;
+        if (r < 0 || r >= rows || c < 0 || c >= columns) continue;
+        const glm::vec3 n = gridN[size_t(r) * size_t(columns) + size_t(c)];
+        if (ok(n)) sum += glm::normalize(n);
+      }
+      size_t pole = 0;
+      while (pole < poles.size() && !(glm::length(poles[pole].at - gridP[k]) <= tolerance)) ++pole;
+      if (pole == poles.size()) poles.push_back({gridP[k], glm::vec3(0.0f)});
+      poles[pole].normal += sum;
+      members.emplace_back(k, pole);
+    }
+    for (const auto& [k, pole] : members) gridP[k] = poles[pole].at, gridN[k] = poles[pole].normal;
+  }
   Mesh mesh;
   bool normalsOk = true;
   // Appends grid point (row, col), with the uniform and facevarying values of patch spans su, sv.

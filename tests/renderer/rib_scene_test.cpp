@@ -6,11 +6,12 @@
 #include <unistd.h>
 
 #include <cmath>
-#include <map>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <set>
 #include <sstream>
+#include <tuple>
 
 #include <gtest/gtest.h>
 
@@ -810,6 +811,31 @@ TEST(RibPatches, BicubicBezierPatchInterpolatesItsCorners) {
   }
   EXPECT_NEAR(maxZ, 0.5625f, 1e-5f);
   expectNear(m.N[0], glm::vec3(0, 0, 1));  // dPdu x dPdv at a flat corner
+}
+
+// The copies of one point of a surface (a cone's apex, a patch row collapsed to a pole) share one
+// normal, so that displacing along N moves them alike. A patch's pole had cleared the normals of
+// the whole primitive (displaced along facet normals, every edge opened) and a cone's apex copies
+// each had their own column's normal (the apex opened into a hole).
+TEST(RibPatches, CoincidentPointsOfASurfaceShareOneNormal) {
+  const std::string lid =
+      "Patch \"bicubic\" \"P\" [0 0 -0.8 0 0 -0.8 0 0 -0.8 0 0 -0.8  -0.9 -0.3 -0.5 -0.3 -0.9 -0.5 0.3 -0.9 -0.5 "
+      "0.9 -0.3 -0.5  -1 0.2 0.2 -0.4 -0.5 0.3 0.4 -0.5 0.3 1 0.2 0.2  -1 0.9 0.5 -0.3 0.9 0.6 0.3 0.9 0.6 1 0.9 0.5]\n";
+  for (const std::string& shape : {lid, std::string("Cone 1.2 0.8 360\n"), std::string("Paraboloid 0.8 0 1 360\n"),
+                                   std::string("Hyperboloid 0.5 0 -0.5  -0.5 0 0.5 360\n")}) {
+    SCOPED_TRACE(shape);
+    const ReadResult r = read(world(shape));
+    ASSERT_TRUE(r.scene) << r.error.format();
+    const Mesh& mesh = r.scene->meshes.at(0);
+    ASSERT_EQ(mesh.N.size(), mesh.P.size());
+    std::map<std::tuple<float, float, float>, std::set<std::tuple<float, float, float>>> normals;
+    for (size_t i = 0; i < mesh.P.size(); ++i)
+      normals[{mesh.P[i].x, mesh.P[i].y, mesh.P[i].z}].insert({mesh.N[i].x, mesh.N[i].y, mesh.N[i].z});
+    for (const auto& [point, ns] : normals)
+      EXPECT_EQ(ns.size(), 1u) << std::get<0>(point) << " " << std::get<1>(point) << " " << std::get<2>(point);
+    EXPECT_LT(normals.size(), mesh.P.size());  // there were copies to share
+    for (const glm::vec3& n : mesh.N) EXPECT_NEAR(glm::length(n), 1.0f, 1e-4f);
+  }
 }
 
 TEST(RibPatches, PatchMeshBasesAndWrapping) {
