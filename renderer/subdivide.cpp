@@ -362,14 +362,18 @@ void displaceBatch(const Displacement& disp, const TriangleFrame& frame, Vertice
   // Squared, with a relative slack so that rounding on a point displaced exactly by the bound
   // does not count.
   const float bound2 = disp.boundWorld * disp.boundWorld * (1.0f + 1e-5f);
-  float maxMove2 = 0.0f;
+  float maxMove = 0.0f;
   for (uint32_t i = 0; i < n; ++i) {
     glm::vec3 p = batch.Pout.get(i);
     if (finite(p)) {
       vs.displaced[first + i] = p;
       const glm::vec3 d = p - vs.P.get(first + i);
       const float move2 = glm::dot(d, d);
-      if (move2 > bound2) ++outOfBound, maxMove2 = std::max(maxMove2, move2);
+      if (move2 > bound2) {
+        // In double where the square overflows (a move of 1e20 was reported as "inf").
+        ++outOfBound;
+        maxMove = std::max(maxMove, std::isfinite(move2) ? std::sqrt(move2) : float(glm::length(glm::dvec3(d))));
+      }
     } else {
       vs.displaced[first + i] = vs.P.get(first + i);
       ++replaced;
@@ -378,7 +382,7 @@ void displaceBatch(const Displacement& disp, const TriangleFrame& frame, Vertice
   if (outOfBound) {
     if (ShaderProblemCounts* pc = disp.problems.get()) {
       pc->outOfBound.fetch_add(outOfBound, std::memory_order_relaxed);
-      const float excess = std::sqrt(maxMove2) - disp.boundWorld;
+      const float excess = maxMove - disp.boundWorld;
       uint32_t bits;
       std::memcpy(&bits, &excess, 4);
       atomicMax(pc->maxExcessBits, bits);

@@ -891,6 +891,12 @@ TEST(Relief, DisplacementBeyondTheBoundIsOneWarningWithTheLargestExcess) {
   r = run(kRelief + " " + within.string() + " -o " + (dir / "near.png").string());
   ASSERT_EQ(r.exitCode, 0) << r.err;
   EXPECT_EQ(r.err.find("beyond the displacement bound"), std::string::npos) << r.err;
+
+  // A move whose square overflows a float is still measured (it was reported as "inf").
+  const fs::path huge = displacedScene(dir, "0.05", "Displacement \"push\" \"float amount\" [1e20]");
+  r = run(kRelief + " " + huge.string() + " -o " + (dir / "huge.png").string());
+  EXPECT_NE(r.err.find("up to 1e+20"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("inf"), std::string::npos) << r.err;
 }
 
 // A spline basis named at run time that the library does not know falls back to catmull-rom and
