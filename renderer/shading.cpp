@@ -214,13 +214,15 @@ bool Integrator::resolve(const Ray& ray, const Hit& hit, Surface* s) const {
 
 std::optional<Hit> Integrator::findHit(Ray ray) const {
   if (!anyOneSided_) return accel_.intersect(ray);
-  const float dirLength = glm::length(ray.direction);
   for (int i = 0; i < kMaxSkips; ++i) {
     std::optional<Hit> hit = accel_.intersect(ray);
     if (!hit) return hit;
     Surface s;
     if (resolve(ray, *hit, &s)) return hit;
-    ray.tMin = hit->t + s.epsilon / dirLength;
+    // Past the culled face exactly: hits are found for t in (tMin, tMax), and the same ray meets
+    // the same triangle at the same t, so it is not found again. Skipping an epsilon more (2e-5
+    // of the scene) lost front faces just behind a back face: a band where two sheets cross.
+    ray.tMin = hit->t;
   }
   return std::nullopt;
 }

@@ -348,6 +348,11 @@ TEST(RenderMaterial, OneSidedSurfacesAreInvisibleFromBehind) {
   scene.meshes.push_back(quad({-4, -4, -1}, {8, 0, 0}, {0, 8, 0}, f));
   scene.meshes.push_back(wall(b, 0.0f));
   EXPECT_EQ(test::renderWith(scene).pixel(4, 4), glm::vec3(0, 0, 1));
+  // A front face just behind the culled one (closer than the scene's epsilon, as where two sheets
+  // of one surface cross) is still found: the ray resumes exactly past the culled face.
+  Scene close = scene;
+  close.meshes.back() = wall(b, -1.0f + 1e-5f);
+  EXPECT_EQ(test::renderWith(close).pixel(4, 4), glm::vec3(0, 0, 1));
   // Reversed orientation turns it toward the camera.
   scene.materials[f].reverseOrientation = true;
   EXPECT_EQ(test::renderWith(scene).pixel(4, 4), glm::vec3(1, 0, 0));
