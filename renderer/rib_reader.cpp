@@ -2505,8 +2505,18 @@ bool RibParser::doSubdivisionMesh(const Call& call) {
   for (const glm::vec3& p : surface.P) positionsOut.insert(positionsOut.end(), {p.x, p.y, p.z});
   addParam("vertex point P", std::move(positionsOut));
   if (levels > 0) {
-    for (const glm::vec3& n : pointNormals(surface)) normalsOut.insert(normalsOut.end(), {n.x, n.y, n.z});
-    addParam("vertex normal N", std::move(normalsOut));
+    // A mesh folded onto itself (a card of two back-to-back faces) has points whose faces cancel:
+    // no normal there. It renders with face normals (it had failed as "zero-length normal").
+    bool folded = false;
+    for (const glm::vec3& n : pointNormals(surface)) {
+      folded = folded || !(glm::length(n) > 0.0f) || !std::isfinite(glm::length(n));
+      normalsOut.insert(normalsOut.end(), {n.x, n.y, n.z});
+    }
+    if (folded)
+      warn(call.line, "'SubdivisionMesh': the surface folds back onto itself (the normals of its faces cancel "
+                      "at some points); it is shaded and displaced with face normals");
+    else
+      addParam("vertex normal N", std::move(normalsOut));
   }
   auto typeWord = [](const Param& p) {
     if (!p.type) return std::string(p.name == "Cs" ? "color" : "float");

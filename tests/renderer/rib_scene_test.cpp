@@ -961,6 +961,19 @@ TEST(RibSubdivision, CatmullClarkCubeAndOpenGrid) {
 // Tags as RenderMan exporters write them: creases and corners keep the cube's edges and corners,
 // a hole takes its face's share of the triangles out, facevarying st follows each face; tag
 // arguments that do not add up, or name missing points or faces, are errors at the call.
+// A card of two back-to-back faces folds onto itself: its points' normals cancel. It is read
+// with face normals and a warning (it had failed with "zero-length normal", a message about
+// normals the scene never gave).
+TEST(RibSubdivision, AMeshFoldedOntoItselfReadsWithFaceNormals) {
+  const ReadResult r = read(world("SubdivisionMesh \"catmull-clark\" [4 4] [0 1 2 3 0 3 2 1] [] [] [] [] "
+                                  "\"P\" [0 0 0 1 0 0 1 1 0 0 1 0]\n"));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  EXPECT_GT(r.scene->meshes.at(0).numTriangles(), 0u);
+  EXPECT_TRUE(r.scene->meshes.at(0).N.empty());
+  EXPECT_NE(r.warnings.find(":2: warning: 'SubdivisionMesh': the surface folds back onto itself"), std::string::npos)
+      << r.warnings;
+}
+
 TEST(RibSubdivision, CreasesCornersHolesFacevaryingAndTagErrors) {
   const std::string cube =
       "SubdivisionMesh \"catmull-clark\" [4 4 4 4 4 4]\n"
