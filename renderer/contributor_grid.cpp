@@ -229,13 +229,18 @@ ContributorGrid::ContributorGrid(const Scene& scene, const AccelOptions& options
   // quadratic in time and memory (19 s and 724 MB for those copies; 300,000 ran out of memory).
   // Finding that out costs at most one limit's worth of pairs per halving.
   const size_t entryLimit = std::max(kMinEntryLimit, size_t(kMaxEntriesPerTriangle) * inGrid);
+  const size_t explicitLimit = std::max(kMinExplicitEntryLimit, size_t(kMaxExplicitEntriesPerTriangle) * inGrid);
   // A first guess from a sample of 64 triangles spread over the ids, so that a scene of big
   // triangles rarely pays for a full attempt at a resolution far too fine.
   // A resolution raised for the budget may have gone far past the limit where the bound is
   // large against the voxels: entries then grow as the cube of the resolution (the bound's
   // volume), not the square, so it steps down by cube roots, guess after guess, until the sample
   // fits.
-  for (int guess = 0; options.gridResolution <= 0 && n > 1 && inGrid > 64 && guess < 8; ++guess) {
+  // An explicit resolution takes the same guesses against its own, larger limit (a full pass
+  // up to that limit costs seconds).
+  const bool explicitResolution = options.gridResolution > 0;
+  const size_t guessLimit = explicitResolution ? explicitLimit : entryLimit;
+  for (int guess = 0; n > 1 && inGrid > 64 && guess < 8; ++guess) {
     uint64_t sampled = 0, counted = 0;
     const uint32_t stride = numTriangles() / 64;
     for (uint32_t id = 0; id < numTriangles() && counted < 64; id += std::max(1u, stride)) {
@@ -246,12 +251,13 @@ ContributorGrid::ContributorGrid(const Scene& scene, const AccelOptions& options
       forEachVoxel(id, lo, hi, [&](glm::ivec3) { ++sampled; });
     }
     const double expected = double(sampled) * double(inGrid) / double(std::max<uint64_t>(1, counted));
-    if (expected <= double(entryLimit)) break;
-    const double ratio = double(entryLimit) / expected;
-    n = std::clamp(int(double(n) * (budgetRefinements_ ? std::cbrt(ratio) : std::sqrt(ratio))), 1, n - 1);
+    if (expected <= double(guessLimit)) break;
+    const double ratio = double(guessLimit) / expected;
+    const bool byVolume = budgetRefinements_ || explicitResolution;
+    n = std::clamp(int(double(n) * (byVolume ? std::cbrt(ratio) : std::sqrt(ratio))), 1, n - 1);
     layOut(n);
     ++coarsenings_;
-    if (!budgetRefinements_) break;
+    if (!byVolume) break;
   }
   std::vector<std::pair<uint32_t, uint32_t>> pairs;
   for (;;) {
@@ -264,9 +270,19 @@ ContributorGrid::ContributorGrid(const Scene& scene, const AccelOptions& options
       glm::ivec3 lo, hi;
       cellRange(boxes[id], lo, hi);
       forEachVoxel(id, lo, hi, [&](glm::ivec3 cell) { pairs.emplace_back(voxelIndex(cell), id); });
-      over = options.gridResolution <= 0 && n > 1 && pairs.size() > entryLimit;
+      over = n > 1 && pairs.size() > (options.gridResolution <= 0 ? entryLimit : explicitLimit);
     }
     if (!over) break;
+    if (options.gridResolution > 0) {
+      // An explicit resolution is lowered only to keep memory bounded (a generous bound at 128
+      // voxels across made 819M entries and 9.6 GB): by cube roots, as the entries of a bound
+      // large against the voxels grow as its volume.
+      const double expected = double(pairs.size()) * double(inGrid) / double(std::max(1u, seen));
+      n = std::clamp(int(double(n) * std::cbrt(double(explicitLimit) / expected)), 1, n - 1);
+      layOut(n);
+      ++coarsenings_;
+      continue;
+    }
     // Entries grow about as the square of the resolution (triangles are surfaces): from the
     // rate so far, the resolution that fits, at most half the last (30,000 stacked quads: 4.6 s
     // of halvings, then one step).

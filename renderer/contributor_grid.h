@@ -80,6 +80,10 @@ constexpr uint64_t kMaxGridVoxels = uint64_t(1) << 25;
 // triangle on average, or kMinEntryLimit in all (a few big triangles may cover many voxels).
 constexpr int kMaxEntriesPerTriangle = 64;
 constexpr size_t kMinEntryLimit = size_t(1) << 22;
+// An explicit resolution is lowered (with a warning) only past a limit made for memory, not
+// speed: 2^24 entries (64 MB, and three times that while building) or 256 per triangle.
+constexpr int kMaxExplicitEntriesPerTriangle = 256;
+constexpr size_t kMinExplicitEntryLimit = size_t(1) << 24;
 
 // Undisplaced triangles outside the displaced geometry. A scene with displaced geometry gets a
 // grid over the displaced triangles' neighbourhood: their reach grown on every side by

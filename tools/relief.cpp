@@ -1144,7 +1144,8 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
     const int longest = std::max({r.x, r.y, r.z});
     if (longest < cl.gridResolution && warnings)
       *warnings << "relief: warning: --grid-resolution " << cl.gridResolution << " would make more than "
-                << relief::kMaxGridVoxels << " voxels in this scene; using " << longest << " along its longest axis\n";
+                << relief::kMaxGridVoxels << " voxels, or list too many contributors (a displacement bound "
+                << "large against such voxels), in this scene; using " << longest << " along its longest axis\n";
   }
 
   relief::RenderOptions renderOptions;

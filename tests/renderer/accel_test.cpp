@@ -354,6 +354,22 @@ TEST(ContributorGrid, ExplicitResolutionsStayWithinTheVoxelBudget) {
   EXPECT_EQ(ContributorGrid(scene, options).resolution().x, 64);
 }
 
+// Nor may an explicit resolution list more than kMinExplicitEntryLimit entries (or 256 per
+// triangle): a bound large against the voxels lists each triangle in a volume of them (819M
+// entries and 9.6 GB at 128 voxels across).
+TEST(ContributorGrid, ExplicitResolutionsStayWithinTheEntryLimit) {
+  SphereOptions o;
+  o.nu = 16, o.nv = 8;
+  Scene generous = makeSphereScene(o);
+  generous.displacements[0].boundWorld = 0.4f;
+  AccelOptions options;
+  options.gridResolution = 128;
+  const ContributorGrid lowered(generous, options);
+  EXPECT_LT(lowered.resolution().x, 128);
+  EXPECT_GT(lowered.resolution().x, 16);
+  EXPECT_LE(lowered.numEntries(), kMinExplicitEntryLimit);
+}
+
 // Big triangles stacked on one another would each be listed in thousands of voxels of a
 // resolution chosen by their count: the automatic resolution is halved until the entries are
 // bounded, and the coarser grid still finds them.
