@@ -232,7 +232,6 @@ glm::vec3 Integrator::transmittance(const Ray& ray, RenderStats* stats) const {
   if (!throughShadows_) return accel_.occluded(ray) ? glm::vec3(0.0f) : glm::vec3(1.0f);
   glm::vec3 through(1.0f);
   Ray r = ray;
-  const float dirLength = glm::length(r.direction);
   for (int i = 0; i < kMaxSkips; ++i) {
     const std::optional<Hit> hit = accel_.intersect(r);
     if (!hit) return through;
@@ -259,7 +258,9 @@ glm::vec3 Integrator::transmittance(const Ray& ray, RenderStats* stats) const {
       }
       if (isBlack(through)) return glm::vec3(0.0f);
     }
-    r.tMin = hit->t + s.epsilon / dirLength;
+    // Past this surface exactly, as findHit skips a culled face: an epsilon more lost a second
+    // surface just behind it (where two transparent sheets cross, one shadowed for the other).
+    r.tMin = hit->t;
     if (!(r.tMin < r.tMax)) return through;
   }
   return glm::vec3(0.0f);
@@ -468,8 +469,10 @@ glm::vec3 Integrator::shade(const Ray& ray, const Surface& s, int depth, uint64_
     // Partly transparent: composite what lies behind, continuing the same ray at the same depth
     // (RI: opacity is the hider's compositing; --max-depth counts reflections and refractions, and
     // at --max-depth 0 a layer of Os 0.5 had hidden everything behind it).
+    // The same ray resumes exactly past this hit (hits are found in the open interval (tMin, tMax),
+    // so it is not found again); skipping an epsilon more lost a surface just behind it.
     Ray behind = ray;
-    behind.tMin = s.hit->t + s.epsilon / glm::length(ray.direction);
+    behind.tMin = s.hit->t;
     glm::vec3 behindOpacity(0.0f);
     Ci += (glm::vec3(1.0f) - s.Os) * radianceAt(behind, depth, mix64(seed + 0x51ull), stats, nullptr,
                                                 weight * largest(glm::vec3(1.0f) - s.Os),

@@ -79,6 +79,11 @@ TEST(RenderLight, SurfaceThatCastsNoShadowsLetsShadowRaysThrough) {
   blocker.opacity = glm::vec3(0.5f);
   const float half = test::renderWith(scene).pixel(pixelAt(0.7f), 19).r;
   EXPECT_NEAR(half, 0.5f * lit.pixel(pixelAt(0.7f), 19).r, 1e-5f);
+  // A second one just behind it (closer than the scene's epsilon, as where two sheets cross)
+  // lets half of that through: the shadow ray resumes exactly past the first, not an epsilon on.
+  Scene two = scene;
+  two.meshes.push_back(quad({-0.5f, -6, -1.0f + 1e-5f}, {0, 12, 0}, {1, 0, 0}, two.meshes.back().materialIndex));
+  EXPECT_NEAR(test::renderWith(two).pixel(pixelAt(0.7f), 19).r, 0.25f * lit.pixel(pixelAt(0.7f), 19).r, 1e-5f);
   blocker.opaqueShadows = true;
   EXPECT_EQ(test::renderWith(scene).pixel(pixelAt(0.7f), 19).r, 0.0f);
 }

@@ -293,6 +293,12 @@ TEST(RenderMaterial, OpacityCompositesWhatIsBehind) {
   EXPECT_NEAR(c.r, 0.25f, 1e-6f);
   EXPECT_NEAR(c.b, 0.75f, 1e-6f);
   EXPECT_NEAR(both.alpha(4, 4), 1.0f, 1e-6f);
+  // A wall just behind (closer than the scene's epsilon, as where two sheets cross) is still
+  // composited: the ray resumes exactly past the transparent hit.
+  scene.meshes.back() = wall(b, -1.0f + 1e-5f);
+  const glm::vec3 close = test::renderWith(scene).pixel(4, 4);
+  EXPECT_NEAR(close.r, 0.25f, 1e-6f);
+  EXPECT_NEAR(close.b, 0.75f, 1e-6f);
 }
 
 // Compositing through partly transparent surfaces is the hider's (RI), not ray recursion: ten
