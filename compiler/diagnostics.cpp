@@ -235,6 +235,7 @@ void renderOne(std::ostream& out, const SourceManager& sm, const Diagnostic& d,
     if (sm.fileOf(r.begin) != sm.fileOf(d.loc)) continue;
     for (uint32_t o = b; o < e; ++o) caret[o - lineStart] = '~';
   }
+  const bool caretInRange = caret[p.column - 1] == '~';
   caret[p.column - 1] = '^';
   // A very long line (generated code, a file of one line) is shown as a window around the caret,
   // as clang does: 10,000 diagnostics on a 180 KB line printed 3 GB.
@@ -250,9 +251,6 @@ void renderOne(std::ostream& out, const SourceManager& sm, const Diagnostic& d,
     line = fullLine.substr(from, to - from);
     caret = caret.substr(from, to - from + 1);
   }
-  out << (cutBefore ? "..." : "") << line << (cutAfter ? "..." : "") << '\n';
-  for (size_t i = 0; i < line.size() && i < caret.size(); ++i)
-    if (line[i] == '\t' && caret[i] == ' ') caret[i] = '\t';
   // One caret column per character, not per byte: a UTF-8 continuation byte adds no column (what
   // it carries moves onto its character's lead byte), so the caret stays under its token after a
   // 'ü' in a comment or string.
@@ -264,17 +262,33 @@ void renderOne(std::ostream& out, const SourceManager& sm, const Diagnostic& d,
     for (int k = 1; k < length; ++k) continuation[i + size_t(k)] = true;
     i += size_t(std::max(length, 1));
   }
-  std::string columns;
+  // Tabs are shown expanded to stops of 8 columns, as clang does, in the line and under it alike:
+  // a terminal's own tab stops would not advance the underline's '~' with them (it fell short).
+  constexpr size_t kTabStop = 8;
+  std::string shown, columns;
+  size_t column = cutBefore ? 3 : 0;  // after the "..."
   for (size_t i = 0; i < caret.size(); ++i) {
     if (i < line.size() && continuation[i] && !columns.empty()) {
+      shown.push_back(line[i]);
       if (caret[i] != ' ' && columns.back() == ' ') columns.back() = caret[i];
       continue;
     }
+    if (i < line.size() && line[i] == '\t') {
+      const size_t width = kTabStop - column % kTabStop;
+      shown.append(width, ' ');
+      columns.push_back(caret[i]);
+      columns.append(width - 1, caret[i] == '^' ? (caretInRange ? '~' : ' ') : caret[i]);
+      column += width;
+      continue;
+    }
+    if (i < line.size()) shown.push_back(line[i]);
     columns.push_back(caret[i]);
+    ++column;
   }
+  out << (cutBefore ? "..." : "") << shown << (cutAfter ? "..." : "") << '\n';
   caret = std::move(columns);
   if (cutBefore) caret.insert(0, "   ");  // under the "..."
-  while (!caret.empty() && (caret.back() == ' ' || caret.back() == '\t')) caret.pop_back();
+  while (!caret.empty() && caret.back() == ' ') caret.pop_back();
   if (opt.color) out << kGreen;
   out << caret;
   if (opt.color) out << kReset;

@@ -33,8 +33,8 @@ TEST(DiagnosticsTest, RendersClangStyleWithCaretAndRange) {
   renderAllText(out, sm, diags);
   EXPECT_EQ(out.str(),
             "a.disp:2:8: warning: unused variable 'tmp' [-Wunused-variable]\n"
-            "\tfloat tmp = 2;\n"
-            "\t      ^~~\n");
+            "        float tmp = 2;\n"  // tabs expanded to stops of 8, as clang shows them
+            "              ^~~\n");
   EXPECT_EQ(summaryLine(1, 2), "1 warning and 2 errors generated.");
   EXPECT_EQ(summaryLine(0, 1), "1 error generated.");
   EXPECT_EQ(summaryLine(3, 0), "3 warnings generated.");
