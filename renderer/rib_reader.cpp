@@ -326,6 +326,7 @@ struct AttributeState {
   std::vector<runtime::ParamValue> displacementValues;  // what the Displacement call bound
   glm::mat4 worldFromShader{1.0f};
   int displacementLine = 0;
+  std::string displacementFile;  // the file of the Displacement call (a ReadArchive may differ)
   float boundRadius = 0.0f;
   bool boundGiven = false;  // a bound of 0 given is a statement, not an omission
   std::string boundSpace = "object";
@@ -819,6 +820,8 @@ class RibParser {
   bool executeGeometry(const Call& call, bool* handled);
   bool doSubdivisionMesh(const Call& call);
   bool doNuPatch(const Call& call);
+  // Moves a point, vector or normal value (any number of triples) by `to`, as its kind moves.
+  static void moveSpatial(const glm::mat4& to, runtime::ParamValue* value);
   bool shaderParamValue(int line, const runtime::CompiledShader& compiled, const Param& p,
                         runtime::ParamValue* out);
   bool doDisplacement(const Call& call);
@@ -962,18 +965,23 @@ class RibParser {
     d.shader = attr_.displacement;
     if (!primvarParams_.empty()) {
       // An instance per distinct set of values: the Displacement call's, then the primitive's.
+      // The entry keeps the call's instance alive, so that its address (in the key) is not reused
+      // by a later call's: after an AttributeEnd freed it, the next block's Displacement got its
+      // address and found the old block's values. Strings are length-prefixed, so none can
+      // imitate another's key.
       std::string key = std::to_string(reinterpret_cast<uintptr_t>(attr_.displacement.get()));
       for (const runtime::ParamValue& v : primvarParams_) {
-        key += "|" + v.name;
+        key += "|" + std::to_string(v.name.size()) + ":" + v.name;
         for (double x : v.numbers) {
           char text[32];
           std::snprintf(text, sizeof text, " %.17g", x);
           key += text;
         }
-        for (const std::string& x : v.strings) key += " \"" + x + "\"";
+        for (const std::string& x : v.strings) key += " " + std::to_string(x.size()) + ":" + x;
       }
-      std::shared_ptr<const runtime::ShaderInstance>& instance = boundInstances_[key];
+      auto& [source, instance] = boundInstances_[key];
       if (!instance) {
+        source = attr_.displacement;
         auto fresh = std::make_shared<runtime::ShaderInstance>(attr_.displacement->sharedShader());
         std::string error;
         for (const runtime::ParamValue& v : attr_.displacementValues) fresh->bind(v, &error);
@@ -1004,10 +1012,10 @@ class RibParser {
     toRlfMatrix(glm::inverse(attr_.worldFromShader), d.spaces.shaderFromCurrent);
     toRlfMatrix(scene_.camera.worldFromCamera, d.spaces.currentFromCamera);
     toRlfMatrix(glm::inverse(scene_.camera.worldFromCamera), d.spaces.cameraFromCurrent);
-    d.sourceFile = fileName_;
+    d.sourceFile = attr_.displacementFile;
     d.sourceLine = attr_.displacementLine;
     if (!attr_.boundGiven)
-      warnOnce(line, "zerobound" + std::to_string(attr_.displacementLine),
+      warnOnce(line, "zerobound" + attr_.displacementFile + ":" + std::to_string(attr_.displacementLine),
                "displacement shader '" + d.shader->name() +
                    "' has no 'displacementbound'; displaced geometry may be clipped");
     if (!scene_.displacements.empty()) {
@@ -1029,7 +1037,11 @@ class RibParser {
   // The current primitive's primitive variables named like parameters of its displacement shader
   // (RenderMan binds them over the Displacement call's values), and the instances made for them.
   std::vector<runtime::ParamValue> primvarParams_;
-  std::map<std::string, std::shared_ptr<const runtime::ShaderInstance>> boundInstances_;
+  // Instances with primitive variables bound: key -> (the Displacement call's instance, kept
+  // alive so that its address stays unique; the bound instance).
+  std::map<std::string, std::pair<std::shared_ptr<const runtime::ShaderInstance>,
+                                  std::shared_ptr<const runtime::ShaderInstance>>>
+      boundInstances_;
   std::string baseDir_;
   const RibReadOptions& options_;
   std::vector<RibToken> tokens_;
@@ -1478,6 +1490,19 @@ bool RibParser::executeCamera(const Call& call, bool* handled) {
       l.radius *= maxScale(w);
     }
     lightsBeforeWorld_.clear();
+    if (attr_.displacement) {
+      // A Displacement before WorldBegin was given in camera space (the transform then is the
+      // camera's being built), as lights and named spaces there are: its shader space and its
+      // points, vectors and normals move to world now. It had been taken as world.
+      attr_.worldFromShader = w * attr_.worldFromShader;
+      auto moved = std::make_shared<runtime::ShaderInstance>(attr_.displacement->sharedShader());
+      for (runtime::ParamValue& v : attr_.displacementValues) {
+        moveSpatial(w, &v);
+        std::string error;
+        if (!moved->bind(v, &error)) return fail(attr_.displacementLine, error);
+      }
+      attr_.displacement = std::move(moved);
+    }
     for (const std::string& name : spacesBeforeWorld_)
       if (const auto space = coordinateSystems_.find(name); space != coordinateSystems_.end())
         space->second = w * space->second;
@@ -2063,6 +2088,7 @@ bool RibParser::doDisplacement(const Call& call) {
   attr_.displacementValues = std::move(bound);
   attr_.worldFromShader = attr_.ctm;
   attr_.displacementLine = call.line;
+  attr_.displacementFile = fileName_;
   return true;
 }
 
@@ -2108,24 +2134,27 @@ bool RibParser::shaderParamValue(int line, const runtime::CompiledShader& compil
       // and the shader sees them in its "current" space (world): each triple moves as its declared
       // kind does (a point with the translation, a vector without, a normal by the inverse
       // transpose). Scalars splatted into a triple are left as given.
-      const glm::mat3 linear(attr_.ctm);
-      const bool spatial = value.type == runtime::ParamType::Point ||
-                           value.type == runtime::ParamType::Vector || value.type == runtime::ParamType::Normal;
-      if (spatial && value.numbers.size() % 3 == 0) {
-        // (Geometry under a singular transform is skipped; its normals stay as given.)
-        const glm::mat3 normalMatrix = singular(attr_.ctm) ? glm::mat3(1.0f) : glm::transpose(glm::inverse(linear));
-        for (size_t i = 0; i < value.numbers.size(); i += 3) {
-          const glm::vec3 x(value.numbers[i], value.numbers[i + 1], value.numbers[i + 2]);
-          const glm::vec3 y = value.type == runtime::ParamType::Point  ? glm::vec3(attr_.ctm * glm::vec4(x, 1.0f))
-                              : value.type == runtime::ParamType::Vector ? linear * x
-                                                                         : normalMatrix * x;
-          value.numbers[i] = y.x, value.numbers[i + 1] = y.y, value.numbers[i + 2] = y.z;
-        }
-      }
+      moveSpatial(attr_.ctm, &value);
     }
   }
   *out = std::move(value);
   return true;
+}
+
+void RibParser::moveSpatial(const glm::mat4& to, runtime::ParamValue* value) {
+  const glm::mat3 linear(to);
+  const bool spatial = value->type == runtime::ParamType::Point ||
+                       value->type == runtime::ParamType::Vector || value->type == runtime::ParamType::Normal;
+  if (!spatial || value->numbers.size() % 3 != 0) return;
+  // (Geometry under a singular transform is skipped; its normals stay as given.)
+  const glm::mat3 normalMatrix = singular(to) ? glm::mat3(1.0f) : glm::transpose(glm::inverse(linear));
+  for (size_t i = 0; i < value->numbers.size(); i += 3) {
+    const glm::vec3 x(value->numbers[i], value->numbers[i + 1], value->numbers[i + 2]);
+    const glm::vec3 y = value->type == runtime::ParamType::Point  ? glm::vec3(to * glm::vec4(x, 1.0f))
+                        : value->type == runtime::ParamType::Vector ? linear * x
+                                                                    : normalMatrix * x;
+    value->numbers[i] = y.x, value->numbers[i + 1] = y.y, value->numbers[i + 2] = y.z;
+  }
 }
 
 bool RibParser::executeGeometry(const Call& call, bool* handled) {

@@ -455,6 +455,50 @@ TEST(RibReader, SpatialShaderParametersAreInTheSpaceOfTheCall) {
   EXPECT_FALSE(read(world("Displacement \"push\" \"hpoint centre\" [2 4 6 0]\nSphere 1 -1 1 360"), &shaders).scene);
 }
 
+// Before WorldBegin the transform is the camera's being built, so a Displacement there is given
+// in camera space, as lights are: its shader space and its points move to world at WorldBegin
+// (they had been taken as world).
+TEST(RibReader, DisplacementBeforeWorldBeginIsInCameraSpace) {
+  test::TestShaderProvider shaders;
+  ReadResult r = read("Attribute \"displacementbound\" \"float sphere\" [0.1]\n"
+                      "Displacement \"push\" \"point centre\" [0 0 0] \"vector direction\" [0 0 1]\n"
+                      "Translate 0 0 5\nRotate 90 0 1 0\n" +
+                          world("Sphere 1 -1 1 360"),
+                      &shaders);
+  ASSERT_TRUE(r.scene) << r.error.format();
+  // The camera sits at world (5, 0, 0), looking down world -x.
+  const glm::vec3 eye(r.scene->camera.worldFromCamera * glm::vec4(0, 0, 0, 1));
+  expectNear(eye, glm::vec3(5, 0, 0));
+  const std::byte* block = r.scene->displacements[0].shader->block().data();
+  glm::vec3 centre, direction;
+  std::memcpy(&centre, block + 24, 12);
+  std::memcpy(&direction, block + 36, 12);
+  expectNear(centre, eye);
+  expectNear(direction, glm::vec3(-1, 0, 0));
+  const RlfSpaces& spaces = r.scene->displacements[0].spaces;
+  EXPECT_NEAR(spaces.currentFromShader[12], 5.0f, 1e-5f);  // shader space's origin: the eye
+}
+
+// Primitives binding equal primitive-variable values under different Displacement calls get
+// their own calls' values: the cache of bound instances was keyed by the call instance's address,
+// which the next attribute block's call reused once AttributeEnd had freed the first.
+TEST(RibReader, BoundInstancesKeepTheirOwnCallsValues) {
+  test::TestShaderProvider shaders;
+  std::string body;
+  for (const char* km : {"0.25", "0.5", "0.75"})
+    body += std::string("AttributeBegin\nAttribute \"displacementbound\" \"float sphere\" [1]\n") +
+            "Displacement \"push\" \"float Km\" [" + km + "]\n"
+            "Polygon \"P\" [0 0 0  1 0 0  0 1 0] \"color tint\" [0 1 0]\nAttributeEnd\n";
+  ReadResult r = read(world(body), &shaders);
+  ASSERT_TRUE(r.scene) << r.error.format();
+  ASSERT_EQ(r.scene->meshes.size(), 3u);
+  for (size_t m = 0; m < 3; ++m) {
+    float km;
+    std::memcpy(&km, r.scene->displacements[r.scene->meshes[m].displacementIndex].shader->block().data(), 4);
+    EXPECT_FLOAT_EQ(km, 0.25f * float(m + 1)) << m;
+  }
+}
+
 TEST(RibReader, WorldBoundIsNotScaled) {
   test::TestShaderProvider shaders;
   ReadResult r = read(world("Attribute \"displacementbound\" \"float sphere\" [0.1]"
@@ -929,6 +973,35 @@ TEST(RibReader, ReadArchiveIncludesFilesRelativeToTheReader) {
   EXPECT_EQ(error.line, 3);
   EXPECT_FALSE(readRibFile((dir / "loop.rib").string(), RibReadOptions{}, &error));
   EXPECT_NE(error.message.find("nested more than"), std::string::npos) << error.message;
+  std::filesystem::remove_all(dir);
+}
+
+// A displacement's messages (texture errors, the bound warning) point at its Displacement call,
+// file and line, also when the geometry comes from another file: they had the geometry's file
+// with the call's line.
+TEST(RibReader, DisplacementSourceIsTheCallsFileAndLine) {
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("relief-dispsource-" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  std::ofstream(dir / "grid.rib") << "Polygon \"P\" [0 0 0  1 0 0  0 1 0]\n";
+  std::ofstream(dir / "disp.rib") << "Attribute \"displacementbound\" \"float sphere\" [0.1]\nDisplacement \"push\"\n";
+  std::ofstream(dir / "main.rib") << "WorldBegin\nAttributeBegin\n\nDisplacement \"push\"\nReadArchive \"grid.rib\"\n"
+                                     "AttributeEnd\nReadArchive \"disp.rib\"\nSphere 1 -1 1 360\nWorldEnd\n";
+  test::TestShaderProvider shaders;
+  RibReadOptions options;
+  options.shaders = &shaders;
+  std::ostringstream warnings;
+  options.warnings = &warnings;
+  SceneError error;
+  std::optional<Scene> scene = readRibFile((dir / "main.rib").string(), options, &error);
+  ASSERT_TRUE(scene) << error.format();
+  ASSERT_EQ(scene->meshes.size(), 2u);
+  const Displacement& first = scene->displacements[scene->meshes[0].displacementIndex];
+  EXPECT_EQ(first.sourceFile, (dir / "main.rib").string());
+  EXPECT_EQ(first.sourceLine, 4);
+  const Displacement& second = scene->displacements[scene->meshes[1].displacementIndex];
+  EXPECT_EQ(second.sourceFile, (dir / "disp.rib").string());
+  EXPECT_EQ(second.sourceLine, 2);
   std::filesystem::remove_all(dir);
 }
 
