@@ -1783,6 +1783,18 @@ class Checker {
         fitsValue = value.type.isScalar();
         // A float converts as it would to an int parameter (§2.1).
         if (value.type.kind == TypeKind::Float) warnNarrowing(value);
+        // A constant negative channel is an error, as a constant negative index is (§6.3); one
+        // computed at run time reads the fill value, as a channel the file lacks does.
+        const bool negated = value.kind == ExprKind::Unary && value.op == Tok::Minus;
+        const Expr& literal = negated ? *value.operands[0] : value;
+        const double magnitude = literal.kind == ExprKind::IntLiteral     ? double(literal.intValue)
+                                 : literal.kind == ExprKind::FloatLiteral ? std::trunc(double(literal.floatValue))
+                                                                          : 0.0;
+        if (negated && magnitude > 0.0) {
+          report(DiagId::ErrTextureChannel, value.range.begin).arg(static_cast<long long>(-magnitude)).range(value.range);
+          bad = true;
+          continue;
+        }
       } else if (name.text == "missingcolor") {
         want = "color";
         fitsValue = value.type.kind == TypeKind::Color || value.type.isScalar();

@@ -60,6 +60,9 @@ std::atomic<uint64_t> searchPathGeneration{0};  // bumped by every setTextureSea
 // it; dropped when the search path changes (a new frame's may resolve the name elsewhere).
 struct NameInfo {
   bool regular = true;  // no device or pipe where OpenImageIO would look (its probes read /dev/zero for ever)
+  bool found = false;   // some candidate exists
+  std::string path;     // the first candidate that exists
+  std::string searched; // the search path's directories, for "not found"
   int channels = -2;    // the file's channel count once asked (channelCount); -1: unreadable
 };
 NameInfo& nameInfo(OIIO::ustring name) {
@@ -79,15 +82,40 @@ NameInfo& nameInfo(OIIO::ustring name) {
     std::stringstream dirs(joined);
     for (std::string dir; std::getline(dirs, dir, ':');)
       if (!dir.empty()) candidates.push_back(std::filesystem::path(dir) / name.string());
+    it->second.searched = joined;
   }
   for (const std::filesystem::path& candidate : candidates) {
     std::error_code ec;
     const std::filesystem::file_status status = std::filesystem::status(candidate, ec);
     if (ec || !std::filesystem::exists(status)) continue;
     it->second.regular = std::filesystem::is_regular_file(status);
+    it->second.found = true;
+    it->second.path = candidate.string();
     break;
   }
   return it->second;
+}
+
+// Why a lookup of a file that exists failed, the same on every thread: OpenImageIO tells only the
+// first thread to fail on a broken file, so the thread whose failure was reported first could
+// have no reason to give. Asked once per file, of the file itself.
+std::string failureReason(const NameInfo& info, const std::string& message) {
+  static std::mutex mutex;
+  static std::unordered_map<std::string, std::string> reasons;
+  std::lock_guard lock(mutex);
+  std::string& reason = reasons[info.path];
+  if (reason.empty()) {
+    if (!message.empty()) {
+      reason = message;
+    } else if (auto in = OIIO::ImageInput::open(info.path)) {
+      reason = "OpenImageIO could not read it as a texture";
+    } else {
+      reason = OIIO::geterror();
+      if (const size_t nl = reason.find('\n'); nl != std::string::npos) reason.resize(nl);
+      if (reason.empty()) reason = "OpenImageIO could not read it";
+    }
+  }
+  return reason;
 }
 
 // The file's channel count, or -1 when it cannot be read (the lookup itself then reports why).
@@ -113,6 +141,11 @@ int32_t texture(const char* filename, float s, float t, float dsdx, float dtdx, 
       copyMessage("not a regular file", why, whySize);
       return 0;
     }
+    if (!info.found) {
+      copyMessage(info.searched.empty() ? "no such file" : "no such file (texture search path '" + info.searched + "')", why,
+                  whySize);
+      return 0;
+    }
     OIIO::TextureOpt opt;
     if (options) {
       opt.sblur = options->sblur;
@@ -131,11 +164,13 @@ int32_t texture(const char* filename, float s, float t, float dsdx, float dtdx, 
     const bool noT = opt.twidth == 0.0f || (dtdx == 0.0f && dtdy == 0.0f);
     if (noS && noT && opt.sblur == 0.0f && opt.tblur == 0.0f) opt.interpmode = OIIO::TextureOpt::InterpBilinear;
     // Channels the file lacks are `fill` (language.md 6.7). OpenImageIO handles that past the
-    // first channel, but a first channel beyond the file's asserts (and reads out of bounds), so
-    // such a lookup is answered here; the first channel is 0 in most lookups and needs no count.
-    if (opt.firstchannel > 0) {
+    // first channel, but a first channel beyond the file's, or a negative one, asserts (and reads
+    // out of bounds), so such a lookup is answered here; the first channel is 0 in most lookups
+    // and needs no count.
+    if (opt.firstchannel != 0) {
       const int channels = channelCount(name, info);
-      if (channels >= 0 && opt.firstchannel >= channels) {
+      if (channels < 0 && opt.firstchannel < 0) opt.firstchannel = 0;  // unreadable: let the lookup say why
+      if (channels >= 0 && (opt.firstchannel < 0 || opt.firstchannel >= channels)) {
         for (int32_t c = 0; c < nchannels; ++c) {
           out[c] = opt.fill;
           if (dout_ds) dout_ds[c] = 0.0f;
@@ -150,7 +185,7 @@ int32_t texture(const char* filename, float s, float t, float dsdx, float dtdx, 
     // Taking the message also clears it from this thread's error state.
     std::string message = textureSystem()->geterror();
     if (const size_t nl = message.find('\n'); nl != std::string::npos) message.resize(nl);
-    copyMessage(message, why, whySize);
+    copyMessage(failureReason(info, message), why, whySize);
     return 0;
   });
 }

@@ -1117,16 +1117,18 @@ displacement d(string file = ""; float ss = 0.125, tt = 0.125)
 }
 
 // A channel the file does not have is the fill value (language.md 6.7), also as the first
-// channel: OpenImageIO asserted there (and read out of bounds) when minifying.
+// channel: OpenImageIO asserted there (and read out of bounds) when minifying. So is a negative
+// channel computed at run time (it read the texel before, or crashed; a constant one is a compile
+// error).
 TEST(JitTest, TextureChannelsBeyondTheFileAreTheFill) {
   const std::vector<float> pixels(64 * 64, 0.75f);
   OIIO::ImageSpec spec(64, 64, 1, OIIO::TypeDesc::UINT8);
   spec.attribute("oiio:ColorSpace", "Linear");
   const std::string path = writeImage("relief_gray64.tif", spec, OIIO::TypeDesc::FLOAT, pixels.data());
   const auto shader = compileOne(R"(
-displacement d(string file = "")
+displacement d(string file = ""; float ch = -3)
 {
-    float a = texture(file[1], s, t);
+    float a = texture(file[1], s, t) + texture(file[ch], s, t, "fill", 0.125);
     float b = texture(file, s, t, "firstchannel", 2, "fill", 0.5);
     color c = texture(file, s, t, "firstchannel", 1, "fill", 0.25);
     float g = texture(file[0], s, t, "wrap", "clamp");
@@ -1146,7 +1148,7 @@ displacement d(string file = "")
   RlfShadingBatch view = b.all();
   instance.evaluate(view, status);
   for (size_t i = 0; i < 3; ++i) {
-    EXPECT_EQ(b.Pout[0][i], 0.0f);
+    EXPECT_EQ(b.Pout[0][i], 0.125f);
     EXPECT_EQ(b.Pout[1][i], 0.5f);
     EXPECT_NEAR(b.Pout[2][i], 0.75f, 0.003f);
     for (int k = 0; k < 3; ++k) EXPECT_EQ(b.Nout[k][i], 0.25f);

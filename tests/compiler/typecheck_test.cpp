@@ -174,6 +174,12 @@ TEST(TypeCheckTest, StatementRules) {
   EXPECT_EQ(check("float a = 1;\nfloat a = 2;").errors, "4:7: redefinition of 'a'\n");
   EXPECT_EQ(check("for (int i = 0; i < 3; i++) { if (i == 1) break; P += N; }\nint i = 2;").errors, "");
   EXPECT_EQ(check("float x = P[3];").errors, "3:13: index 3 is out of range for type 'point'\n");
+  // A constant negative texture channel, as an index or an option, is an error like a negative
+  // index; a run-time one reads the fill value.
+  EXPECT_EQ(check("float x = texture(\"t.tx\"[-1], s, t);\nP += x * N;").errors, "3:26: texture channel -1 is negative\n");
+  EXPECT_EQ(check("float x = texture(\"t.tx\", s, t, \"firstchannel\", -2.5);\nP += x * N;").errors,
+            "3:49: texture channel -2 is negative\n");
+  EXPECT_EQ(check("float x = texture(\"t.tx\", s, t, \"firstchannel\", -0.5);\nP += x * N;").errors, "");
 }
 
 TEST(TypeCheckTest, Warnings) {
