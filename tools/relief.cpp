@@ -1014,16 +1014,24 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
   // render.
   for (size_t i = 0; i < outputs.size(); ++i) {
     std::string error;
-    if (modeAddsDepth(modes[i]) && !relief::isFloatFormat(outputs[i]))
+    // Whether the mode is what the format cannot hold (an unknown format or an unwritable place
+    // is not the mode's fault).
+    bool modeRefused = false;
+    const bool alpha = modes[i] == "rgba" || modes[i] == "rgbaz";
+    if (modeAddsDepth(modes[i]) && !relief::isFloatFormat(outputs[i])) {
       error = "cannot write '" + outputs[i] + "': display mode '" + modes[i] +
               "' has a depth channel, which needs a float format (exr)";
-    if (!error.empty() ||
-        !relief::canWriteFormat(outputs[i], modes[i] == "rgba" || modes[i] == "rgbaz", &error) ||
-        !canCreateFile(outputs[i], &error)) {
+      modeRefused = true;
+    } else if (!relief::canWriteFormat(outputs[i], alpha, &error)) {
+      std::string ignored;
+      modeRefused = alpha && relief::canWriteFormat(outputs[i], false, &ignored);
+    }
+    if (!error.empty() || !canCreateFile(outputs[i], &error)) {
       // Located at the Display call when the scene named the file. When -o named it, the mode
       // may still be the scene's: say where it came from.
-      const bool modeFromScene = (sources.size() <= i || sources[i].empty()) && i < scene.displaySources.size() &&
-                                 !scene.displaySources[i].empty() && modes[i] != "rgb";
+      const bool modeFromScene = modeRefused && (sources.size() <= i || sources[i].empty()) &&
+                                 i < scene.displaySources.size() && !scene.displaySources[i].empty() &&
+                                 modes[i] != "rgb";
       std::cerr << (i < sources.size() && !sources[i].empty() ? sources[i] : std::string("relief")) << ": error: "
                 << error
                 << (modeFromScene ? " (display mode '" + modes[i] + "' from the Display at " + scene.displaySources[i] + ")"

@@ -993,6 +993,11 @@ TEST(Relief, AnUnwritableFormatFailsBeforeTheRender) {
   r = run(kRelief + " " + rgba.string() + " -o " + (dir / "b.ppm").string());
   EXPECT_EQ(r.exitCode, 1);
   EXPECT_NE(r.err.find("(display mode 'rgba' from the Display at " + rgba.string() + ":2)"), std::string::npos) << r.err;
+  // An error the mode did not cause (an unknown format) does not blame it.
+  r = run(kRelief + " " + rgba.string() + " -o " + (dir / "b.xyz").string());
+  EXPECT_EQ(r.exitCode, 1);
+  EXPECT_NE(r.err.find("cannot write"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("display mode"), std::string::npos) << r.err;
   // Nor has JPEG: rgba to a .jpg is refused, not written as rgb in silence.
   const fs::path jpeg = smallScene(dir, "Display \"" + (dir / "a.jpg").string() + "\" \"file\" \"rgba\"\n");
   r = run(kRelief + " " + jpeg.string());
