@@ -1245,6 +1245,11 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
       {"relief:displacedTrianglesCreated", std::to_string(finalStats.displacedTrianglesCreated)},
   };
   if (numbered) metadata.emplace_back("relief:frame", std::to_string(frameNumber));
+  if (scene.camera.pixelAspect != 1.0f) {
+    char aspect[32];
+    std::snprintf(aspect, sizeof aspect, "%.9g", double(scene.camera.pixelAspect));
+    metadata.emplace_back("relief:pixelAspectRatio", aspect);
+  }
   // Where the crop lies in the whole image: formats with a data window (EXR, TIFF) record it.
   if (cropped)
     metadata.emplace_back("relief:dataWindow", std::to_string(crop.x) + " " + std::to_string(crop.y) + " " +

@@ -216,6 +216,13 @@ int32_t writeImage(const char* path, int32_t width, int32_t height, int32_t chan
     spec.attribute("oiio:ColorSpace", colorSpace ? colorSpace : "sRGB");
     spec.attribute("Software", "relief");
     for (const char* const* m = metadata; m && m[0]; m += 2) {
+      // The pixel aspect ratio (RI Format's third value) is the formats' own float attribute.
+      float aspect = 0.0f;
+      if (std::string_view(m[0]) == "relief:pixelAspectRatio" && m[1] && std::sscanf(m[1], "%f", &aspect) == 1 &&
+          aspect > 0.0f) {
+        spec.attribute("PixelAspectRatio", aspect);
+        continue;
+      }
       spec.attribute(m[0], m[1] ? m[1] : "");
       // "x y fullWidth fullHeight": the image is that crop of a larger one (RI CropWindow).
       int x = 0, y = 0, fullWidth = 0, fullHeight = 0;

@@ -568,6 +568,14 @@ TEST(Relief, ExrHasRenderMetadata) {
   EXPECT_FALSE(spec.get_string_attribute("relief:renderSeconds").empty());
   EXPECT_FALSE(spec.get_string_attribute("relief:cacheAccesses").empty());
   EXPECT_EQ(spec.format, OIIO::TypeDesc::FLOAT);
+  EXPECT_FLOAT_EQ(spec.get_float_attribute("PixelAspectRatio", 1.0f), 1.0f);
+  // Format's pixel aspect ratio is recorded as the format's own (it was always 1).
+  writeFile(scene, "Format 16 12 2\n" + readFile(scene).substr(std::string("Format 16 12 1\n").size()));
+  r = run(kRelief + " " + scene.string() + " --quiet -o " + image.string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  in = OIIO::ImageInput::open(image.string());
+  ASSERT_TRUE(in);
+  EXPECT_FLOAT_EQ(in->spec().get_float_attribute("PixelAspectRatio", 1.0f), 2.0f);
 }
 
 // RenderMan's "rgbaz" and "az" modes add a Z channel (camera depth, as the "z" AOV), "a" writes
