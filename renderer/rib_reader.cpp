@@ -2078,6 +2078,13 @@ bool RibParser::doDisplacement(const Call& call) {
   auto instance = std::make_shared<runtime::ShaderInstance>(compiled);
   std::vector<runtime::ParamValue> bound;
   for (const Param& p : params) {
+    // A name the shader lacks warns and is skipped, as in PRMan and 3Delight: exporters write
+    // extras (`"string __instanceid"`), and one stopped the whole render.
+    if (!compiled->findParam(p.name)) {
+      warnOnce(call.line, "noparam/" + fileName_ + ":" + std::to_string(call.line) + "/" + p.name,
+               "shader '" + compiled->name() + "' has no parameter '" + p.name + "'; ignored");
+      continue;
+    }
     runtime::ParamValue value;
     if (!shaderParamValue(call.line, *compiled, p, &value)) return false;
     std::string error;

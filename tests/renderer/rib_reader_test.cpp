@@ -543,9 +543,18 @@ TEST(RibReader, DisplacementErrorsAreLocatedAtTheCall) {
   ASSERT_FALSE(r.scene);
   EXPECT_EQ(r.error.line, 2);  // the call, not the parameter's line
 
-  r = read(world("Displacement \"push\" \"Kx\" [1]"), &shaders);
-  ASSERT_FALSE(r.scene);
-  EXPECT_EQ(r.error.message, "shader 'push' has no parameter 'Kx'");
+  // A name the shader lacks warns at the call and is skipped, as in RenderMan (exporters write
+  // extras such as "__instanceid"); the parameters it has are still bound.
+  r = read(world("Displacement \"push\" \"Kx\" [1] \"string __instanceid\" [\"a_1\"] \"Km\" [0.5]\n"
+                 "Sphere 1 -1 1 360"),
+           &shaders);
+  ASSERT_TRUE(r.scene) << r.error.format();
+  EXPECT_NE(r.warnings.find(":2: warning: shader 'push' has no parameter 'Kx'; ignored"), std::string::npos) << r.warnings;
+  EXPECT_NE(r.warnings.find(":2: warning: shader 'push' has no parameter '__instanceid'; ignored"), std::string::npos)
+      << r.warnings;
+  float km;
+  std::memcpy(&km, r.scene->displacements[0].shader->block().data(), 4);
+  EXPECT_FLOAT_EQ(km, 0.5f);
 
   r = read(world("Displacement \"push\" \"Km\" [\"text\"]"), &shaders);
   ASSERT_FALSE(r.scene);
