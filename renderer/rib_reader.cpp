@@ -3137,9 +3137,11 @@ bool RibParser::shaderPrimvar(const Call& call, const Param& p, const PrimvarCou
     }
   }
   const bool constant = p.storageClass == "constant" || (p.storageClass.empty() && given == one);
-  bool same = !constant && given == one * counts.uniform && counts.uniform > 0 &&
-              (p.storageClass.empty() || p.storageClass == "uniform");
-  for (size_t f = 1; same && f < counts.uniform; ++f)
+  // Per face, vertex or face corner: bound when every item has the same value (a varying value
+  // that does not vary is one value; it had been refused as "varies").
+  const size_t items = given / one;
+  bool same = !constant && items > 0;
+  for (size_t f = 1; same && f < items; ++f)
     for (size_t i = 0; same && i < one; ++i)
       same = value.type == runtime::ParamType::String ? value.strings[f * one + i] == value.strings[i]
                                                       : value.numbers[f * one + i] == value.numbers[i];

@@ -376,10 +376,11 @@ TEST(RibReader, PrimitiveVariablesBindShaderParameters) {
                             "PointsPolygons [3 3] [0 1 2 0 2 3] \"P\" [0 0 0  1 0 0  1 1 0  0 1 0]"
                             " \"uniform float Km\" [0.75 0.75] \"tint\" [0 1 0]\n"
                             "Polygon \"P\" [0 0 0  1 0 0  0 1 0] \"varying float Km\" [1 2 3]\n"
-                            "Polygon \"P\" [0 0 0  1 0 0  0 1 0] \"float Kq\" [1]\n"),
+                            "Polygon \"P\" [0 0 0  1 0 0  0 1 0] \"float Kq\" [1]\n"
+                            "Polygon \"P\" [0 0 0  1 0 0  0 1 0] \"vertex float Km\" [0.125 0.125 0.125]\n"),
                       &shaders);
   ASSERT_TRUE(r.scene) << r.error.format();
-  ASSERT_EQ(r.scene->meshes.size(), 6u);
+  ASSERT_EQ(r.scene->meshes.size(), 7u);
   auto block = [&](size_t mesh) { return r.scene->displacements[r.scene->meshes[mesh].displacementIndex].shader->block().data(); };
   auto km = [&](size_t mesh) {
     float v;
@@ -400,6 +401,7 @@ TEST(RibReader, PrimitiveVariablesBindShaderParameters) {
   EXPECT_STREQ(map, "bricks.tx");  // the Displacement call's, kept
   EXPECT_FLOAT_EQ(km(4), 0.25f);
   EXPECT_FLOAT_EQ(km(5), 0.25f);
+  EXPECT_FLOAT_EQ(km(6), 0.125f);  // per vertex, but the same at every vertex: one value
   EXPECT_NE(r.warnings.find(":8: warning: 'Polygon': primitive variable 'Km' varies over the primitive"),
             std::string::npos)
       << r.warnings;
