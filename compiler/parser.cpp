@@ -101,9 +101,23 @@ ExprPtr Parser::bounded(ExprPtr e) {
   return nullptr;
 }
 
-// After a missing ';' (already reported): if the next token starts a new line, the statement most
-// likely just lacks its ';', so keep it and carry on without skipping the next line.
-bool Parser::missingSemiAtLineEnd() const { return tok().atLineStart || tok().is(Tok::RBrace); }
+// After a missing ';' (already reported): if the next token starts a new line, or a declaration or
+// a statement keyword follows on the same line (`float a = 1 float b = 2;`), the statement most
+// likely just lacks its ';', so keep it and carry on without skipping what follows (skipping to the
+// next ';' lost `b`, and its uses were reported as undeclared).
+bool Parser::missingSemiAtLineEnd() const {
+  if (tok().atLineStart || tok().is(Tok::RBrace) || startsDeclaration()) return true;
+  switch (tok().kind) {
+    case Tok::KwIf:
+    case Tok::KwFor:
+    case Tok::KwWhile:
+    case Tok::KwDo:
+    case Tok::KwReturn:
+    case Tok::KwBreak:
+    case Tok::KwContinue: return true;
+    default: return false;
+  }
+}
 
 void Parser::errorExpectedExpression() {
   if (tok().is(Tok::Unknown) || stopped_ || cutShort()) return;

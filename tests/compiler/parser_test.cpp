@@ -118,6 +118,10 @@ TEST(ParserTest, StraySemicolonsBetweenDefinitionsAreEmptyDeclarations) {
 TEST(ParserTest, MissingSemicolonIsReportedPastThePreviousToken) {
   EXPECT_EQ(errorsOf("displacement d()\n{\n    P += N\n    P += N;\n}\n"),
             "3:11: expected ';' after expression\n");
+  // A declaration or a statement keyword after the missing ';' on the same line is kept: its
+  // names stay declared (`b` was reported as undeclared).
+  EXPECT_EQ(errorsOf("displacement d()\n{\n    float a = 1 float b = 2;\n    P += a * b * N return;\n}\n"),
+            "3:16: expected ';' after declaration\n4:19: expected ';' after expression\n");
 }
 
 TEST(ParserTest, MissingClosersGetANoteAtTheOpener) {
