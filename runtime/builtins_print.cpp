@@ -24,6 +24,25 @@ void appendFormatted(std::string& out, const std::string& spec, T value) {
   out.append(big.data(), size_t(n));
 }
 
+// Field widths and precisions past kMaxField are taken as kMaxField: "%999999999f" made snprintf
+// write a gigabyte per conversion at every shaded point (the render hung at 2 GB).
+constexpr long kMaxField = 1024;
+std::string clampWidths(const std::string& spec) {
+  std::string out;
+  for (size_t i = 0; i < spec.size();) {
+    if (spec[i] < '1' || spec[i] > '9') {
+      out += spec[i++];
+      continue;
+    }
+    size_t j = i;
+    while (j < spec.size() && spec[j] >= '0' && spec[j] <= '9') ++j;
+    const std::string digits = spec.substr(i, j - i);
+    out += digits.size() > 4 || std::stol(digits) > kMaxField ? std::to_string(kMaxField) : digits;
+    i = j;
+  }
+  return out;
+}
+
 std::string formatText(const char* format, const int32_t* kinds, int32_t count, const float* floats,
                        const int32_t* ints, const char* const* strings) {
   std::string out;
@@ -42,6 +61,7 @@ std::string formatText(const char* format, const int32_t* kinds, int32_t count, 
     std::string spec = "%";
     const char* q = p + 1;
     while (*q && std::string("-+ #0123456789.").find(*q) != std::string::npos && spec.size() < 16) spec += *q++;
+    spec = clampWidths(spec);
     const char conv = *q;
     if (!conv) break;
     p = q;

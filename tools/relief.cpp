@@ -649,7 +649,9 @@ bool writeStatsJson(const std::string& path, const StatList& stats) {
     out << "  " << relief::compiler::jsonQuoted(stats[i].first) << ": " << stats[i].second
         << (i + 1 < stats.size() ? ",\n" : "\n");
   out << "}\n";
-  return bool(out);
+  // Written out before the check: a full disk (or /dev/full) fails only at the flush.
+  out.close();
+  return !out.fail();
 }
 
 std::string clock(double seconds) {

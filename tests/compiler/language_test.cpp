@@ -235,6 +235,22 @@ displacement pm(string fmt = "%d|%f|%s")
   EXPECT_EQ(b.Pout[2][0], b.P[2][0]);
 }
 
+// Field widths and precisions above 1024 are taken as 1024: "%999999999f" made snprintf write a
+// gigabyte per conversion at every shading point (a render hung), in printf and format alike.
+TEST(PrintfTest, HugeFieldWidthsAreCapped) {
+  const std::string source = R"(
+displacement pw(string fmt = "%2147483647d")
+{
+    printf("%999999999f|%05.2f|%.99999999f\n", 1.5, 2.25, 0.5);
+    printf("%s\n", format(fmt, 7));
+})";
+  TestBatch b(1);
+  const std::string printed = evaluate(source, b);
+  ASSERT_EQ(printed.size(), (1024 + 1 + 5 + 1 + 2 + 1024 + 1) + (1024 + 1));
+  EXPECT_EQ(printed.substr(1016, 15), "1.500000|02.25|");
+  EXPECT_EQ(printed.substr(printed.size() - 3), " 7\n");
+}
+
 // §2.2: an RSL tuple takes its type from context as a noise call does (§6.1), on either side
 // of an operator: before, a tuple left of `+ - * /` was a point, so a color could not take it.
 TEST(TupleTest, TypedByContextOnEitherSideOfAnOperator) {

@@ -1032,6 +1032,12 @@ TEST(Relief, AnUnwritableFormatFailsBeforeTheRender) {
           (dir / "new" / "dir" / "s.json").string());
   EXPECT_EQ(r.exitCode, 0) << r.err;
   EXPECT_TRUE(fs::exists(dir / "new" / "dir" / "s.json"));
+  // A write that fails only when flushed (a full disk) is an error too; it passed silently.
+  if (fs::exists("/dev/full")) {
+    r = run(kRelief + " " + scene.string() + " --quiet -o " + (dir / "ok.png").string() + " --stats-json /dev/full");
+    EXPECT_EQ(r.exitCode, 1);
+    EXPECT_NE(r.err.find("relief: error: cannot write statistics to '/dev/full'"), std::string::npos) << r.err;
+  }
   EXPECT_EQ(run(kRelief + " " + scene.string() + " -o ''").exitCode, 2);
   EXPECT_EQ(run(kRelief + " " + scene.string() + " --stats-json ''").exitCode, 2);
 }
