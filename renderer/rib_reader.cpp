@@ -2805,6 +2805,8 @@ bool RibParser::doNuPatch(const Call& call) {
   mesh.N.resize(columns * rows);
   mesh.uv.resize(columns * rows);
   mesh.st.resize(columns * rows);
+  mesh.dPdu.resize(columns * rows);
+  mesh.dPdv.resize(columns * rows);
   if (Cs) mesh.Cs.resize(columns * rows);
   std::vector<uint8_t> degenerate(columns * rows, 0);
   for (size_t row = 0; row < rows; ++row) {
@@ -2826,6 +2828,7 @@ bool RibParser::doNuPatch(const Call& call) {
       // The quotient rule: d(A / w) = (dA - dw (A / w)) / w.
       const glm::dvec3 du = (glm::dvec3(Su) - Su.w * p) / S.w, dv = (glm::dvec3(Sv) - Sv.w * p) / S.w;
       mesh.P[k] = glm::vec3(m * glm::vec4(glm::vec3(p), 1.0f));
+      mesh.dPdu[k] = glm::mat3(m) * glm::vec3(du), mesh.dPdv[k] = glm::mat3(m) * glm::vec3(dv);
       glm::vec3 normal = N ? glm::vec3(0.0f) : normalFromObject * glm::vec3(glm::cross(du, dv));
       if (N) {
         float value[3];
@@ -2959,6 +2962,8 @@ bool RibParser::doQuadric(const Call& call) {
     return true;
   }
   std::function<glm::vec3(float, float)> position;
+  // dP/dv of the surface (every quadric turns about z with u: dP/du = thetamax (-y, x, 0)).
+  std::function<glm::vec3(float, float)> alongV;
   bool curvedV = false;
   float lengthV = 0.0f;  // object-space length of a v line, for straight v directions
   float radiusU = 0.0f;  // largest object-space radius swept by u
@@ -2967,6 +2972,7 @@ bool RibParser::doQuadric(const Call& call) {
     position = [=](float u, float t) {
       return glm::vec3(r * std::cos(u * thetamax), r * std::sin(u * thetamax), z0 + t * (z1 - z0));
     };
+    alongV = [=](float, float) { return glm::vec3(0.0f, 0.0f, z1 - z0); };
     lengthV = std::fabs(z1 - z0);
     radiusU = std::fabs(r);
   } else if (n == "Cone" || n == "Disk") {
@@ -2975,6 +2981,9 @@ bool RibParser::doQuadric(const Call& call) {
     position = [=](float u, float t) {
       const float rr = r * (1.0f - t);
       return glm::vec3(rr * std::cos(u * thetamax), rr * std::sin(u * thetamax), cone ? t * h : h);
+    };
+    alongV = [=](float u, float) {
+      return glm::vec3(-r * std::cos(u * thetamax), -r * std::sin(u * thetamax), cone ? h : 0.0f);
     };
     lengthV = cone ? std::sqrt(h * h + r * r) : std::fabs(r);
     radiusU = std::fabs(r);
@@ -2989,6 +2998,11 @@ bool RibParser::doQuadric(const Call& call) {
       const float r = rmax * std::sqrt(z / z1);
       return glm::vec3(r * std::cos(u * thetamax), r * std::sin(u * thetamax), z);
     };
+    alongV = [=](float u, float t) {  // infinite at an apex (z = 0): smoothSurfaceDerivatives skips it
+      const float z = z0 + t * (z1 - z0);
+      const float dr = rmax * (z1 - z0) / (2.0f * std::sqrt(z * z1));
+      return glm::vec3(dr * std::cos(u * thetamax), dr * std::sin(u * thetamax), z1 - z0);
+    };
     curvedV = true;
     lengthV = std::hypot(std::fabs(rmax), std::fabs(z1 - z0));
     radiusU = std::fabs(rmax);
@@ -2998,6 +3012,11 @@ bool RibParser::doQuadric(const Call& call) {
       const glm::vec3 p = p1 + t * (p2 - p1);
       const float c = std::cos(u * thetamax), s = std::sin(u * thetamax);
       return glm::vec3(p.x * c - p.y * s, p.x * s + p.y * c, p.z);
+    };
+    alongV = [=](float u, float) {
+      const glm::vec3 d = p2 - p1;
+      const float c = std::cos(u * thetamax), s = std::sin(u * thetamax);
+      return glm::vec3(d.x * c - d.y * s, d.x * s + d.y * c, d.z);
     };
     lengthV = glm::length(p2 - p1);
     radiusU = std::max(std::hypot(p1.x, p1.y), std::hypot(p2.x, p2.y));
@@ -3009,6 +3028,11 @@ bool RibParser::doQuadric(const Call& call) {
       const float rr = major + minor * std::cos(phi);
       return glm::vec3(rr * std::cos(u * thetamax), rr * std::sin(u * thetamax),
                        minor * std::sin(phi));
+    };
+    alongV = [=](float u, float t) {
+      const float phi = phi0 + t * (phi1 - phi0), dphi = phi1 - phi0;
+      return dphi * glm::vec3(-minor * std::sin(phi) * std::cos(u * thetamax),
+                              -minor * std::sin(phi) * std::sin(u * thetamax), minor * std::cos(phi));
     };
     curvedV = true;
     lengthV = std::fabs(minor * (phi1 - phi0));
@@ -3047,7 +3071,10 @@ bool RibParser::doQuadric(const Call& call) {
   for (int j = 0; j <= nv; ++j)
     for (int i = 0; i <= nu; ++i) {
       const float u = float(i) / float(nu), t = float(j) / float(nv);
-      mesh.P.push_back(glm::vec3(attr_.ctm * glm::vec4(position(u, t), 1.0f)));
+      const glm::vec3 p = position(u, t);
+      mesh.P.push_back(glm::vec3(attr_.ctm * glm::vec4(p, 1.0f)));
+      mesh.dPdu.push_back(glm::mat3(attr_.ctm) * (thetamax * glm::vec3(-p.y, p.x, 0.0f)));
+      mesh.dPdv.push_back(glm::mat3(attr_.ctm) * alongV(u, t));
       glm::vec3 normal = normalFromObject * normalAt(u, t);
       const float len = glm::length(normal);
       mesh.N.push_back(len > 0.0f ? normal / len : glm::vec3(0, 0, 1));
@@ -3170,7 +3197,7 @@ bool RibParser::readPrimvars(const Call& call, const std::vector<Param>& params,
   static const Known known[] = {{"N", 3, "normal"}, {"st", 2, "float"}, {"s", 1, "float"},
                                 {"t", 1, "float"},  {"Cs", 3, "color"}};
   for (const Param& p : params) {
-    if (p.name == "P" || p.name == "Pw") continue;
+    if (p.name == "P" || p.name == "Pw" || p.name == "Pz") continue;
     const Known* k = nullptr;
     for (const Known& candidate : known)
       if (p.name == candidate.name) k = &candidate;
@@ -3370,9 +3397,17 @@ bool RibParser::buildPatchMesh(const Call& call, bool bicubic, int nu, bool uPer
                                bool vPeriodic, size_t first) {
   std::vector<Param> params;
   std::vector<float> P;
-  if (!parseParams(call, first, &params) ||
-      !positions(call, params, size_t(nu) * size_t(nv), &P))
+  if (!parseParams(call, first, &params)) return false;
+  // "Pz" (RI 3.2, Patch and PatchMesh): a height field, one z per control point, whose x and y are
+  // the surface parameters u and v. The basis interpolates z; x and y are set to (u, v) after.
+  const Param* heights = findParam(params, "P") || findParam(params, "Pw") ? nullptr : findParam(params, "Pz");
+  if (heights) {
+    std::vector<float> z;
+    if (!numbersParam(call, *heights, "float", size_t(nu) * size_t(nv), &z)) return false;
+    for (float h : z) P.insert(P.end(), {0.0f, 0.0f, h});
+  } else if (!positions(call, params, size_t(nu) * size_t(nv), &P)) {
     return false;
+  }
   const CubicBasis& ub = attr_.uBasis;
   const CubicBasis& vb = attr_.vBasis;
   auto patchCount = [bicubic](int n, bool periodic, int step) {
@@ -3568,6 +3603,7 @@ bool RibParser::buildPatchMesh(const Call& call, bool bicubic, int nu, bool uPer
   // takes that column's position and normal bits, so the seam cannot crack.
   const size_t gridSize = size_t(columns) * size_t(rows);
   std::vector<glm::vec3> gridP(gridSize), gridN(gridSize), gridCs(Cs ? gridSize : 0);
+  std::vector<glm::vec3> gridDu(gridSize), gridDv(gridSize);  // dP/du, dP/dv of the mesh's (u, v)
   std::vector<glm::vec2> gridUv(gridSize), gridSt(gridSize);
   for (int row = 0; row < rows; ++row)
     for (int col = 0; col < columns; ++col) {
@@ -3578,11 +3614,38 @@ bool RibParser::buildPatchMesh(const Call& call, bool bicubic, int nu, bool uPer
       if (seamU || seamV) {
         const size_t source = size_t(seamV ? 0 : row) * size_t(columns) + size_t(seamU ? 0 : col);
         gridP[k] = gridP[source], gridN[k] = gridN[source];
+        gridDu[k] = gridDu[source], gridDv[k] = gridDv[source];
       } else {
         glm::vec3 p, dPdu, dPdv;
         evaluate(su, sv, P.data(), 3, &p[0], &dPdu[0], &dPdv[0]);
+        // Where patches meet (and across a periodic mesh's seam) the derivatives are the mean of
+        // both sides': at a crease (bilinear patches, a B-spline with a corner) either side's
+        // alone tilted the normal toward that side (a square tube's corner took the next face's
+        // normal), and displacement pushed the crease sideways.
+        const bool uJoin = col % samples == 0 && (uPeriodic ? true : col > 0 && col < columns - 1);
+        const bool vJoin = row % samples == 0 && (vPeriodic ? true : row > 0 && row < rows - 1);
+        if (uJoin) {
+          const Span left = spanAt(su.patch > 0 ? su.patch - 1 : nuPatches - 1, 1.0f, nu, ub);
+          glm::vec3 q, du, dv;
+          evaluate(left, sv, P.data(), 3, &q[0], &du[0], &dv[0]);
+          dPdu = 0.5f * (dPdu + du), dPdv = 0.5f * (dPdv + dv);
+        }
+        if (vJoin) {
+          const Span below = spanAt(sv.patch > 0 ? sv.patch - 1 : nvPatches - 1, 1.0f, nv, vb);
+          glm::vec3 q, du, dv;
+          evaluate(su, below, P.data(), 3, &q[0], &du[0], &dv[0]);
+          dPdu = 0.5f * (dPdu + du), dPdv = 0.5f * (dPdv + dv);
+        }
+        if (heights) {
+          p.x = gu / float(nuPatches), p.y = gv / float(nvPatches);
+          dPdu.x = 1.0f / float(nuPatches), dPdu.y = 0.0f;
+          dPdv.x = 0.0f, dPdv.y = 1.0f / float(nvPatches);
+        }
         gridP[k] = glm::vec3(m * glm::vec4(p, 1.0f));
         gridN[k] = N && !perPatchClass(N) ? normalAt(su, sv) : normalFromObject * glm::cross(dPdu, dPdv);
+        // Per patch, the local parameter runs over [0, 1]; the mesh's u over 1 / nuPatches of it.
+        gridDu[k] = glm::mat3(m) * (dPdu * float(nuPatches));
+        gridDv[k] = glm::mat3(m) * (dPdv * float(nvPatches));
       }
       gridUv[k] = glm::vec2(gu / float(nuPatches), gv / float(nvPatches));
       gridSt[k] = gridUv[k];
@@ -3641,6 +3704,7 @@ bool RibParser::buildPatchMesh(const Call& call, bool bicubic, int nu, bool uPer
   auto emit = [&](int row, int col, const Span& su, const Span& sv) {
     const size_t k = size_t(row) * size_t(columns) + size_t(col);
     mesh.P.push_back(gridP[k]);
+    mesh.dPdu.push_back(gridDu[k]), mesh.dPdv.push_back(gridDv[k]);
     const glm::vec3 normal = perPatchClass(N) ? normalAt(su, sv) : gridN[k];
     const float len = glm::length(normal);
     if (len > 1e-20f && std::isfinite(len) && normalsOk)
@@ -3887,7 +3951,10 @@ bool RibParser::addMesh(Mesh mesh, int line, bool wound) {
       return fail(line, "geometry has non-finite coordinates after transformation");
   // Smooth surfaces with one (u, v) over the whole surface (quadrics, patches, NURBS) get shared
   // per-vertex derivatives; subdivision meshes are marked smooth after this and keep their facets'.
-  if (mesh.smoothSurface && mesh.dPdu.empty()) smoothSurfaceDerivatives(mesh);
+  if (mesh.smoothSurface)
+    smoothSurfaceDerivatives(mesh);
+  else
+    mesh.dPdu.clear(), mesh.dPdv.clear();
   mesh.materialIndex = materialIndex();
   mesh.lights = attr_.lightsOn;
   mesh.lightsSet = true;

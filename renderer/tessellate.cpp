@@ -17,6 +17,9 @@ Mesh tessellateSphere(float radius, float zmin, float zmax, float thetamaxDeg, i
   nv = std::max(nv, 1);
   const float r = std::fabs(radius);
   if (r == 0.0f) return mesh;
+  // A negative radius (RI: x = r cos(phi) cos(theta), ...) is the sphere turned half a turn about
+  // z, with the same z range and orientation: u starts at -x. (It was taken as |radius|.)
+  const float phase = radius < 0.0f ? std::numbers::pi_v<float> : 0.0f;
   const float thetamax = std::clamp(thetamaxDeg, -360.0f, 360.0f) * std::numbers::pi_v<float> / 180.0f;
   const bool fullTurn = std::fabs(thetamaxDeg) >= 360.0f;
   // Latitudes of zmin/zmax; exactly +-pi/2 at the poles so the pole test below is exact.
@@ -55,11 +58,18 @@ Mesh tessellateSphere(float radius, float zmin, float zmax, float thetamaxDeg, i
         mesh.P.push_back(mesh.P[seamSource]);
         mesh.N.push_back(mesh.N[seamSource]);
       } else {
-        const float phi = u * thetamax;
+        const float phi = phase + u * thetamax;
         const glm::vec3 pObject(r * cosLat * std::cos(phi), r * cosLat * std::sin(phi), z);
         mesh.P.push_back(glm::vec3(worldFromObject * glm::vec4(pObject, 1.0f)));
         mesh.N.push_back(glm::normalize(normalFromObject * (pObject / (insideOut ? -r : r))));
       }
+      // The surface's derivatives (RI: u = phi / thetamax, v along the latitude from zmin to
+      // zmax); a seam's copies are averaged into one value by smoothSurfaceDerivatives.
+      const float phi = phase + u * thetamax, sinLat = pole ? (lat > 0.0f ? 1.0f : -1.0f) : std::sin(lat);
+      const glm::vec3 du(-thetamax * r * cosLat * std::sin(phi), thetamax * r * cosLat * std::cos(phi), 0.0f);
+      const glm::vec3 dv = (lat1 - lat0) * r * glm::vec3(-sinLat * std::cos(phi), -sinLat * std::sin(phi), cosLat);
+      mesh.dPdu.push_back(linear * du);
+      mesh.dPdv.push_back(linear * dv);
       mesh.uv.emplace_back(u, v);
     }
   }
@@ -80,14 +90,19 @@ Mesh tessellateSphere(float radius, float zmin, float zmax, float thetamaxDeg, i
       addTriangle(v00, v11, v01);
     }
   }
+  smoothSurfaceDerivatives(mesh);
   return mesh;
 }
 
 void smoothSurfaceDerivatives(Mesh& mesh) {
   const size_t n = mesh.P.size();
+  // The surface's own derivatives, where the tessellator gave them; else the facets'.
+  const bool exact = mesh.dPdu.size() == n && mesh.dPdv.size() == n;
+  std::vector<glm::vec3> givenU, givenV;
+  if (exact) givenU = std::move(mesh.dPdu), givenV = std::move(mesh.dPdv);
   mesh.dPdu.assign(n, glm::vec3(0.0f));
   mesh.dPdv.assign(n, glm::vec3(0.0f));
-  if (mesh.uv.size() != n) return;
+  if (!exact && mesh.uv.size() != n) return;
   // Vertices by position and normal bits: a seam's copies and a pole's are one group.
   struct Key {
     std::array<uint32_t, 6> bits;
@@ -110,7 +125,16 @@ void smoothSurfaceDerivatives(Mesh& mesh) {
   }
   std::vector<glm::dvec3> sumU(groupOf.size(), glm::dvec3(0.0)), sumV(groupOf.size(), glm::dvec3(0.0));
   std::vector<uint32_t> count(groupOf.size(), 0);
-  for (uint32_t t = 0; t < mesh.numTriangles(); ++t) {
+  if (exact) {
+    // Copies of one point (a seam's, a pole's) take their mean: at a pole each copy's dPdv points
+    // along its own meridian, and displaced along them the pole would open.
+    for (size_t i = 0; i < n; ++i) {
+      const glm::vec3 du = givenU[i], dv = givenV[i];
+      if (!std::isfinite(du.x + du.y + du.z + dv.x + dv.y + dv.z)) continue;
+      sumU[group[i]] += glm::dvec3(du), sumV[group[i]] += glm::dvec3(dv), ++count[group[i]];
+    }
+  }
+  for (uint32_t t = 0; !exact && t < mesh.numTriangles(); ++t) {
     const uint32_t* idx = &mesh.indices[3 * size_t(t)];
     const glm::vec3 e1 = mesh.P[idx[1]] - mesh.P[idx[0]], e2 = mesh.P[idx[2]] - mesh.P[idx[0]];
     const glm::vec2 d1 = mesh.uv[idx[1]] - mesh.uv[idx[0]], d2 = mesh.uv[idx[2]] - mesh.uv[idx[0]];

@@ -25,10 +25,11 @@ Mesh tessellateSphere(float radius, float zmin, float zmax, float thetamaxDeg, i
                       const glm::mat4& worldFromObject);
 
 // Fills mesh.dPdu and mesh.dPdv of a tessellated smooth surface (Mesh::smoothSurface, with a
-// global (u, v) parameterisation: quadrics, patches, NURBS) with the mean of the derivatives of
-// the (u, v) maps of the triangles around each vertex, over every vertex at the same position
-// with the same normal (so a seam's two copies and a pole's get one value). Triangles whose map is
-// degenerate add nothing; a vertex with none keeps zero vectors.
+// global (u, v) parameterisation: quadrics, patches, NURBS), the same for every vertex at the same
+// position with the same normal (so a seam's two copies and a pole's get one value): the mean of
+// the surface's own derivatives where the tessellator gave them per vertex (mesh.dPdu and dPdv
+// sized as P), else of the derivatives of the (u, v) maps of the triangles around them. Triangles
+// whose map is degenerate add nothing; a vertex with nothing keeps zero vectors.
 void smoothSurfaceDerivatives(Mesh& mesh);
 
 }  // namespace relief

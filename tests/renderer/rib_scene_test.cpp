@@ -838,6 +838,111 @@ TEST(RibPatches, CoincidentPointsOfASurfaceShareOneNormal) {
   }
 }
 
+// dPdu and dPdv on quadrics, patches and NURBS are the surface's own derivatives (RI: N is their
+// cross product), shared by a point's copies. They were the mean of the facets' around each
+// vertex: 24-51% off on a hyperboloid (one row of facets in v) and not tangent to N.
+TEST(RibPatches, DerivativesAreTheSurfacesOwn) {
+  const float thetamax = glm::radians(300.0f);
+  const ReadResult r = read(world("Hyperboloid 1 0 -0.5  0.5 0.5 0.7  300\nSphere 1 -0.5 0.8 270\n"
+                                  "NuPatch 5 3 [0 0 0 0.3 1.7 2 2 2] 0 2 4 3 [1 1 1 1.2 3 3 3] 1 3 \"Pw\" [" +
+                                  [] {
+                                    std::string pw;  // a rational, bumpy sheet
+                                    for (int j = 0; j < 4; ++j)
+                                      for (int i = 0; i < 5; ++i) {
+                                        const float w = (i + j) % 3 == 0 ? 1.5f : 1.0f;
+                                        pw += std::to_string(w * float(i)) + " " + std::to_string(w * float(j)) + " " +
+                                              std::to_string(w * 0.3f * std::sin(float(i * 3 + j))) + " " + std::to_string(w) + "  ";
+                                      }
+                                    return pw;
+                                  }() + "]\n"));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  ASSERT_EQ(r.scene->meshes.size(), 3u);
+  for (size_t m = 0; m < 3; ++m) {
+    SCOPED_TRACE(m);
+    const Mesh& mesh = r.scene->meshes[m];
+    ASSERT_EQ(mesh.dPdu.size(), mesh.P.size());
+    ASSERT_EQ(mesh.dPdv.size(), mesh.P.size());
+    for (size_t i = 0; i < mesh.P.size(); ++i) {
+      if (glm::length(mesh.dPdu[i]) < 1e-3f || glm::length(mesh.dPdv[i]) < 1e-3f) continue;  // a pole
+      // Tangent: N is their cross product.
+      EXPECT_NEAR(glm::dot(glm::normalize(mesh.dPdu[i]), mesh.N[i]), 0.0f, 2e-3f) << i;
+      EXPECT_NEAR(glm::dot(glm::normalize(mesh.dPdv[i]), mesh.N[i]), 0.0f, 2e-3f) << i;
+      if (m == 2) continue;
+      // Quadrics turn about z with u: dP/du = thetamax (-y, x, 0).
+      const float sweep = m == 0 ? thetamax : glm::radians(270.0f);
+      const glm::vec3 expected = sweep * glm::vec3(-mesh.P[i].y, mesh.P[i].x, 0.0f);
+      EXPECT_LT(glm::length(mesh.dPdu[i] - expected), 1e-3f * glm::length(expected)) << i;
+      if (m == 0) {
+        // dP/dv: the generating segment (p2 - p1) turned with the point.
+        const float angle = mesh.uv[i].x * thetamax;
+        const glm::vec3 d(-0.5f * std::cos(angle) - 0.5f * std::sin(angle), -0.5f * std::sin(angle) + 0.5f * std::cos(angle), 1.2f);
+        EXPECT_LT(glm::length(mesh.dPdv[i] - d), 1e-3f) << i;
+      }
+    }
+  }
+}
+
+// A negative sphere radius follows the RI formula x = r cos(phi) cos(theta), as the other quadrics'
+// radii do: half a turn about z (u starts at -x), the same z range, still facing out. It was taken
+// as |radius|, so a partial sweep covered the other half.
+TEST(RibPatches, NegativeSphereRadiusTurnsItHalfATurn) {
+  const ReadResult r = read(world("Sphere -1 -0.5 0.5 180\n"));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  const Mesh& mesh = r.scene->meshes.at(0);
+  bool sawStart = false;
+  for (size_t i = 0; i < mesh.P.size(); ++i) {
+    EXPECT_LE(mesh.P[i].y, 1e-5f) << i;  // theta in [pi, 2 pi]: y <= 0
+    EXPECT_GT(glm::dot(mesh.N[i], mesh.P[i]), 0.0f) << i;  // outward
+    if (mesh.uv[i] == glm::vec2(0.0f, 0.0f)) {
+      sawStart = true;
+      expectNear(mesh.P[i], glm::vec3(-std::sqrt(0.75f), 0.0f, -0.5f));
+    }
+  }
+  EXPECT_TRUE(sawStart);
+}
+
+// "Pz" (RI 3.2): a height field whose x and y are the surface parameters; it was refused as
+// lacking "P".
+TEST(RibPatches, PzIsAHeightFieldOverTheParameters) {
+  const ReadResult r = read(world("Patch \"bilinear\" \"Pz\" [0 0.5 0.5 1]\n"
+                                  "PatchMesh \"bicubic\" 4 \"nonperiodic\" 4 \"nonperiodic\" \"Pz\" [0 0 0 0  0 1 1 0  0 1 1 0  0 0 0 0]\n"));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  ASSERT_EQ(r.scene->meshes.size(), 2u);
+  for (const Mesh& mesh : r.scene->meshes)
+    for (size_t i = 0; i < mesh.P.size(); ++i) {
+      EXPECT_NEAR(mesh.P[i].x, mesh.uv[i].x, 1e-6f) << i;
+      EXPECT_NEAR(mesh.P[i].y, mesh.uv[i].y, 1e-6f) << i;
+    }
+  const Mesh& bilinear = r.scene->meshes[0];
+  for (size_t i = 0; i < bilinear.P.size(); ++i)
+    EXPECT_NEAR(bilinear.P[i].z, 0.5f * (bilinear.uv[i].x + bilinear.uv[i].y), 1e-6f) << i;
+  const Mesh& bump = r.scene->meshes[1];
+  for (size_t i = 0; i < bump.P.size(); ++i) {
+    if (bump.uv[i] == glm::vec2(0.5f, 0.5f)) {
+      EXPECT_NEAR(bump.P[i].z, 0.5625f, 1e-5f);  // (3/4)^2
+    }
+  }
+  EXPECT_TRUE(r.warnings.empty()) << r.warnings;
+}
+
+// Where patches meet at a crease, a point's normal is the mean of both sides', not one side's: a
+// square tube's corner took the next face's normal, and displacement pushed the crease sideways.
+TEST(RibPatches, CreasesBetweenPatchesTakeBothSidesNormals) {
+  const ReadResult r = read(world("PatchMesh \"bilinear\" 4 \"periodic\" 2 \"nonperiodic\" \"P\" [1 0 0  0 1 0  -1 0 0  0 -1 0   "
+                                  "1 0 1  0 1 1  -1 0 1  0 -1 1]\n"));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  const Mesh& mesh = r.scene->meshes.at(0);
+  bool sawCorner = false;
+  for (size_t i = 0; i < mesh.P.size(); ++i) {
+    for (const glm::vec3 corner : {glm::vec3(1, 0, 0), glm::vec3(0, 1, 0), glm::vec3(-1, 0, 0), glm::vec3(0, -1, 0)}) {
+      if (glm::length(glm::vec3(mesh.P[i].x, mesh.P[i].y, 0) - corner) > 1e-5f) continue;
+      sawCorner = true;
+      EXPECT_GT(std::fabs(glm::dot(mesh.N[i], corner)), 0.9999f) << i;  // outward or inward, along the bisector
+    }
+  }
+  EXPECT_TRUE(sawCorner);
+}
+
 TEST(RibPatches, PatchMeshBasesAndWrapping) {
   // A periodic b-spline tube: 8 control points around, 4 along; no seam crack.
   std::string P;
