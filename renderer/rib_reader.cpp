@@ -3944,8 +3944,10 @@ bool RibParser::addMesh(Mesh mesh, int line, bool wound) {
     for (size_t k = 0; k + 2 < mesh.indices.size(); k += 3) std::swap(mesh.indices[k + 1], mesh.indices[k + 2]);
   inputTriangles_ += mesh.numTriangles();
   if (inputTriangles_ > kMaxInputTriangles)
-    return fail(line, "the scene has more than " + std::to_string(kMaxInputTriangles) +
-                          " input triangles (ObjectInstance or ReadArchive nested within each other?)");
+    return fail(line, "the scene has more than " + std::to_string(kMaxInputTriangles) + " input triangles" +
+                          (instanceDepth_ > 0 || archiveDepth_ > 0
+                               ? " (ObjectInstance or ReadArchive nested within each other?)"
+                               : ""));
   for (const glm::vec3& p : mesh.P)
     if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
       return fail(line, "geometry has non-finite coordinates after transformation");

@@ -278,19 +278,28 @@ int evaluate(const Args& args, const CompileResult& result) {
   std::snprintf(line, sizeof line, "P = (%.9g, %.9g, %.9g)\nN = (%.9g, %.9g, %.9g)\n", Pout[0], Pout[1], Pout[2],
                 Nout[0], Nout[1], Nout[2]);
   std::cout << line << std::flush;
-  // Runtime problems name the shader, as the renderer's warnings do (language.md §7).
+  // Runtime problems name the shader, as the renderer's warnings do (language.md §7), at its
+  // definition (file:line:col), as compile diagnostics are.
+  std::string where = "reliefc";
+  if (result.ast && result.sources)
+    for (const auto& decl : result.ast->shaders)
+      if (decl->name == shader->name()) {
+        const relief::compiler::PresumedLoc p = result.sources->presumed(decl->nameRange.begin);
+        if (p.isValid()) where = std::string(p.file) + ":" + std::to_string(p.line) + ":" + std::to_string(p.column);
+        break;
+      }
   if (status.nonFinite)
-    std::cerr << "reliefc: warning: shader '" << shader->name()
+    std::cerr << where << ": warning: shader '" << shader->name()
               << "' produced a non-finite P; the undisplaced point and input N were used\n";
   if (status.badNormal)
-    std::cerr << "reliefc: warning: shader '" << shader->name()
+    std::cerr << where << ": warning: shader '" << shader->name()
               << "' produced a non-finite or zero N; the input N was returned (a renderer uses the "
                  "displaced surface's own normal)\n";
   if (status.loopLimit)
-    std::cerr << "reliefc: error: shader '" << shader->name()
+    std::cerr << where << ": error: shader '" << shader->name()
               << "' exceeded the loop iteration limit; outputs reverted to the inputs\n";
   if (status.textureErrors)
-    std::cerr << "reliefc: warning: shader '" << shader->name() << "': " << status.textureErrors
+    std::cerr << where << ": warning: shader '" << shader->name() << "': " << status.textureErrors
               << " texture lookup(s) failed\n";
   const std::pair<uint32_t, const char*> warnings[] = {
       {status.splineBasis, "spline basis name unknown or unfit for the knot count; catmull-rom was used (with fewer than 4 knots, the first knot)"},
@@ -299,7 +308,7 @@ int evaluate(const Args& args, const CompileResult& result) {
        "lookups of a coordinate space name other than \"current\", \"world\", \"common\", \"object\", "
        "\"shader\" or \"camera\" were treated as 'current'"}};
   for (const auto& [count, what] : warnings)
-    if (count) std::cerr << "reliefc: warning: shader '" << shader->name() << "': " << what << "\n";
+    if (count) std::cerr << where << ": warning: shader '" << shader->name() << "': " << what << "\n";
   // The loop limit is a run-time error (§7): the printed point is the undisplaced input.
   return status.loopLimit ? 1 : 0;
 }
@@ -457,7 +466,7 @@ int main(int argc, char** argv) {
   for (const std::string& file : args.files) {
     CompileFlags flags;
     flags.emitLlvm = args.emitLlvm;
-    flags.keepAst = args.emitAst;
+    flags.keepAst = args.emitAst || args.eval;  // --eval names a shader's definition in run-time messages
     flags.emitObject = args.emitBundle;
     flags.jit = args.eval;
     flags.errorLimit = args.errorLimit;
