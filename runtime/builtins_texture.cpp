@@ -12,6 +12,7 @@
 #include <mutex>
 #include <set>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -41,6 +42,26 @@ void recordFailure(const char* filename, const std::string& why, const RlfHostSe
   std::fprintf(stderr, "%s: error: %s%scannot read texture '%s'%s%s; using the fill value\n", origin,
                subject ? services->subject : "", subject ? ": " : "", filename, why.empty() ? "" : ": ",
                why.c_str());
+}
+
+// A wrap mode named at run time (a string parameter) that is none of the modes: said once per
+// name, as a failed file is, and the lookup uses "default" (a literal one is a compile error).
+void checkWrapModes(const RlfTextureOptions* options, const RlfHostServices* services) {
+  if (!options) return;
+  for (const char* mode : {options->swrap, options->twrap}) {
+    if (!mode) continue;
+    const std::string_view m(mode);
+    if (m == "default" || m == "black" || m == "clamp" || m == "periodic" || m == "mirror") continue;
+    FailureLog& log = failureLog();
+    std::lock_guard lock(log.mutex);
+    if (!log.seen.insert("\x01wrap:" + std::string(m)).second) continue;
+    const char* origin = services && services->origin ? services->origin : log.program.c_str();
+    const bool subject = services && services->subject;
+    std::fprintf(stderr,
+                 "%s: warning: %s%sunknown texture wrap mode '%s' (the modes are \"default\", \"black\", "
+                 "\"clamp\", \"periodic\" and \"mirror\"); \"default\" used\n",
+                 origin, subject ? services->subject : "", subject ? ": " : "", mode);
+  }
 }
 
 // The texture search path, handed to the library when it is loaded and whenever it changes after.
@@ -83,6 +104,12 @@ extern "C" int32_t rlf_texture(const RlfHostServices* services, const char* file
                                int32_t nchannels, float* out, float* dout_ds, float* dout_dt) {
   nchannels = std::clamp<int32_t>(nchannels, 1, 4);
   const bool named = filename && *filename;
+  if (options && (options->swrap || options->twrap)) {
+    try {
+      checkWrapModes(options, services);
+    } catch (...) {
+    }
+  }
   if (named && services && services->texture) {
     const int ok = services->texture(services->context, filename, s, t, dsdx, dtdx, dsdy, dtdy, options, nchannels,
                                      out, dout_ds, dout_dt);

@@ -405,6 +405,22 @@ TEST(CliTest, EvalOutputGoesToTheOutputFileAndEmptyDefinesStayEmpty) {
   EXPECT_EQ(r.out.substr(0, 4), "a=6\n") << r.out;
 }
 
+// A wrap mode named at run time that is none of the modes warns once (a literal one is a compile
+// error); it had been ignored without a word.
+TEST(CliTest, EvalWarnsOnceAboutAnUnknownRunTimeWrapMode) {
+  const fs::path shader = writeTemp("relief_wrap.disp",
+                                    "displacement wrapped(string w = \"repeat\")\n"
+                                    "{ P += N * (texture(\"relief_no_such_texture.png\", 0.5, 0.5, \"wrap\", w) +\n"
+                                    "            texture(\"relief_no_such_texture.png\", 0.25, 0.5, \"swrap\", w)); }\n");
+  CliRun r = reliefc("--eval " + quote(shader.string()));
+  const std::string warning = "warning: unknown texture wrap mode 'repeat'";
+  const size_t at = r.err.find(warning);
+  EXPECT_NE(at, std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find(warning, at + 1), std::string::npos) << r.err;  // once
+  r = reliefc("--eval -p w=clamp " + quote(shader.string()));
+  EXPECT_EQ(r.err.find("wrap mode"), std::string::npos) << r.err;
+}
+
 TEST(CliTest, EvalLoopLimitIsAnErrorExitCode) {
   const fs::path loop = writeTemp("relief_loop.disp", "displacement spin() { float x = 0; while (x >= 0) x += 1; P += x * N; }\n");
   const CliRun r = reliefc("--eval -floop-limit=1000 " + quote(loop.string()));
