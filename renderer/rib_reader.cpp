@@ -2141,7 +2141,16 @@ bool RibParser::shaderParamValue(int line, const runtime::CompiledShader& compil
       // and the shader sees them in its "current" space (world): each triple moves as its declared
       // kind does (a point with the translation, a vector without, a normal by the inverse
       // transpose). Scalars splatted into a triple are left as given.
+      // A triple moves as the shader's parameter is declared (a "point" given to a normal
+      // parameter is a normal to the shader; it had moved as a point, with the translation).
+      const runtime::ParamInfo* info = compiled.findParam(p.name);
+      auto isSpatial = [](runtime::ParamType t) {
+        return t == runtime::ParamType::Point || t == runtime::ParamType::Vector || t == runtime::ParamType::Normal;
+      };
+      const runtime::ParamType given = value.type;
+      if (info && isSpatial(info->type) && isSpatial(given)) value.type = info->type;
       moveSpatial(attr_.ctm, &value);
+      value.type = given;
     }
   }
   *out = std::move(value);

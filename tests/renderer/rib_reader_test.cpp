@@ -455,6 +455,14 @@ TEST(RibReader, SpatialShaderParametersAreInTheSpaceOfTheCall) {
   std::memcpy(&centre, h.scene->displacements[0].shader->block().data() + 24, 12);
   expectNear(centre, glm::vec3(2, 2, 3));
   EXPECT_FALSE(read(world("Displacement \"push\" \"hpoint centre\" [2 4 6 0]\nSphere 1 -1 1 360"), &shaders).scene);
+  // A triple moves as the shader declares its parameter, whatever spatial kind the call names:
+  // a "point" given to the normal 'facing' is a normal (it had picked up the translation).
+  ReadResult k = read(world("Attribute \"displacementbound\" \"float sphere\" [0.1]\n"
+                            "Translate 1 0 0\nScale 2 1 1\nDisplacement \"push\" \"point facing\" [1 2 3]\nSphere 1 -1 1 360"),
+                      &shaders);
+  ASSERT_TRUE(k.scene) << k.error.format();
+  std::memcpy(&facing, k.scene->displacements[0].shader->block().data() + 48, 12);
+  expectNear(facing, glm::vec3(0.5f, 2, 3));
 }
 
 // Before WorldBegin the transform is the camera's being built, so a Displacement there is given
