@@ -571,14 +571,12 @@ class ShaderCodegen {
     values.reserve(n);
     for (size_t i = 0; i < n; ++i) {
       values.push_back(convert(gen(*list->operands[i]), s.type.element()));
+      auto zero = [](Value* lane) {
+        return !lane || (llvm::isa<llvm::Constant>(lane) && llvm::cast<llvm::Constant>(lane)->isNullValue());
+      };
       for (int k = 0; k < elementComponents(s.type); ++k) {
         const Dual& d = values.back().c[k];
-        const bool zeroLane = [](Value* lane) {
-          return !lane || (llvm::isa<llvm::Constant>(lane) && llvm::cast<llvm::Constant>(lane)->isNullValue());
-        }(d.du) && [](Value* lane) {
-          return !lane || (llvm::isa<llvm::Constant>(lane) && llvm::cast<llvm::Constant>(lane)->isNullValue());
-        }(d.dv);
-        if (!llvm::isa<llvm::Constant>(d.v) || !zeroLane) {
+        if (!llvm::isa<llvm::Constant>(d.v) || !zero(d.du) || !zero(d.dv)) {
           // Not folded after all: store what was generated, in order (it had no effects).
           for (size_t j = 0; j < values.size(); ++j) storeElement(s, ci(int32_t(j)), values[j]);
           for (size_t j = values.size(); j < n; ++j)
