@@ -1654,7 +1654,7 @@ class Checker {
         ok = a.type.isSpatial();
       } else if (conv == 'c') {
         want = "a color";
-        ok = a.type.isTriple();
+        ok = a.type.isTriple() && a.type.kind == TypeKind::Color;  // as %p wants the spatial types
       } else if (conv == 'm') {
         want = "a matrix";
         ok = a.type.kind == TypeKind::Matrix && !a.type.isArray();

@@ -887,16 +887,18 @@ class RibParser {
       for (const std::string& dir : archivePath_) candidates.push_back(fs::path(dir) / name);
       candidates.push_back(name);
     }
-    std::vector<std::string> seen;
+    std::vector<std::string> seen, notes;
     for (const fs::path& candidate : candidates) {
       const std::string path = candidate.lexically_normal().string();
       if (std::find(seen.begin(), seen.end(), path) != seen.end()) continue;
       std::error_code ec;
       if (fs::is_regular_file(path, ec)) return path;
       seen.push_back(path);
+      // A device or directory there is not "missing": say what it is (scene-format.md).
+      notes.push_back(fs::exists(path, ec) ? ": not a regular file" : "");
     }
     tried->clear();
-    for (const std::string& path : seen) *tried += (tried->empty() ? "'" : ", '") + path + "'";
+    for (size_t i = 0; i < seen.size(); ++i) *tried += (tried->empty() ? "'" : ", '") + seen[i] + "'" + notes[i];
     return std::string();
   }
   // Quadrics take st, s, t and Cs as constant (1 value) or varying/vertex (4 values at the
@@ -3815,6 +3817,11 @@ bool RibParser::doProcedural(const Call& call) {
     return fail(call.line, "'Procedural \"DelayedReadArchive\"' expects [\"file\"] [bound]");
   if (call.args.size() > 2 && (!call.args[2].isNumeric() || call.args[2].numbers.size() != 6))
     return fail(call.line, "'Procedural': the bound must be 6 numbers");
+  if (call.args.size() > 2) {
+    const std::vector<double>& b = call.args[2].numbers;
+    if (!(b[0] <= b[1] && b[2] <= b[3] && b[4] <= b[5]))
+      warn(call.line, "'Procedural': the bound [xmin xmax ymin ymax zmin zmax] has a minimum above its maximum");
+  }
   return readArchive(call, call.args[1].strings[0]);
 }
 

@@ -68,7 +68,7 @@ constexpr const char* kUsage =
     "  --filter NAME             pixel filter: gaussian (default, 2x2), blackman-harris (3x3)\n"
     "                            or box (1x1)\n"
     "  --cache-triangles N       geometry cache budget in displaced triangles, or 'unlimited'\n"
-    "  --grid-resolution N       contributor-grid voxels along the longest axis (default: automatic,\n"
+    "  --grid-resolution N       contributor-grid voxels along the longest axis, 1 to 1024 (default: automatic,\n"
     "                            finer under a tight --cache-triangles)\n"
     "  --no-refine               keep contributors that reached nothing in their voxels' lists\n"
     "  --side-cache N            cache of N micro-triangles of whole subdivisions, shared by\n"
@@ -109,6 +109,8 @@ constexpr const char* kUsage =
     "  RELIEF_WALK=shared|stretches  how threads share the pixels (default: shared under a\n"
     "                            cache budget, stretches otherwise): for measurements; the image\n"
     "                            is the same\n"
+    "  RELIEF_OUTSIDE=0          every triangle in the grid, undisplaced ones reaching beyond the\n"
+    "                            displaced geometry too (for measurements; the image is the same)\n"
     "  RELIEF_CHECK_BUDGET=1     check the cache budget after every fill (debug)\n"
     "  RELIEF_COMPILER=FILE      the reliefc that compiles the shaders, in a child process\n"
     "                            (default: the reliefc beside relief, else the build tree's,\n"
@@ -1135,10 +1137,23 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
   // Under a budget the side cache would hold displaced triangles beyond it: off unless asked for.
   accelOptions.sideCacheTriangles =
       cl.sideCache.value_or(accelOptions.cacheBudgetTriangles == UINT64_MAX ? kDefaultSideCache : 0);
-  if (const char* env = std::getenv("RELIEF_SUBVOXEL")) accelOptions.subVoxelGrid = std::string_view(env) == "grid";
-  if (const char* env = std::getenv("RELIEF_SUBTREES")) accelOptions.learnSubtrees = std::string_view(env) != "0";
-  if (const char* env = std::getenv("RELIEF_PROXIES")) accelOptions.voxelProxies = std::string_view(env) != "0";
-  if (const char* env = std::getenv("RELIEF_OUTSIDE")) accelOptions.outsideTriangles = std::string_view(env) != "0";
+  // The measurement switches: a value that is none of a switch's is said, not taken silently.
+  auto environment = [&](const char* name, std::initializer_list<std::string_view> values) -> const char* {
+    const char* env = std::getenv(name);
+    if (!env) return nullptr;
+    for (std::string_view v : values)
+      if (v == env) return env;
+    if (warnings) {
+      *warnings << "relief: warning: " << name << "='" << env << "' is not one of";
+      for (std::string_view v : values) *warnings << " '" << v << "'";
+      *warnings << "; ignored\n";
+    }
+    return nullptr;
+  };
+  if (const char* env = environment("RELIEF_SUBVOXEL", {"grid", "bvh"})) accelOptions.subVoxelGrid = std::string_view(env) == "grid";
+  if (const char* env = environment("RELIEF_SUBTREES", {"0", "1"})) accelOptions.learnSubtrees = std::string_view(env) != "0";
+  if (const char* env = environment("RELIEF_PROXIES", {"0", "1"})) accelOptions.voxelProxies = std::string_view(env) != "0";
+  if (const char* env = environment("RELIEF_OUTSIDE", {"0", "1"})) accelOptions.outsideTriangles = std::string_view(env) != "0";
   std::unique_ptr<relief::Accelerator> accel;
   if (cl.accel == "grid") {
     accel = relief::makeGridAccelerator(scene, accelOptions);
@@ -1175,7 +1190,7 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
   renderOptions.displaced = cl.displace;
   // Under a budget a shared walk keeps one working set for all threads (render.h).
   renderOptions.sharedWalk = cl.accel == "grid" && accelOptions.cacheBudgetTriangles != UINT64_MAX;
-  if (const char* env = std::getenv("RELIEF_WALK"); env && cl.accel == "grid")
+  if (const char* env = environment("RELIEF_WALK", {"shared", "stretches"}); env && cl.accel == "grid")
     renderOptions.sharedWalk = std::string_view(env) == "shared";
   Progress progress(*accel, ::isatty(STDERR_FILENO) != 0, cl.scene, warnings);
   if (!cl.quiet) renderOptions.progress = [&progress](int percent) { progress.update(percent); };

@@ -192,6 +192,10 @@ displacement pf()
   // %p of a float warns (it wants a point, vector or normal); %p, %c and %m of their types do not.
   CompileResult r = compileSource("pf.disp", source);
   EXPECT_EQ(r.diagnostics->numShownWarnings(*r.sources), 1u) << renderDiagnostics(r);
+  // %c wants a color as %p wants the spatial types: a point for %c warns (it did not).
+  CompileResult c = compileSource("pc.disp", "displacement pc() { printf(\"%c %c\\n\", P, color(1)); }");
+  EXPECT_EQ(c.diagnostics->numShownWarnings(*c.sources), 1u) << renderDiagnostics(c);
+  EXPECT_NE(renderDiagnostics(c).find("format '%c' expects a color"), std::string::npos) << renderDiagnostics(c);
   EXPECT_NE(renderDiagnostics(r).find("format '%p' expects a point, vector or normal"), std::string::npos)
       << renderDiagnostics(r);
   TestBatch b(1);

@@ -386,6 +386,14 @@ TEST(RibFrames, DelayedReadArchiveReadsTheArchive) {
   EXPECT_FALSE(readRibFile(missing, options, &error));
   EXPECT_EQ(error.line, 3);
   EXPECT_NE(error.message.find("cannot open archive"), std::string::npos);
+  // A device is not a missing file: it says what it is.
+  const std::string device = dir.write("device.rib", world("ReadArchive \"/dev/null\""));
+  EXPECT_FALSE(readRibFile(device, options, &error));
+  EXPECT_NE(error.message.find("'/dev/null': not a regular file"), std::string::npos) << error.message;
+  // A bound with a minimum above its maximum warns (it is not needed, but it is a slip).
+  const std::string inverted = dir.write("inverted.rib", world("Procedural \"DelayedReadArchive\" [\"parts/tri.rib\"] [1 -1 -1 1 -1 1]"));
+  ASSERT_TRUE(readRibFile(inverted, options, &error)) << error.format();
+  EXPECT_NE(warnings.str().find("has a minimum above its maximum"), std::string::npos) << warnings.str();
 }
 
 // --- Surfaces and attributes ---
