@@ -528,7 +528,8 @@ void reportShaderProblems(const relief::Scene& scene, std::ostream& out) {
     if (const uint64_t n = p->outOfBound.load()) {
       warn() << " moved " << n << " points beyond the displacement bound "
           << d.boundWorld << " (world units), by up to " << maxExcess(*p)
-          << "; rays may miss those parts: raise Attribute \"displacementbound\"\n";
+          << "; rays may miss those parts, and which ones depends on the contributor grid (so the image may"
+             " change with --cache-triangles or --grid-resolution): raise Attribute \"displacementbound\"\n";
     }
   }
 }
