@@ -3077,15 +3077,16 @@ bool RibParser::doQuadric(const Call& call) {
     const glm::vec3 dPdv = position(u, tc + e) - position(u, tc - e);
     return glm::cross(dPdu, dPdv);
   };
-  const glm::mat3 normalFromObject = glm::transpose(glm::inverse(glm::mat3(attr_.ctm)));
+  const glm::mat3 linear(attr_.ctm);
+  const glm::mat3 normalFromObject = glm::transpose(glm::inverse(linear));
   Mesh mesh;
   for (int j = 0; j <= nv; ++j)
     for (int i = 0; i <= nu; ++i) {
       const float u = float(i) / float(nu), t = float(j) / float(nv);
       const glm::vec3 p = position(u, t);
       mesh.P.push_back(glm::vec3(attr_.ctm * glm::vec4(p, 1.0f)));
-      mesh.dPdu.push_back(glm::mat3(attr_.ctm) * (thetamax * glm::vec3(-p.y, p.x, 0.0f)));
-      mesh.dPdv.push_back(glm::mat3(attr_.ctm) * alongV(u, t));
+      mesh.dPdu.push_back(linear * (thetamax * glm::vec3(-p.y, p.x, 0.0f)));
+      mesh.dPdv.push_back(linear * alongV(u, t));
       glm::vec3 normal = normalFromObject * normalAt(u, t);
       const float len = glm::length(normal);
       mesh.N.push_back(len > 0.0f ? normal / len : glm::vec3(0, 0, 1));

@@ -90,7 +90,6 @@ Mesh tessellateSphere(float radius, float zmin, float zmax, float thetamaxDeg, i
       addTriangle(v00, v11, v01);
     }
   }
-  smoothSurfaceDerivatives(mesh);
   return mesh;
 }
 

@@ -21,6 +21,9 @@ namespace relief {
 // sliver that joins the pole edges of neighbouring columns, whose midpoints get different u and so
 // different displacements; dropping it would open a crack there. Subdivision and intersection
 // treat zero-area triangles without NaNs (no hit, a finite fallback normal).
+//
+// dPdu and dPdv are the sphere's own derivatives at each vertex, not yet shared between a seam's
+// or a pole's copies: smoothSurfaceDerivatives does that (the RIB reader's addMesh, once per mesh).
 Mesh tessellateSphere(float radius, float zmin, float zmax, float thetamaxDeg, int nu, int nv,
                       const glm::mat4& worldFromObject);
 
