@@ -280,12 +280,23 @@ TEST(RenderMaterial, ConstantIgnoresLights) {
   EXPECT_EQ(dark, glm::vec3(0.3f, 0.6f, 0.9f));
 }
 
-TEST(RenderMaterial, OpacityCompositesWhatIsBehind) {
+// The opacity scenes: a constant red material of opacity `opacity` (f) and an opaque blue one (b),
+// no meshes yet.
+struct RedOverBlue {
   Scene scene = test::orthoScene(8, 1.0f);
-  Material front = test::constant({1, 0, 0});
-  front.opacity = glm::vec3(0.25f);
-  const uint32_t f = test::addMaterial(&scene, front);
-  const uint32_t b = test::addMaterial(&scene, test::constant({0, 0, 1}));
+  uint32_t f = 0, b = 0;
+  explicit RedOverBlue(float opacity) {
+    Material front = test::constant({1, 0, 0});
+    front.opacity = glm::vec3(opacity);
+    f = test::addMaterial(&scene, front);
+    b = test::addMaterial(&scene, test::constant({0, 0, 1}));
+  }
+};
+
+TEST(RenderMaterial, OpacityCompositesWhatIsBehind) {
+  RedOverBlue materials(0.25f);
+  Scene& scene = materials.scene;
+  const uint32_t f = materials.f, b = materials.b;
   scene.meshes.push_back(wall(f, -1.0f));
   scene.meshes.push_back(wall(b, 0.0f));
   const Film both = test::renderWith(scene);
@@ -305,11 +316,9 @@ TEST(RenderMaterial, OpacityCompositesWhatIsBehind) {
 // layers of Os 0.1 over an opaque wall composite fully even at --max-depth 0 (each layer used to
 // take one level: at the default 5 the wall behind was lost, and at 0 everything behind the first).
 TEST(RenderMaterial, TransparentLayersDoNotUseTheRayDepth) {
-  Scene scene = test::orthoScene(8, 1.0f);
-  Material layer = test::constant({1, 0, 0});
-  layer.opacity = glm::vec3(0.1f);
-  const uint32_t f = test::addMaterial(&scene, layer);
-  const uint32_t b = test::addMaterial(&scene, test::constant({0, 0, 1}));
+  RedOverBlue materials(0.1f);
+  Scene& scene = materials.scene;
+  const uint32_t f = materials.f, b = materials.b;
   for (int k = 0; k < 10; ++k) scene.meshes.push_back(wall(f, -1.0f - 0.1f * float(k)));
   scene.meshes.push_back(wall(b, 0.0f));
   const float behind = std::pow(0.9f, 10.0f);
