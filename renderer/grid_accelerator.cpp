@@ -17,6 +17,7 @@
 
 #include "renderer/atomic_max.h"
 #include "renderer/intersect.h"
+#include "renderer/spin_mutex.h"
 #include "renderer/ticks.h"
 
 #if defined(__SSE2__)
@@ -758,7 +759,7 @@ struct GridAccelerator::SideCache {
     uint32_t id = 0;
     std::shared_ptr<const MicroMesh> mesh;
   };
-  std::mutex mutex;
+  SpinMutex mutex;
   uint64_t triangles = 0;
   std::list<Entry> entries;
   std::unordered_map<uint32_t, std::list<Entry>::iterator> index;
@@ -802,7 +803,7 @@ SubtreeMemo* GridAccelerator::subtreeMemo(uint32_t id, int rounds) {
 std::shared_ptr<const MicroMesh> GridAccelerator::sideCached(uint32_t id, SubdivideCounters& counters) {
   SideCache& side = *side_;
   {
-    std::lock_guard<std::mutex> lock(side.mutex);
+    std::lock_guard<SpinMutex> lock(side.mutex);
     if (const auto found = side.index.find(id); found != side.index.end()) {
       side.entries.splice(side.entries.begin(), side.entries, found->second);
       sideHits_.fetch_add(1, std::memory_order_relaxed);
@@ -817,7 +818,7 @@ std::shared_ptr<const MicroMesh> GridAccelerator::sideCached(uint32_t id, Subdiv
   subdivideTriangle(scene_.meshes[m], triangle, grid_.displacement(m), *mesh, counters);
   const uint64_t n = mesh->numTriangles();
   std::list<SideCache::Entry> victims;  // freed after the mutex is released (declared first)
-  std::lock_guard<std::mutex> lock(side.mutex);
+  std::lock_guard<SpinMutex> lock(side.mutex);
   if (const auto found = side.index.find(id); found != side.index.end()) {
     side.entries.splice(side.entries.begin(), side.entries, found->second);
     return found->second->mesh;
