@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <sstream>
 
 namespace relief::runtime {
 
@@ -134,6 +135,17 @@ bool ShaderInstance::bindValue(const ParamInfo& info, const ParamValue& value, s
     storeStrings(info, value.strings);
     return true;
   }
+  if (value.type == ParamType::Int)
+    for (double d : value.numbers)
+      if (d != std::trunc(d)) {
+        // `"int Km" [2.5]`: the call's own declaration contradicts its value; binding 2.5 (or 2)
+        // would hide the slip.
+        std::ostringstream given;
+        given << d;
+        error->assign("parameter '").append(value.name).append("' is declared 'int' but was given ");
+        error->append(given.str());
+        return false;
+      }
   const bool compatible = info.type == value.type ||
                           (isScalar(value.type) && info.type != ParamType::Matrix) ||
                           (isSpatial(info.type) && isSpatial(value.type));

@@ -79,8 +79,13 @@ TEST(ShaderInstance, BindRejectsWhatDoesNotFit) {
   // The right type with the wrong count says the count, not "declared 'color', given 'color'".
   EXPECT_FALSE(inst.bind({"c", ParamType::Color, {0.1f}, {}}, &error));
   EXPECT_NE(error.find("declared 'color' (3 numbers) but was given 1"), std::string::npos) << error;
+  // A value contradicting the call's own "int" declaration is refused, not bound as 2.5 or 2.
+  EXPECT_FALSE(inst.bind({"Km", ParamType::Int, {2.5}, {}}, &error));
+  EXPECT_NE(error.find("'Km' is declared 'int' but was given 2.5"), std::string::npos) << error;
   // A rejected bind leaves the previous value.
   EXPECT_FLOAT_EQ(read<float>(inst, 0), 0.5f);
+  EXPECT_TRUE(inst.bind({"Km", ParamType::Int, {2}, {}}, &error)) << error;
+  EXPECT_FLOAT_EQ(read<float>(inst, 0), 2.0f);
 }
 
 TEST(ShaderInstance, EvaluateRunsTheEntryOnABatch) {
