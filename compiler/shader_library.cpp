@@ -35,7 +35,7 @@ std::shared_ptr<const runtime::CompiledShader> ShaderLibrary::find(std::string_v
   }
   for (const auto& s : it->second.shaders)
     if (s->name() == shaderName) return s;
-  if (error) *error = "'" + path + "' defines no shader named '" + shaderName + "'";
+  if (error) *error = runtime::noShaderNamed(path, shaderName, it->second.shaders);
   return nullptr;
 }
 

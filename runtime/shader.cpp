@@ -2,9 +2,11 @@
 #include "runtime/shader.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <sstream>
 
 namespace relief::runtime {
@@ -167,12 +169,103 @@ bool ShaderInstance::bindValue(const ParamInfo& info, const ParamValue& value, s
   return true;
 }
 
+namespace {
+
+bool isIdentifier(std::string_view s) {
+  if (s.empty() || !(std::isalpha(static_cast<unsigned char>(s[0])) || s[0] == '_')) return false;
+  for (char c : s)
+    if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_')) return false;
+  return true;
+}
+
+// `text` with its comments and string literals blanked, so a look for a declaration skips them.
+std::string codeOnly(std::string_view text) {
+  std::string code(text);
+  for (size_t i = 0; i < code.size(); ++i) {
+    if (code.compare(i, 2, "//") == 0) {
+      for (; i < code.size() && code[i] != '\n'; ++i) code[i] = ' ';
+    } else if (code.compare(i, 2, "/*") == 0) {
+      const size_t end = code.find("*/", i + 2);
+      const size_t stop = end == std::string::npos ? code.size() : end + 2;
+      for (; i < stop; ++i)
+        if (code[i] != '\n') code[i] = ' ';
+      --i;
+    } else if (code[i] == '"') {
+      for (code[i++] = ' '; i < code.size() && code[i] != '"' && code[i] != '\n'; ++i) {
+        if (code[i] == '\\' && i + 1 < code.size()) code[i++] = ' ';
+        code[i] = ' ';
+      }
+      if (i < code.size() && code[i] == '"') code[i] = ' ';
+    }
+  }
+  return code;
+}
+
+// Whether `text` (codeOnly) declares `displacement name(`: a cheap look, not a parse (a
+// declaration inside #if 0 is found too, and compiling the file then says it defines no such
+// shader).
+bool declaresShader(std::string_view text, std::string_view name) {
+  constexpr std::string_view kKeyword = "displacement";
+  for (size_t at = text.find(kKeyword); at != std::string_view::npos; at = text.find(kKeyword, at + 1)) {
+    if (at > 0 && (std::isalnum(static_cast<unsigned char>(text[at - 1])) || text[at - 1] == '_')) continue;
+    size_t k = at + kKeyword.size();
+    const size_t spaceStart = k;
+    while (k < text.size() && std::isspace(static_cast<unsigned char>(text[k]))) ++k;
+    if (k == spaceStart || text.substr(k, name.size()) != name) continue;
+    k += name.size();
+    while (k < text.size() && std::isspace(static_cast<unsigned char>(text[k]))) ++k;
+    if (k < text.size() && text[k] == '(') return true;
+  }
+  return false;
+}
+
+// The .disp files of `dir` that declare shader `name`, sorted.
+std::vector<std::filesystem::path> filesDeclaring(const std::filesystem::path& dir, std::string_view name) {
+  std::vector<std::filesystem::path> found;
+  std::error_code ec;
+  for (std::filesystem::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    if (it->path().extension() != ".disp" || !it->is_regular_file(ec)) continue;
+    std::ifstream in(it->path(), std::ios::binary);
+    std::ostringstream text;
+    text << in.rdbuf();
+    if (declaresShader(codeOnly(text.str()), name)) found.push_back(it->path());
+  }
+  std::sort(found.begin(), found.end());
+  return found;
+}
+
+}  // namespace
+
+std::string noShaderNamed(const std::string& path, const std::string& name,
+                          std::span<const std::shared_ptr<const CompiledShader>> defined) {
+  std::string text = "'" + path + "' defines no shader named '" + name + "'";
+  if (defined.empty()) return text;
+  text += defined.size() == 1 ? " (it defines '" : " (it defines ";
+  for (size_t i = 0; i < defined.size(); ++i) {
+    if (defined.size() > 1) text += (i == 0 ? "'" : i + 1 == defined.size() ? " and '" : ", '");
+    text += defined[i]->name() + "'";
+  }
+  text += defined.size() == 1 ? ")" : "; select one as 'file:shader')";
+  return text;
+}
+
 bool locateShaderFile(std::string_view name, std::span<const std::string> searchPath, std::string* path,
                       std::string* shaderName, std::string* error) {
-  const std::filesystem::path given{std::string(name)};
+  // "lib:other" (or "lib.disp:other", "dir/lib:other") names shader `other` of file lib.disp: a
+  // file may define several shaders.
+  std::string_view fileName = name;
+  std::string selected;
+  if (const size_t colon = name.rfind(':'); colon != std::string_view::npos && colon > 0 &&
+                                            isIdentifier(name.substr(colon + 1))) {
+    fileName = name.substr(0, colon);
+    selected = std::string(name.substr(colon + 1));
+  }
+  const std::filesystem::path given{std::string(fileName)};
   std::filesystem::path file = given;
   if (given.extension() != ".disp") file += ".disp";
-  *shaderName = given.has_parent_path() || given.extension() == ".disp" ? given.stem().string() : std::string(name);
+  *shaderName = !selected.empty() ? selected
+                : given.has_parent_path() || given.extension() == ".disp" ? given.stem().string()
+                                                                          : std::string(fileName);
   path->clear();
   std::error_code ec;
   if (file.is_absolute()) {
@@ -189,6 +282,24 @@ bool locateShaderFile(std::string_view name, std::span<const std::string> search
   if (!path->empty()) return true;
   std::string dirs;
   for (const std::string& dir : searchPath) dirs += (dirs.empty() ? "" : ", ") + ("'" + dir + "'");
+  // A bare name with no file of its own: the shader may be one of several in another file of the
+  // search path (the first directory holding one wins, as for files; two there are ambiguous).
+  if (selected.empty() && isIdentifier(name)) {
+    for (const std::string& dir : searchPath) {
+      const std::vector<std::filesystem::path> found = filesDeclaring(dir.empty() ? "." : dir, name);
+      if (found.size() == 1) {
+        *path = found.front().string();
+        return true;
+      }
+      if (found.size() > 1) {
+        if (error)
+          *error = "shader '" + std::string(name) + "' is defined by both '" + found[0].string() + "' and '" +
+                   found[1].string() + "'; name the file, as in '" + found[0].stem().string() + ":" +
+                   std::string(name) + "'";
+        return false;
+      }
+    }
+  }
   if (error)
     *error = file.is_absolute() ? "shader '" + std::string(name) + "' not found: no file '" + file.string() + "'"
                                 : "shader '" + std::string(name) + "' not found: no '" + file.string() +

@@ -151,7 +151,7 @@ std::shared_ptr<const runtime::CompiledShader> ShaderCompilerProcess::find(std::
   }
   for (const auto& s : file.shaders)
     if (s->name() == shaderName) return s;
-  if (error) *error = "'" + path + "' defines no shader named '" + shaderName + "'";
+  if (error) *error = runtime::noShaderNamed(path, shaderName, file.shaders);
   return nullptr;
 }
 

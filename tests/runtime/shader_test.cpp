@@ -2,7 +2,11 @@
 // with the language's promotions, and rejection of values that do not fit.
 #include "runtime/shader.h"
 
+#include <unistd.h>
+
 #include <cstring>
+#include <filesystem>
+#include <fstream>
 
 #include <gtest/gtest.h>
 
@@ -107,6 +111,48 @@ TEST(ShaderInstance, EvaluateRunsTheEntryOnABatch) {
   inst.evaluate(b, status);
   EXPECT_FLOAT_EQ(oy[0], 2.0f);
   EXPECT_FLOAT_EQ(ox[1], 2.0f);
+}
+
+// A file may define several shaders: "file:shader" selects one, and a bare name with no file of
+// its own is found among the declarations in the search path (ambiguity is an error, not a pick).
+TEST(LocateShaderFile, SelectsAmongSeveralShadersOfAFile) {
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("relief_locate_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir / "a");
+  std::filesystem::create_directories(dir / "b");
+  auto write = [](const std::filesystem::path& p, const char* text) { std::ofstream(p) << text; };
+  write(dir / "a" / "lib.disp",
+        "float h(float x) { return x; }\ndisplacement lib(float k = 1) {}\ndisplacement\n  other (float k = 1) {}\n");
+  write(dir / "a" / "notes.disp",
+        "// displacement others( in a comment\n/* displacement others() */\n"
+        "string s = \"displacement others()\";\n");
+  write(dir / "b" / "one.disp", "displacement twice() {}\n");
+  write(dir / "b" / "two.disp", "displacement twice() {}\n");
+  const std::vector<std::string> path = {(dir / "a").string(), (dir / "b").string()};
+  std::string file, shader, error;
+
+  ASSERT_TRUE(locateShaderFile("lib:other", path, &file, &shader, &error)) << error;
+  EXPECT_EQ(file, (dir / "a" / "lib.disp").string());
+  EXPECT_EQ(shader, "other");
+  ASSERT_TRUE(locateShaderFile("lib.disp:lib", path, &file, &shader, &error)) << error;
+  EXPECT_EQ(shader, "lib");
+  ASSERT_TRUE(locateShaderFile("other", path, &file, &shader, &error)) << error;
+  EXPECT_EQ(file, (dir / "a" / "lib.disp").string());
+  EXPECT_EQ(shader, "other");
+  ASSERT_TRUE(locateShaderFile("lib", path, &file, &shader, &error)) << error;  // the file's own
+  EXPECT_EQ(shader, "lib");
+
+  EXPECT_FALSE(locateShaderFile("twice", path, &file, &shader, &error));
+  EXPECT_NE(error.find("defined by both '" + (dir / "b" / "one.disp").string() + "' and"), std::string::npos) << error;
+  EXPECT_NE(error.find("'one:twice'"), std::string::npos) << error;
+  ASSERT_TRUE(locateShaderFile("two:twice", path, &file, &shader, &error)) << error;
+  EXPECT_EQ(file, (dir / "b" / "two.disp").string());
+
+  EXPECT_FALSE(locateShaderFile("others", path, &file, &shader, &error));
+  EXPECT_NE(error.find("no 'others.disp' in the search path"), std::string::npos) << error;
+  EXPECT_FALSE(locateShaderFile("nofile:other", path, &file, &shader, &error));
+  EXPECT_NE(error.find("no 'nofile.disp'"), std::string::npos) << error;
+  std::filesystem::remove_all(dir);
 }
 
 }  // namespace
