@@ -522,7 +522,7 @@ void reportShaderProblems(const relief::Scene& scene, std::ostream& out) {
     report(p->unknownSpace,
            "lookups of a coordinate space name other than \"current\", \"world\", \"common\", \"object\", "
            "\"shader\" or \"camera\" were treated as 'current' (spaces named by CoordinateSystem do not reach "
-           "shaders, language.md 2.3)");
+           "shaders, docs/language-reference.md §2.3)");
     report(p->textureErrors, "texture lookups failed");
     report(p->splineBasis, "spline calls named an unknown basis or one unfit for their knots (catmull-rom was used; with fewer than 4 knots, the first knot)");
     if (const uint64_t n = p->outOfBound.load()) {
