@@ -1341,9 +1341,13 @@ bool RibParser::executeCamera(const Call& call, bool* handled) {
     // the current transform starts again from the identity for the camera transform. Only their
     // part within the screen plane changes a ray tracer's picture (a z scale only reorders depth).
     const glm::mat4& m = attr_.ctm;
-    if (m[2][0] != 0.0f || m[2][1] != 0.0f || m[0][3] != 0.0f || m[1][3] != 0.0f || m[2][3] != 0.0f)
+    // A depth translation changes nothing either, but it is the usual slip of a camera
+    // `Translate 0 0 5` written before Projection rather than after it: said as well.
+    if (m[2][0] != 0.0f || m[2][1] != 0.0f || m[0][3] != 0.0f || m[1][3] != 0.0f || m[2][3] != 0.0f ||
+        m[3][2] != 0.0f)
       warn(call.line, "'Projection': the transforms before it act on screen space; only their part "
-                      "within the screen plane is used");
+                      "within the screen plane is used (the camera's own transform goes between "
+                      "Projection and WorldBegin)");
     scene_.camera.screenFromProjected = m;
     attr_.ctm = glm::mat4(1.0f);
     if (type != "perspective" && type != "orthographic") {

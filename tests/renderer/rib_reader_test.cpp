@@ -154,6 +154,13 @@ TEST(RibReader, TransformsBeforeProjectionActOnScreenSpace) {
   r = read("ConcatTransform [1 0 0 0  0 1 0 0  0.5 0 1 0  0 0 0 1]\nProjection \"perspective\"\n" + world(""));
   ASSERT_TRUE(r.scene) << r.error.format();
   EXPECT_NE(r.warnings.find("act on screen space"), std::string::npos) << r.warnings;
+  // A camera's Translate written before Projection instead of after it is dropped, and said.
+  r = read("Translate 0 0 5\nProjection \"perspective\"\n" + world(""));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  EXPECT_NE(r.warnings.find(":2: warning: 'Projection': the transforms before it act on screen space"),
+            std::string::npos)
+      << r.warnings;
+  EXPECT_NE(r.warnings.find("goes between Projection and WorldBegin"), std::string::npos) << r.warnings;
 }
 
 // RI matrices are homogeneous: a uniform w divides out; projective ones and cameras that overflow
