@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <iostream>
 #include <map>
 #include <ostream>
 #include <optional>
@@ -3999,6 +4000,17 @@ std::optional<Scene> readRibString(std::string_view text, const std::string& fil
 namespace {
 
 bool readSceneText(const std::string& path, std::string* text, SceneError* error) {
+  if (path == "-") {
+    // Standard input is read once: a scene of several frames is parsed once per frame.
+    static std::optional<std::string> input;
+    if (!input) {
+      std::ostringstream buffer;
+      buffer << std::cin.rdbuf();
+      input = buffer.str();
+    }
+    *text = *input;
+    return true;
+  }
   // A device or a pipe (/dev/zero) would be read for ever.
   std::error_code ec;
   const std::filesystem::file_status status = std::filesystem::status(path, ec);
@@ -4022,13 +4034,17 @@ bool readSceneText(const std::string& path, std::string* text, SceneError* error
   return true;
 }
 
+// Standard input ("-") is named as compilers name it; its relative paths are the working
+// directory's.
+std::string sceneLabel(const std::string& path) { return path == "-" ? "<stdin>" : path; }
+
 }  // namespace
 
 std::optional<Scene> readRibFile(const std::string& path, const RibReadOptions& options,
                                  SceneError* error) {
   std::string text;
   if (!readSceneText(path, &text, error)) return std::nullopt;
-  return readRibString(text, path, options, error);
+  return readRibString(text, sceneLabel(path), options, error);
 }
 
 std::optional<std::vector<int>> readRibFrameNumbers(const std::string& path,
@@ -4036,9 +4052,9 @@ std::optional<std::vector<int>> readRibFrameNumbers(const std::string& path,
                                                     SceneError* error) {
   std::string text;
   std::vector<RibToken> tokens;
-  if (!readSceneText(path, &text, error) || !tokenizeRib(text, path, &tokens, error))
+  if (!readSceneText(path, &text, error) || !tokenizeRib(text, sceneLabel(path), &tokens, error))
     return std::nullopt;
-  RibParser parser(path, options, /*listFrames=*/true);
+  RibParser parser(sceneLabel(path), options, /*listFrames=*/true);
   std::optional<Scene> scene = parser.parse(std::move(tokens), error);
   if (!scene) return std::nullopt;
   return std::move(scene->frameNumbers);

@@ -52,8 +52,9 @@ constexpr const char* kUsage =
     "usage: relief [options] scene.rib\n"
     "\n"
     "Renders a RenderMan RIB scene whose displacement shaders (.disp) are compiled on the fly.\n"
+    "A scene of '-' is read from standard input (its relative paths are the working directory's).\n"
     "\n"
-    "options:\n"
+    "options (--name VALUE or --name=VALUE):\n"
     "  -I, --shader-path DIR     search DIR for shaders (repeatable; before RELIEF_SHADER_PATH)\n"
     "  -o FILE                   write the image to FILE instead of the scene's Display\n"
     "                            (the scene's further displays go to FILE's directory)\n"
@@ -128,7 +129,9 @@ constexpr const char* kUsage =
     "--frame the scene does not have)\n";
 
 struct CommandLine {
-  std::string scene;
+  std::string scene;  // "-": standard input
+  // The scene as messages name it.
+  std::string label() const { return scene == "-" ? std::string("<stdin>") : scene; }
   std::vector<std::string> shaderDirs;
   std::string output;
   std::optional<int> frame;  // --frame: the n of a `FrameBegin n`; unset: every frame
@@ -182,8 +185,19 @@ bool parseFrameNumber(const std::string& text, int* value) {
 int parseCommandLine(int argc, char** argv, CommandLine* cl) {
   std::vector<std::string> args(argv + 1, argv + argc);
   for (size_t i = 0; i < args.size(); ++i) {
-    const std::string& a = args[i];
+    // GNU style "--name=value" as well as "--name value".
+    std::string a = args[i];
+    std::optional<std::string> attached;
+    if (const size_t eq = a.find('='); a.rfind("--", 0) == 0 && eq != std::string::npos) {
+      attached = a.substr(eq + 1);
+      a.resize(eq);
+    }
     auto value = [&](std::string* out) {
+      if (attached) {
+        *out = *attached;
+        attached.reset();
+        return true;
+      }
       if (i + 1 >= args.size()) return false;
       *out = args[++i];
       return true;
@@ -292,6 +306,7 @@ int parseCommandLine(int argc, char** argv, CommandLine* cl) {
     } else {
       return usageError("more than one scene given ('" + cl->scene + "' and '" + a + "')");
     }
+    if (attached) return usageError("'" + a + "' takes no value (given '" + args[i] + "')");
   }
   if (cl->scene.empty()) return usageError("no scene file given");
   // Options that cannot take effect are said to, not silently dropped.
@@ -822,13 +837,13 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
 std::string missingFrameMessage(const CommandLine& cl, const std::vector<int>& numbers) {
   const std::string frame = std::to_string(*cl.frame);
   if (numbers.empty())
-    return "'--frame " + frame + "': '" + cl.scene + "' has no FrameBegin blocks (it is one frame)";
+    return "'--frame " + frame + "': '" + cl.label() + "' has no FrameBegin blocks (it is one frame)";
   constexpr size_t kListed = 8;
   std::string list;
   for (size_t i = 0; i < numbers.size() && i < kListed; ++i)
     list += (i ? ", " : "") + std::to_string(numbers[i]);
   if (numbers.size() > kListed) list += ", ... " + std::to_string(numbers.back());
-  return "no 'FrameBegin " + frame + "' in '" + cl.scene + "' (its frames: " + list + ")";
+  return "no 'FrameBegin " + frame + "' in '" + cl.label() + "' (its frames: " + list + ")";
 }
 
 int run(const CommandLine& cl) {
@@ -979,9 +994,10 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
     modes.push_back("rgb");
   } else {
     modes.push_back("rgb");
-    outputs.push_back(perFrame(std::filesystem::path(cl.scene).stem().string() + ".png"));
+    const std::string stem = cl.scene == "-" ? std::string("stdin") : std::filesystem::path(cl.scene).stem().string();
+    outputs.push_back(perFrame(stem + ".png"));
     if (warnings)
-      *warnings << cl.scene << ": warning: no Display in the scene; writing '" << outputs[0]
+      *warnings << cl.label() << ": warning: no Display in the scene; writing '" << outputs[0]
                 << "'\n";
   }
   // RenderMan's default surface needs no light; Relief's matte does: say why the image is black.
@@ -991,10 +1007,10 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
   });
   if (!anyLight && anyLitSurface && warnings) {
     if (scene.skippedLights)
-      *warnings << cl.scene << ": warning: none of the scene's light sources is one Relief renders (see the "
+      *warnings << cl.label() << ": warning: none of the scene's light sources is one Relief renders (see the "
                 << "warnings above), so its surfaces (other than Surface \"constant\") render black\n";
     else
-      *warnings << cl.scene << ": warning: the scene has no LightSource, so its surfaces (other than "
+      *warnings << cl.label() << ": warning: the scene has no LightSource, so its surfaces (other than "
                 << "Surface \"constant\") render black\n";
   }
   std::vector<std::string> outputKeys;
@@ -1004,7 +1020,7 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
     if (written->paths.count(outputKeys.back()) && !written->warned && warnings) {
       written->warned = true;
       const bool numberedName = i == 0 && severalFrames && !cl.output.empty();
-      *warnings << cl.scene << ": warning: frame " << frameNumber << " writes '" << outputs[i]
+      *warnings << cl.label() << ": warning: frame " << frameNumber << " writes '" << outputs[i]
                 << "' again, over an earlier frame's image"
                 << (numberedName ? " (two frames have the same number)\n"
                                  : "; give each frame its own Display\n");
@@ -1140,7 +1156,7 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
       if (asked > cap) {
         accelOptions.cacheBudgetTriangles = uint64_t(cap);
         if (warnings)
-          *warnings << cl.scene << ": warning: the displacements ask for about " << formatCount(asked)
+          *warnings << cl.label() << ": warning: the displacements ask for about " << formatCount(asked)
                     << " micro-triangles, more than half the memory holds; the cache keeps at most "
                     << formatCount(cap) << " (--cache-triangles sets another budget)\n";
       }
@@ -1194,7 +1210,7 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
   renderOptions.order = cl.order;
   if (!cl.orderSet && !scene.order.empty() && !relief::parsePixelOrder(scene.order, &renderOptions.order)) {
     if (warnings)
-      *warnings << cl.scene << ": warning: unknown pixel order '" << scene.order
+      *warnings << cl.label() << ": warning: unknown pixel order '" << scene.order
                 << "'; using hilbert\n";
     renderOptions.order = relief::PixelOrder::Hilbert;
   }
@@ -1209,13 +1225,13 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
   renderOptions.sharedWalk = cl.accel == "grid" && accelOptions.cacheBudgetTriangles != UINT64_MAX;
   if (const char* env = environment("RELIEF_WALK", {"shared", "stretches"}); env && cl.accel == "grid")
     renderOptions.sharedWalk = std::string_view(env) == "shared";
-  Progress progress(*accel, ::isatty(STDERR_FILENO) != 0, cl.scene, warnings);
+  Progress progress(*accel, ::isatty(STDERR_FILENO) != 0, cl.label(), warnings);
   if (!cl.quiet) renderOptions.progress = [&progress](int percent) { progress.update(percent); };
 
   // RI CropWindow: the film and the images written hold the crop only.
   const relief::PixelRect crop = relief::cropPixels(scene.cropWindow, scene.width, scene.height);
   if (crop.w == 0 || crop.h == 0) {
-    std::cerr << (scene.cropSource.empty() ? cl.scene : scene.cropSource) << ": error: the 'CropWindow' covers no pixel of the "
+    std::cerr << (scene.cropSource.empty() ? cl.label() : scene.cropSource) << ": error: the 'CropWindow' covers no pixel of the "
               << scene.width << "x" << scene.height << " image\n";
     return 1;
   }
@@ -1249,7 +1265,7 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
     renderStats = relief::render(scene, *accel, renderOptions, &film, aovs);
   } catch (const std::bad_alloc&) {
     if (!cl.quiet) progress.finish();
-    reportOutOfMemory(cl.scene, scene, estimates, cl.edgeLength > 0.0f,
+    reportOutOfMemory(cl.label(), scene, estimates, cl.edgeLength > 0.0f,
                       accelOptions.cacheBudgetTriangles != UINT64_MAX, std::cerr);
     return 1;
   }
@@ -1266,7 +1282,7 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
   const relief::AccelStats finalStats = accel->stats();
   std::vector<std::pair<std::string, std::string>> metadata = {
       {"relief:version", kVersion},
-      {"relief:scene", cl.scene},
+      {"relief:scene", cl.label()},
       {"relief:renderSeconds", std::to_string(renderStats.seconds)},
       {"relief:samplesPerPixel", std::to_string(renderStats.samplesPerPixel)},
       {"relief:filter", std::string(relief::filterName(renderOptions.filter))},
@@ -1376,7 +1392,7 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
   const relief::AccelStats accelStats = accel->stats();
   if (warnings) {
     reportShaderProblems(scene, *warnings);
-    if (!progress.warnedThinBudget()) reportThinBudget(cl.scene, accelStats, *warnings);
+    if (!progress.warnedThinBudget()) reportThinBudget(cl.label(), accelStats, *warnings);
   }
   const StatList stats =
       collectStats(cl, scene, accelStats, renderStats, renderOptions.order, loadSeconds, buildSeconds, inputTriangles);

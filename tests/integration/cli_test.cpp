@@ -479,6 +479,32 @@ TEST(Relief, BadFlagValuesAreUsageErrors) {
   EXPECT_EQ(r.err, "");
 }
 
+// RIB piped in as "-" (as PRMan and 3Delight read it), named <stdin> in messages, with relative
+// paths from the working directory; options also take GNU-style "--name=value".
+TEST(Relief, ReadsTheSceneFromStandardInputAndNameEqualsValueOptions) {
+  const fs::path dir = scratchDir();
+  writeFile(dir / "piped.rib",
+            "Format 16 12 1\nProjection \"perspective\" \"fov\" [40]\nTranslate 0 0 5\nWorldBegin\n"
+            "LightSource \"distantlight\" 1\nAttribute \"displacementbound\" \"float sphere\" [0.1]\n"
+            "Displacement \"bumps\"\nSphere 1 -1 1 360\nWorldEnd\n");
+  const std::string image = (dir / "piped.png").string();
+  // In a subshell: run() gives the command line's own standard input /dev/null.
+  RunResult r = run("(cat " + (dir / "piped.rib").string() + " | " + kRelief + " - --quiet --shader-path=" + kShaders +
+                    " --resolution=8x6 -o " + image + ")");
+  EXPECT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_TRUE(fs::exists(image)) << r.err;
+  // Its directory is the working directory's: the shader is not found without the flag, and the
+  // error is located in <stdin>.
+  r = run("(cd " + dir.string() + " && cat piped.rib | " + kRelief + " - --quiet -o " + image + ")");
+  EXPECT_EQ(r.exitCode, 1);
+  EXPECT_NE(r.err.find("<stdin>:7: error: cannot load displacement shader 'bumps'"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("in the search path ('.')"), std::string::npos) << r.err;
+  // A flag that takes no value refuses one.
+  r = run(kRelief + " " + kSphereScene + " --stats=yes");
+  EXPECT_EQ(r.exitCode, 2);
+  EXPECT_NE(r.err.find("'--stats' takes no value (given '--stats=yes')"), std::string::npos) << r.err;
+}
+
 // A tiny scene with one distant light and a plane; `extra` goes inside the world.
 fs::path smallScene(const fs::path& dir, const std::string& displays, const std::string& extra = "") {
   return writeFile(dir / "small.rib",
