@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <array>
 #include <bit>
+#include <cctype>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
@@ -220,6 +221,70 @@ struct Param {
   Arg value;
   int line = 0;
 };
+
+// The requests of the RenderMan Interface (3.2, 3.4 and PRMan's RIS additions): a name among
+// them that Relief does not handle is skipped as unsupported; any other name is a slip, and the
+// warning suggests the request it most likely meant.
+constexpr std::string_view kRiRequests[] = {
+    "AreaLightSource", "ArchiveBegin", "ArchiveEnd", "ArchiveRecord", "Atmosphere", "Attribute",
+    "AttributeBegin", "AttributeEnd", "Basis", "Blobby", "Bound", "Bxdf", "Camera", "Clipping",
+    "ClippingPlane", "Color", "ColorSamples", "ConcatTransform", "Cone", "CoordSysTransform",
+    "CoordinateSystem", "CropWindow", "Curves", "Cylinder", "Declare", "Deformation", "DepthOfField",
+    "Detail", "DetailRange", "Disk", "Displacement", "Display", "DisplayChannel", "DisplayFilter",
+    "EditAttributeBegin", "EditAttributeEnd", "EditBegin", "EditEnd", "EditWorldBegin", "EditWorldEnd",
+    "Else", "ElseIf", "ErrorHandler", "Exposure", "Exterior", "Format", "FrameAspectRatio",
+    "FrameBegin", "FrameEnd", "GeneralPolygon", "GeometricApproximation", "Geometry",
+    "HierarchicalSubdivisionMesh", "Hider", "Hyperboloid", "Identity", "IfBegin", "IfEnd",
+    "Illuminate", "Imager", "Integrator", "Interior", "Light", "LightFilter", "LightSource",
+    "MakeBrickMap", "MakeBump", "MakeCubeFaceEnvironment", "MakeLatLongEnvironment", "MakeShadow",
+    "MakeTexture", "Matte", "MotionBegin", "MotionEnd", "NuPatch", "ObjectBegin", "ObjectEnd",
+    "ObjectInstance", "Opacity", "Option", "Orientation", "Paraboloid", "Patch", "PatchMesh",
+    "Pattern", "Perspective", "PixelFilter", "PixelSampleImager", "PixelSamples", "PixelVariance",
+    "Points", "PointsGeneralPolygons", "PointsPolygons", "Polygon", "Procedural", "Procedural2",
+    "Projection", "Quantize", "ReadArchive", "RelativeDetail", "Resource", "ResourceBegin",
+    "ResourceEnd", "ReverseOrientation", "Rotate", "SampleFilter", "Scale", "ScopedCoordinateSystem",
+    "ScreenWindow", "Shader", "ShaderLayer", "ConnectShaderLayers", "ShadingInterpolation",
+    "ShadingRate", "Shutter", "Sides", "Skew", "SolidBegin", "SolidEnd", "Sphere",
+    "SubdivisionMesh", "Surface", "System", "TextureCoordinates", "Torus", "Transform",
+    "TransformBegin", "TransformEnd", "Translate", "TrimCurve", "VPAtmosphere", "VPInterior",
+    "VPSurface", "Volume", "VolumePixelSamples", "WorldBegin", "WorldEnd", "version"};
+
+// Optimal-string-alignment distance (edits and adjacent swaps), compared case-blind.
+size_t editDistance(std::string_view a, std::string_view b) {
+  auto lower = [](char c) { return char(std::tolower(static_cast<unsigned char>(c))); };
+  std::vector<std::vector<size_t>> d(a.size() + 1, std::vector<size_t>(b.size() + 1));
+  for (size_t i = 0; i <= a.size(); ++i) d[i][0] = i;
+  for (size_t j = 0; j <= b.size(); ++j) d[0][j] = j;
+  for (size_t i = 1; i <= a.size(); ++i)
+    for (size_t j = 1; j <= b.size(); ++j) {
+      const size_t cost = lower(a[i - 1]) == lower(b[j - 1]) ? 0 : 1;
+      d[i][j] = std::min({d[i - 1][j] + 1, d[i][j - 1] + 1, d[i - 1][j - 1] + cost});
+      if (i > 1 && j > 1 && lower(a[i - 1]) == lower(b[j - 2]) && lower(a[i - 2]) == lower(b[j - 1]))
+        d[i][j] = std::min(d[i][j], d[i - 2][j - 2] + 1);
+    }
+  return d[a.size()][b.size()];
+}
+
+// The warning for a request Relief does not handle: a RenderMan request it skips, or a name
+// RenderMan does not have (with the likeliest meant one: requests are case-sensitive).
+std::string unhandledRequestMessage(const std::string& name) {
+  if (std::find(std::begin(kRiRequests), std::end(kRiRequests), name) != std::end(kRiRequests)) {
+    std::string text = "unsupported request '" + name + "' ignored";
+    if (name == "ShadingRate" || name == "GeometricApproximation")
+      text += " (Relief dices displacement by world-space edge length: Attribute \"relief\" \"float "
+              "edgelength\", or --edge-length)";
+    return text;
+  }
+  std::string_view best;
+  size_t bestDistance = std::max<size_t>(2, name.size() / 4) + 1;
+  for (std::string_view request : kRiRequests) {
+    const size_t distance = editDistance(name, request);
+    if (distance < bestDistance) best = request, bestDistance = distance;
+  }
+  std::string text = "unknown request '" + name + "' ignored";
+  if (!best.empty()) text += " (did you mean '" + std::string(best) + "'?)";
+  return text;
+}
 
 // A type word of a declaration. "hpoint" is a point with a fourth, homogeneous coordinate
 // (*homogeneous is set); "bool" is stored as an int, as RenderMan's bool parameters are 0 or 1.
@@ -1247,7 +1312,7 @@ bool RibParser::execute(const Call& call) {
   if (!executeGeometry(call, &handled) || handled) return !failed_;
   const std::string& n = call.name;
   if (n == "version") return true;
-  warnOnce(call.line, "request/" + n, "unsupported request '" + n + "' ignored");
+  warnOnce(call.line, "request/" + n, unhandledRequestMessage(n));
   return true;
 }
 

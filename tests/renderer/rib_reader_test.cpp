@@ -794,8 +794,18 @@ TEST(RibReader, UnknownRequestsWarnOnceAndAreSkipped) {
   ASSERT_TRUE(r.scene) << r.error.format();
   EXPECT_EQ(r.scene->meshes.size(), 1u);
   EXPECT_EQ(r.warnings,
-            "/scenes/test.rib:1: warning: unsupported request 'ShadingRate' ignored\n"
+            "/scenes/test.rib:1: warning: unsupported request 'ShadingRate' ignored (Relief dices "
+            "displacement by world-space edge length: Attribute \"relief\" \"float edgelength\", or "
+            "--edge-length)\n"
             "/scenes/test.rib:5: warning: unsupported request 'Blobby' ignored\n");
+  // A name RenderMan does not have is a slip: said so, with the request it likely meant.
+  r = read(world("Spehre 1 -1 1 360\nattributebegin\nFrobnicate 1\nAttributeBegin\nAttributeEnd"));
+  ASSERT_TRUE(r.scene) << r.error.format();
+  EXPECT_EQ(r.warnings,
+            "/scenes/test.rib:2: warning: unknown request 'Spehre' ignored (did you mean 'Sphere'?)\n"
+            "/scenes/test.rib:3: warning: unknown request 'attributebegin' ignored (did you mean "
+            "'AttributeBegin'?)\n"
+            "/scenes/test.rib:4: warning: unknown request 'Frobnicate' ignored\n");
 }
 
 TEST(RibReader, DisplayNamesTheOutputs) {
