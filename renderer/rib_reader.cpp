@@ -218,6 +218,7 @@ struct Param {
   int arraySize = 0;
   std::string storageClass;  // "vertex", "uniform", ... as declared; empty: not given
   bool homogeneous = false;  // declared "hpoint": four numbers per point (x y z w)
+  std::string declaredAt;    // where the Declare that typed an untyped name is (lineRef), if one did
   Arg value;
   int line = 0;
 };
@@ -753,6 +754,7 @@ class RibParser {
         p->type = declared->second.type;
         p->arraySize = declared->second.arraySize;
         p->homogeneous = declared->second.homogeneous;
+        p->declaredAt = lineRef(declared->second.line, declared->second.file);
         if (p->storageClass.empty()) p->storageClass = declared->second.storageClass;
       }
       return true;
@@ -1127,6 +1129,8 @@ class RibParser {
     int arraySize = 0;
     bool homogeneous = false;
     std::string storageClass;
+    int line = 0;  // of the Declare
+    std::string file;
   };
   std::map<std::string, Declared> declared_;  // Declare "name" "[class] type"
   std::map<std::string, uint32_t> lightHandles_;  // handle -> Scene::lights index
@@ -1781,7 +1785,7 @@ bool RibParser::executeAttributes(const Call& call, bool* handled) {
       return true;
     }
     if (!p.type) return fail(call.line, "'Declare' needs a type");
-    declared_[name] = Declared{*p.type, p.arraySize, p.homogeneous, p.storageClass};
+    declared_[name] = Declared{*p.type, p.arraySize, p.homogeneous, p.storageClass, call.line, fileName_};
   } else if (n == "Attribute") {
     std::string category;
     if (!positionalString(call, 0, &category)) return false;
@@ -2160,7 +2164,11 @@ bool RibParser::doDisplacement(const Call& call) {
     runtime::ParamValue value;
     if (!shaderParamValue(call.line, *compiled, p, &value)) return false;
     std::string error;
-    if (!instance->bind(value, &error)) return fail(call.line, error);
+    if (!instance->bind(value, &error)) {
+      // `Declare "freq" "color"` then `"freq" [3]`: the type the message names came from there.
+      if (!p.declaredAt.empty()) error += " (typed by the 'Declare' at " + p.declaredAt + ")";
+      return fail(call.line, error);
+    }
     bound.push_back(std::move(value));
   }
   attr_.displacement = std::move(instance);

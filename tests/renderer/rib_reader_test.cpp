@@ -831,6 +831,12 @@ TEST(RibReader, DeclareTypesLaterParameters) {
                       &shaders);
   ASSERT_FALSE(r.scene);  // declared a string, but the shader's Km is a float
   EXPECT_EQ(r.error.line, 3);
+  // The message names the Declare, not only a type the call never wrote.
+  r = read(world("Declare \"Km\" \"color\"\nDisplacement \"push\" \"Km\" [3 3 3]"), &shaders);
+  ASSERT_FALSE(r.scene);
+  EXPECT_NE(r.error.message.find("declared 'float' but was given 'color' (typed by the 'Declare' at line 2)"),
+            std::string::npos)
+      << r.error.message;
 }
 
 TEST(RibReader, BilinearPatch) {
