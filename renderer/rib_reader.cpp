@@ -21,6 +21,8 @@
 #include <sstream>
 #include <utility>
 
+#include <zlib.h>
+
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/type_ptr.hpp>
 
@@ -222,6 +224,45 @@ struct Param {
   Arg value;
   int line = 0;
 };
+
+// A gzip-compressed RIB file (.rib.gz, as PRMan and 3Delight read) is inflated in place; other
+// text is left as it is. False with *error for a damaged stream.
+bool inflateIfGzipped(std::string* text, std::string* error) {
+  if (text->size() < 2 || uint8_t((*text)[0]) != 0x1f || uint8_t((*text)[1]) != 0x8b) return true;
+  // A RIB that large is no scene this renderer could hold; a stream that inflates past it is
+  // damaged or hostile.
+  constexpr size_t kMaxInflated = size_t(2) << 30;
+  z_stream z{};
+  if (inflateInit2(&z, 15 + 32) != Z_OK) {
+    *error = "cannot inflate the gzip-compressed scene";
+    return false;
+  }
+  std::string out;
+  std::vector<char> chunk(1 << 16);
+  z.next_in = reinterpret_cast<Bytef*>(text->data());
+  z.avail_in = uInt(text->size());
+  int status = Z_OK;
+  while (status != Z_STREAM_END) {
+    z.next_out = reinterpret_cast<Bytef*>(chunk.data());
+    z.avail_out = uInt(chunk.size());
+    status = inflate(&z, Z_NO_FLUSH);
+    if (status != Z_OK && status != Z_STREAM_END) break;
+    out.append(chunk.data(), chunk.size() - z.avail_out);
+    if (out.size() > kMaxInflated) {
+      inflateEnd(&z);
+      *error = "the gzip-compressed scene inflates to more than 2 GiB";
+      return false;
+    }
+    if (status == Z_OK && z.avail_in == 0 && z.avail_out != 0) break;  // truncated: no end
+  }
+  inflateEnd(&z);
+  if (status != Z_STREAM_END) {
+    *error = std::string("the gzip-compressed scene is damaged or truncated") + (z.msg ? std::string(" (") + z.msg + ")" : "");
+    return false;
+  }
+  *text = std::move(out);
+  return true;
+}
 
 // The requests of the RenderMan Interface (3.2, 3.4 and PRMan's RIS additions): a name among
 // them that Relief does not handle is skipped as unsupported; any other name is a slip, and the
@@ -4003,9 +4044,12 @@ bool RibParser::readArchive(const Call& call, const std::string& name) {
   if (!in) return fail(call.line, "cannot open archive '" + path + "'");
   std::ostringstream buffer;
   buffer << in.rdbuf();
+  std::string archiveText = buffer.str();
+  if (std::string inflateError; !inflateIfGzipped(&archiveText, &inflateError))
+    return fail(call.line, "cannot read archive '" + path + "': " + inflateError);
   std::vector<RibToken> tokens;
   SceneError tokenError;
-  if (!tokenizeRib(buffer.str(), path, &tokens, &tokenError)) {
+  if (!tokenizeRib(archiveText, path, &tokens, &tokenError)) {
     failed_ = true;
     error_ = tokenError;
     return false;
@@ -4072,6 +4116,10 @@ std::optional<Scene> readRibString(std::string_view text, const std::string& fil
 
 namespace {
 
+// Standard input ("-") is named as compilers name it; its relative paths are the working
+// directory's.
+std::string sceneLabel(const std::string& path) { return path == "-" ? "<stdin>" : path; }
+
 bool readSceneText(const std::string& path, std::string* text, SceneError* error) {
   if (path == "-") {
     // Standard input is read once: a scene of several frames is parsed once per frame.
@@ -4082,6 +4130,10 @@ bool readSceneText(const std::string& path, std::string* text, SceneError* error
       input = buffer.str();
     }
     *text = *input;
+    if (std::string inflateError; !inflateIfGzipped(text, &inflateError)) {
+      *error = SceneError{sceneLabel(path), 0, inflateError};
+      return false;
+    }
     return true;
   }
   // A device or a pipe (/dev/zero) would be read for ever.
@@ -4104,12 +4156,12 @@ bool readSceneText(const std::string& path, std::string* text, SceneError* error
   std::ostringstream buffer;
   buffer << in.rdbuf();
   *text = buffer.str();
+  if (std::string inflateError; !inflateIfGzipped(text, &inflateError)) {
+    *error = SceneError{path, 0, inflateError};
+    return false;
+  }
   return true;
 }
-
-// Standard input ("-") is named as compilers name it; its relative paths are the working
-// directory's.
-std::string sceneLabel(const std::string& path) { return path == "-" ? "<stdin>" : path; }
 
 }  // namespace
 

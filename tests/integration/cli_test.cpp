@@ -505,6 +505,40 @@ TEST(Relief, ReadsTheSceneFromStandardInputAndNameEqualsValueOptions) {
   EXPECT_NE(r.err.find("'--stats' takes no value (given '--stats=yes')"), std::string::npos) << r.err;
 }
 
+// gzip-compressed scenes and archives (.rib.gz) are read as PRMan and 3Delight read them; a
+// damaged one is an error naming the file, not "binary RIB".
+TEST(Relief, ReadsGzipCompressedScenesAndArchives) {
+  const fs::path dir = scratchDir();
+  writeFile(dir / "part.rib", "Sphere 1 -1 1 360\n");
+  writeFile(dir / "plain.rib",
+            "Format 16 12 1\nProjection \"perspective\" \"fov\" [40]\nTranslate 0 0 5\nWorldBegin\n"
+            "LightSource \"distantlight\" 1\nReadArchive \"part.rib.gz\"\nWorldEnd\n");
+  ASSERT_EQ(run("gzip -kf " + (dir / "part.rib").string() + " " + (dir / "plain.rib").string()).exitCode, 0);
+  RunResult r = run(kRelief + " " + (dir / "plain.rib.gz").string() + " --quiet -o " + (dir / "gz.png").string());
+  EXPECT_EQ(r.exitCode, 0) << r.err;
+  r = run(kRelief + " " + (dir / "plain.rib").string() + " --quiet -o " + (dir / "plain.png").string());
+  EXPECT_EQ(r.exitCode, 0) << r.err;
+  // The same pixels (the files differ only in the scene name they record).
+  const relief::test::ImageDiff diff =
+      relief::test::compareImages((dir / "gz.png").string(), (dir / "plain.png").string(), 0.0f);
+  ASSERT_TRUE(diff.loaded) << diff.error;
+  EXPECT_EQ(diff.maxDifference, 0.0);
+  // And the archive's sphere is in them.
+  writeFile(dir / "empty.rib",
+            "Format 16 12 1\nProjection \"perspective\" \"fov\" [40]\nTranslate 0 0 5\nWorldBegin\n"
+            "LightSource \"distantlight\" 1\nWorldEnd\n");
+  r = run(kRelief + " " + (dir / "empty.rib").string() + " --quiet -o " + (dir / "empty.png").string());
+  EXPECT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_GT(relief::test::compareImages((dir / "gz.png").string(), (dir / "empty.png").string(), 0.0f).maxDifference,
+            0.1);
+  const std::string whole = readFile(dir / "plain.rib.gz");
+  writeFile(dir / "cut.rib.gz", whole.substr(0, whole.size() / 2));
+  r = run(kRelief + " " + (dir / "cut.rib.gz").string() + " --quiet -o " + (dir / "cut.png").string());
+  EXPECT_EQ(r.exitCode, 1);
+  EXPECT_NE(r.err.find("cut.rib.gz: error: the gzip-compressed scene is damaged or truncated"), std::string::npos)
+      << r.err;
+}
+
 // A tiny scene with one distant light and a plane; `extra` goes inside the world.
 fs::path smallScene(const fs::path& dir, const std::string& displays, const std::string& extra = "") {
   return writeFile(dir / "small.rib",
