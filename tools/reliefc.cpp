@@ -10,9 +10,11 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <iostream>
 #include <iterator>
 #include <map>
+#include <set>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -38,7 +40,10 @@ constexpr const char* kUsage =
     "  -Werror=<name>             treat one warning as an error (-Wno-error=<name>: never)\n"
     "  -w                         suppress warnings\n"
     "  -W<name>, -Wno-<name>      enable or disable one warning (e.g. -Wno-unused-parameter)\n"
+    "  -W<group>                  -Wall, -Wextra, -Wpedantic, -Weverything: accepted (all warnings\n"
+    "                             are on by default)\n"
     "  -ferror-limit=N            stop after N errors (default 20, 0: no limit)\n"
+    "  -fsyntax-only              check only (what reliefc does without an output option)\n"
     "  -floop-limit=N             loop iterations per shading point before it aborts (default 1048576)\n"
     "  --emit-llvm                print the optimized LLVM IR\n"
     "  -o file                    write what is printed (IR, syntax tree, --eval) to file, and\n"
@@ -50,7 +55,9 @@ constexpr const char* kUsage =
     "  --eval                     evaluate the (first or --shader) shader at one point:\n"
     "    --shader name            which shader of the file\n"
     "    -p name=value            bind a parameter (value: number, (x,y,z) or text)\n"
-    "    --at \"P=(x,y,z) N=(x,y,z) u=.. v=..\"   the shading point (also Ng dPdu dPdv s t du dv)\n"
+    "    --at \"P=(x,y,z) N=(x,y,z) u=.. v=..\"   the shading point (also Ng dPdu dPdv s t du dv);\n"
+    "                             default P=N=(0,0,1) dPdu=(1,0,0) dPdv=(0,1,0) u=v=0.5 du=dv=0.01,\n"
+    "                             Ng=N, s=u, t=v; an N alone gets tangents perpendicular to it\n"
     "  --version, --help\n";
 
 struct Args {
@@ -61,6 +68,7 @@ struct Args {
   bool emitBundle = false;  // the shaders' code and layouts for relief (runtime/shader_object.h)
   bool json = false;
   bool eval = false;
+  bool syntaxOnly = false;  // -fsyntax-only: check, as without output flags, and say so
   std::string color = "auto";
   std::string shader;
   std::vector<std::pair<std::string, std::string>> params;
@@ -120,7 +128,8 @@ bool writeFileAtomically(const std::string& path, const std::string& text, std::
 }
 
 int usageError(const std::string& message) {
-  std::cerr << "reliefc: error: " << message << "\n" << kUsage;
+  // One line of usage, as relief and clang give: the whole help buries the error.
+  std::cerr << "reliefc: error: " << message << "\nusage: reliefc [options] file.disp... (see reliefc --help)\n";
   return 2;
 }
 
@@ -203,12 +212,15 @@ int evaluate(const Args& args, const CompileResult& result) {
       {"u", {0.5f}},      {"v", {0.5f}},     {"s", {}},      {"t", {}},           {"du", {0.01f}},
       {"dv", {0.01f}}};
   std::string spec = args.at;
+  std::set<std::string> given;
   for (size_t i = 0; i < spec.size();) {
     while (i < spec.size() && spec[i] == ' ') ++i;
     if (i >= spec.size()) break;
-    const size_t eq = spec.find('=', i);
+    size_t eq = spec.find('=', i);
     if (eq == std::string::npos) return usageError("bad --at item '" + spec.substr(i) + "'");
-    const std::string key = spec.substr(i, eq - i);
+    std::string key = spec.substr(i, eq - i);
+    while (!key.empty() && key.back() == ' ') key.pop_back();  // "P = (0,0,1)"
+    while (eq + 1 < spec.size() && spec[eq + 1] == ' ') ++eq;
     size_t end = eq + 1;
     if (end < spec.size() && spec[end] == '(') {
       end = spec.find(')', end);
@@ -226,7 +238,26 @@ int evaluate(const Args& args, const CompileResult& result) {
     if (!parseNumbers(value, &numbers) || numbers.size() != want)
       return usageError("bad --at value '" + value + "' for '" + key + "'");
     it->second.assign(numbers.begin(), numbers.end());
+    given.insert(key);
     i = end;
+  }
+  // A normal given without tangents gets tangents perpendicular to it (dPdu ^ dPdv along N), so
+  // calculatenormal agrees with it rather than with the default frame's (0,0,1).
+  if (given.count("N") && !given.count("dPdu") && !given.count("dPdv")) {
+    const std::vector<float>& n = at["N"];
+    const double len = std::sqrt(double(n[0]) * n[0] + double(n[1]) * n[1] + double(n[2]) * n[2]);
+    if (len > 0) {
+      const double nx = n[0] / len, ny = n[1] / len, nz = n[2] / len;
+      // dPdu: the x axis made perpendicular to N (the y axis where N is along x).
+      double ux = 1, uy = 0, uz = 0;
+      if (std::fabs(nx) > 0.9) ux = 0, uy = 1;
+      const double d = ux * nx + uy * ny + uz * nz;
+      ux -= d * nx, uy -= d * ny, uz -= d * nz;
+      const double ul = std::sqrt(ux * ux + uy * uy + uz * uz);
+      ux /= ul, uy /= ul, uz /= ul;
+      at["dPdu"] = {float(ux), float(uy), float(uz)};
+      at["dPdv"] = {float(ny * uz - nz * uy), float(nz * ux - nx * uz), float(nx * uy - ny * ux)};
+    }
   }
   if (at["Ng"].empty()) at["Ng"] = at["N"];
   if (at["s"].empty()) at["s"] = at["u"];
@@ -367,7 +398,11 @@ int main(int argc, char** argv) {
       // of it (-Werror=<name> also enables it).
       const auto known = relief::compiler::warningFlags();
       auto drop = [&name](std::vector<std::string>& list) { std::erase(list, name); };
-      if (std::find(known.begin(), known.end(), name) == known.end()) {
+      // The groups build scripts pass (-Wall -Wextra): every warning is on by default already.
+      const bool group = name == "all" || name == "extra" || name == "pedantic" || name == "everything";
+      if (group && !error && !noError) {
+        if (off) optionWarnings.push_back("'" + a + "' does not turn warnings off here: use -w or -Wno-<name>");
+      } else if (std::find(known.begin(), known.end(), name) == known.end()) {
         optionWarnings.push_back("unknown warning option '" + a + "'");
       } else if (error) {
         drop(args.notErrorWarnings), drop(args.disabledWarnings);
@@ -386,10 +421,14 @@ int main(int argc, char** argv) {
       if (!parseCount(a.c_str() + 13, &n) || n == 0)
         return usageError("bad value for -floop-limit: '" + a.substr(13) + "'");
       args.options.loopIterationLimit = n;
-    } else if (a.rfind("-ferror-limit=", 0) == 0) {
+    } else if (a.rfind("-ferror-limit=", 0) == 0 || a == "-ferror-limit") {
       uint32_t n = 0;  // 0: no limit
-      if (!parseCount(a.c_str() + 14, &n)) return usageError("bad value for -ferror-limit: '" + a.substr(14) + "'");
+      if (a == "-ferror-limit" && i + 1 >= argc) return usageError("missing count after '-ferror-limit'");
+      const std::string count = a == "-ferror-limit" ? std::string(argv[++i]) : a.substr(14);
+      if (!parseCount(count.c_str(), &n)) return usageError("bad value for -ferror-limit: '" + count + "'");
       args.errorLimit = n;
+    } else if (a == "-fsyntax-only") {
+      args.syntaxOnly = true;
     } else if (a == "-o" || (a.rfind("-o", 0) == 0 && a.size() > 2)) {
       if (a == "-o" && i + 1 >= argc) return usageError("missing file name after '-o'");
       if (!args.output.empty()) return usageError("'-o' given more than once");
@@ -401,12 +440,14 @@ int main(int argc, char** argv) {
       args.emitBundle = true;
     } else if (a == "--emit-ast") {
       args.emitAst = true;
-    } else if (a.rfind("--color=", 0) == 0) {
-      args.color = a.substr(8);
+    } else if (a.rfind("--color=", 0) == 0 || a == "--color") {
+      if (a == "--color" && i + 1 >= argc) return usageError("missing value after '--color'");
+      args.color = a == "--color" ? std::string(argv[++i]) : a.substr(8);
       if (args.color != "auto" && args.color != "always" && args.color != "never")
         return usageError("bad value for --color: '" + args.color + "'");
-    } else if (a.rfind("--diagnostics-format=", 0) == 0) {
-      const std::string f = a.substr(21);
+    } else if (a.rfind("--diagnostics-format=", 0) == 0 || a == "--diagnostics-format") {
+      if (a == "--diagnostics-format" && i + 1 >= argc) return usageError("missing value after '--diagnostics-format'");
+      const std::string f = a == "--diagnostics-format" ? std::string(argv[++i]) : a.substr(21);
       if (f != "text" && f != "json") return usageError("bad value for --diagnostics-format: '" + f + "'");
       args.json = f == "json";
     } else if (a == "--eval") {
@@ -440,8 +481,17 @@ int main(int argc, char** argv) {
   if (!args.eval && (!args.params.empty() || !args.at.empty()))
     optionWarnings.push_back(std::string(args.params.empty() ? "--at only applies" : args.at.empty() ? "-p only applies" : "-p and --at only apply") +
                              " with --eval; ignored");
+  if (args.emitLlvm && args.emitAst) return usageError("--emit-llvm and --emit-ast both print: give one");
+  if (args.syntaxOnly && (args.emitLlvm || args.emitAst || args.emitBundle || args.eval || !args.output.empty()))
+    return usageError("-fsyntax-only writes nothing: it takes no --emit-*, --eval or -o");
   // `reliefc shader.disp -o shader.ll` asks for the IR, as clang's -S -emit-llvm would give it.
-  if (!args.output.empty() && !args.emitAst && !args.eval && !args.emitBundle) args.emitLlvm = true;
+  if (!args.output.empty() && !args.emitAst && !args.eval && !args.emitBundle) {
+    args.emitLlvm = true;
+    const std::string ext = std::filesystem::path(args.output).extension().string();
+    if (ext == ".o" || ext == ".obj" || ext == ".bc" || ext == ".so")
+      optionWarnings.push_back("'-o " + args.output + "' gets LLVM IR text (.ll), not object code or bitcode; "
+                               "relief compiles shaders itself (--emit-bundle writes what it loads)");
+  }
   if (args.emitBundle && (args.files.size() != 1 || args.eval || args.emitAst || args.emitLlvm))
     return usageError("--emit-bundle takes exactly one file and no other output");
   // Binary code is no use on a terminal (and can upset it), as clang refuses for bitcode.

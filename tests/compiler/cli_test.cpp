@@ -280,6 +280,49 @@ TEST(CliTest, EvalPrintsTheDisplacedPointAndNormal) {
   EXPECT_NE(pair.err.find("parameter 'c' is a color: give 3 numbers, not 2"), std::string::npos) << pair.err;
 }
 
+// What a clang user passes by habit: warning groups, -fsyntax-only, space-separated values; what
+// cannot be meant is a usage error of one line, and IR written to a ".o" is said to be IR.
+TEST(CliTest, ClangHabitsAreAcceptedOrAnsweredInOneLine) {
+  const fs::path ok = writeTemp("relief_habits.disp", "displacement habits(float Km = 1) { P += Km * N; }\n");
+  const std::string file = quote(ok.string());
+  CliRun r = reliefc("-Wall -Wextra -Wpedantic -fsyntax-only " + file);
+  EXPECT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_EQ(r.err, "");
+  EXPECT_EQ(r.out, "");
+  const fs::path bad = writeTemp("relief_habits_bad.disp", "displacement bad() { P += foo; }\n");
+  r = reliefc("--color never --diagnostics-format json -ferror-limit 3 " + quote(bad.string()));
+  EXPECT_EQ(r.exitCode, 1);
+  EXPECT_EQ(r.err.rfind("{\"severity\":\"error\"", 0), 0u) << r.err;
+  r = reliefc("--emit-llvm --emit-ast " + file);
+  EXPECT_EQ(r.exitCode, 2);
+  EXPECT_EQ(r.err, "reliefc: error: --emit-llvm and --emit-ast both print: give one\n"
+                   "usage: reliefc [options] file.disp... (see reliefc --help)\n");
+  EXPECT_EQ(reliefc("-fsyntax-only --emit-llvm " + file).exitCode, 2);
+  const fs::path object = fs::path(::testing::TempDir()) / "relief_habits.o";
+  r = reliefc(file + " -o " + quote(object.string()));
+  EXPECT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_NE(r.err.find("gets LLVM IR text (.ll), not object code"), std::string::npos) << r.err;
+  EXPECT_NE(readFile(object).find("define"), std::string::npos);
+}
+
+// --at takes spaces around '=', and a normal given alone comes with tangents perpendicular to it:
+// calculatenormal then agrees with it instead of the default frame's +z.
+TEST(CliTest, EvalNormalAloneGetsItsOwnTangents) {
+  const fs::path bump = writeTemp("relief_tangents.disp",
+                                  "displacement tangents() { P += 0.01 * normalize(N); N = calculatenormal(P); }\n");
+  const CliRun r = reliefc("--eval " + quote(bump.string()) + " --at " + quote("P = (0,0,1) N = (0,1,0)"));
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  double p[3], n[3];
+  ASSERT_EQ(std::sscanf(r.out.c_str(), "P = (%lf, %lf, %lf)\nN = (%lf, %lf, %lf)", &p[0], &p[1], &p[2], &n[0], &n[1],
+                        &n[2]),
+            6)
+      << r.out;
+  EXPECT_NEAR(p[1], 0.01, 1e-6);
+  EXPECT_NEAR(n[0], 0.0, 1e-6);
+  EXPECT_NEAR(n[1], 1.0, 1e-6);
+  EXPECT_NEAR(n[2], 0.0, 1e-6);
+}
+
 // '-' compiles standard input (named <stdin> in diagnostics), once; '--' ends the options, so a file
 // whose name starts with '-' can be named.
 TEST(CliTest, StandardInputAndTheEndOfOptions) {
