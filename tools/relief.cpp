@@ -309,6 +309,10 @@ int parseCommandLine(int argc, char** argv, CommandLine* cl) {
     if (attached) return usageError("'" + a + "' takes no value (given '" + args[i] + "')");
   }
   if (cl->scene.empty()) return usageError("no scene file given");
+  if (std::filesystem::path(cl->scene).extension() == ".disp")
+    return usageError("'" + cl->scene + "' is a shader: relief renders a RIB scene that names it "
+                      "(Displacement \"" + std::filesystem::path(cl->scene).stem().string() +
+                      "\"); reliefc checks and evaluates shaders");
   // Options that cannot take effect are said to, not silently dropped.
   if (!cl->quiet && cl->accel != "grid" && cl->cacheTrianglesSet)
     std::cerr << "relief: warning: --cache-triangles has no effect with --accel " << cl->accel

@@ -467,6 +467,14 @@ TEST(Relief, BadFlagValuesAreUsageErrors) {
     EXPECT_EQ(r.exitCode, 2) << flags;
     EXPECT_NE(r.err.find("relief: error:"), std::string::npos) << flags << ": " << r.err;
   }
+  // A shader given where the scene goes is said to be one, not lexed as RIB.
+  {
+    RunResult r = run(kRelief + " " + kShaders + "/bumps.disp");
+    EXPECT_EQ(r.exitCode, 2);
+    EXPECT_NE(r.err.find("bumps.disp' is a shader: relief renders a RIB scene that names it (Displacement \"bumps\")"),
+              std::string::npos)
+        << r.err;
+  }
   // Options that cannot take effect warn, and --quiet silences that like any warning.
   const fs::path dir = scratchDir();
   const std::string base = kRelief + " " + kSphereScene + " --resolution 8x6 -o " + (dir / "w.png").string();
