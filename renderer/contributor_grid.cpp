@@ -122,7 +122,12 @@ ContributorGrid::ContributorGrid(const Scene& scene, const AccelOptions& options
   if (bounds_.empty()) bounds_ = {glm::vec3(-1), glm::vec3(1)};
 
   const glm::vec3 extent = bounds_.hi - bounds_.lo;
-  const float longest = std::max({extent.x, extent.y, extent.z, 1e-6f});
+  // Relative to the scene's place, not an absolute length: a floor of 1e-6 world units made a
+  // scene of 1e-11 units one voxel (and its render 100x slower). The floor only keeps a scene of
+  // one point (or degenerate triangles) off a zero-sized grid.
+  const float far = std::max({std::fabs(bounds_.lo.x), std::fabs(bounds_.lo.y), std::fabs(bounds_.lo.z),
+                              std::fabs(bounds_.hi.x), std::fabs(bounds_.hi.y), std::fabs(bounds_.hi.z)});
+  const float longest = std::max({extent.x, extent.y, extent.z, far * 1e-6f, 1e-30f});
   padding_ = longest * 1e-5f;
   bounds_.lo -= glm::vec3(2 * padding_), bounds_.hi += glm::vec3(2 * padding_);
   int n = options.gridResolution;
@@ -131,16 +136,17 @@ ContributorGrid::ContributorGrid(const Scene& scene, const AccelOptions& options
     float maxBound = 0.0f;
     for (const Displacement* d : displacements_)
       if (d) maxBound = std::max(maxBound, d->boundWorld);
-    if (maxBound > 0.0f && std::isfinite(maxBound))
-      n = std::min(n, int(longest / (kVoxelsPerBound * maxBound)));
+    // Divided in double and clamped before the conversion: a scene 2^31 bounds across (a floor
+    // of 1e9 units under a bound of 0.06) overflowed int and made one voxel of the whole scene.
+    auto voxelsAcross = [&](double perBound) { return int(std::min(1e9, double(longest) / (perBound * maxBound))); };
+    if (maxBound > 0.0f && std::isfinite(maxBound)) n = std::min(n, voxelsAcross(kVoxelsPerBound));
     // Fine displacement: as many voxels again as keep a voxel's share of the micro-triangles
     // small, however few input triangles carry them (header).
     double micro = 0.0;
     for (uint32_t m = 0; m < scene.meshes.size(); ++m)
       if (displacements_[m]) micro += estimatedMicroTriangles(scene.meshes[m], *displacements_[m]);
-    int byMicro = int(std::lround(std::cbrt(micro / kMicroTrianglesPerCell)));
-    if (maxBound > 0.0f && std::isfinite(maxBound))
-      byMicro = std::min(byMicro, int(longest / (kMinVoxelBounds * maxBound)));
+    int byMicro = int(std::min(1e9, std::round(std::cbrt(micro / kMicroTrianglesPerCell))));
+    if (maxBound > 0.0f && std::isfinite(maxBound)) byMicro = std::min(byMicro, voxelsAcross(kMinVoxelBounds));
     n = std::clamp(std::max(n, byMicro), 1, kMaxAutoGridResolution);
   }
   n = std::clamp(n, 1, kMaxGridResolution);

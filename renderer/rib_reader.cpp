@@ -1114,6 +1114,12 @@ class RibParser {
     else if (space == "camera" || space == "screen" || space == "raster")
       scale = maxScale(scene_.camera.worldFromCamera);
     d.boundWorld = attr_.boundRadius * scale;
+    // Boxes grown by a bound near float's limit overflow to infinity, and then no ray meets any
+    // voxel: a black image without a word (a bound of 2e38).
+    if (!(d.boundWorld < 1e30f))
+      return fail(line, "the displacement bound is " + formatNumber(d.boundWorld) +
+                            " world units, beyond any scene Relief can render (at most 1e30; Attribute "
+                            "\"displacementbound\")");
     d.edgeLength = attr_.edgeLength;
     d.flatness = attr_.flatness;
     d.reverseOrientation = attr_.orientationInside != attr_.reversed;

@@ -95,6 +95,9 @@ struct ShaderProblemCounts {
   // which order like the floats for non-negative values, so an atomic max needs no lock.
   std::atomic<uint64_t> outOfBound{0};
   std::atomic<uint32_t> maxExcessBits{0};
+  // The largest distance the shader moved any point (float bits, as above): a bound far beyond it
+  // coarsens the contributor grid for nothing, which the host says after the render.
+  std::atomic<uint32_t> maxMoveBits{0};
   // Edges that still wanted splitting at the subdivision depth guard. Not a warning of its own:
   // every step in a displacement (grooves) leaves such edges; it names the cause of a runaway.
   std::atomic<uint64_t> depthLimited{0};

@@ -362,13 +362,14 @@ void displaceBatch(const Displacement& disp, const TriangleFrame& frame, Vertice
   // Squared, with a relative slack so that rounding on a point displaced exactly by the bound
   // does not count.
   const float bound2 = disp.boundWorld * disp.boundWorld * (1.0f + 1e-5f);
-  float maxMove = 0.0f;
+  float maxMove = 0.0f, anyMove2 = 0.0f;
   for (uint32_t i = 0; i < n; ++i) {
     glm::vec3 p = batch.Pout.get(i);
     if (finite(p)) {
       vs.displaced[first + i] = p;
       const glm::vec3 d = p - vs.P.get(first + i);
       const float move2 = glm::dot(d, d);
+      anyMove2 = std::max(anyMove2, move2);
       if (move2 > bound2) {
         // In double where the square overflows (a move of 1e20 was reported as "inf").
         ++outOfBound;
@@ -378,6 +379,13 @@ void displaceBatch(const Displacement& disp, const TriangleFrame& frame, Vertice
       vs.displaced[first + i] = vs.P.get(first + i);
       ++replaced;
     }
+  }
+  if (ShaderProblemCounts* pc = disp.problems.get(); pc && anyMove2 > 0.0f) {
+    // Only the bound's order of magnitude is compared against it: an overflowed square is as good.
+    const float move = std::sqrt(anyMove2);
+    uint32_t bits;
+    std::memcpy(&bits, &move, 4);
+    if (bits > pc->maxMoveBits.load(std::memory_order_relaxed)) atomicMax(pc->maxMoveBits, bits);
   }
   if (outOfBound) {
     if (ShaderProblemCounts* pc = disp.problems.get()) {

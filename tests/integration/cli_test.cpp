@@ -974,6 +974,26 @@ TEST(Relief, DisplacementBeyondTheBoundIsOneWarningWithTheLargestExcess) {
   r = run(kRelief + " " + huge.string() + " -o " + (dir / "huge.png").string());
   EXPECT_NE(r.err.find("up to 1e+20"), std::string::npos) << r.err;
   EXPECT_EQ(r.err.find("inf"), std::string::npos) << r.err;
+
+  // A bound far beyond what the shader does, large against the scene, slows the render for
+  // nothing: said once, with what the shader did. A bound within 16 times of it is not.
+  const fs::path loose = displacedScene(dir, "4", push);
+  r = run(kRelief + " " + loose.string() + " -o " + (dir / "loose.png").string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_NE(onlyWarning(r.err, loose.string() + ":8: warning: displacement shader 'push' moved no point farther than "
+                                                "0.2 (world units), against a displacement bound of 4;"),
+            std::string::npos)
+      << r.err;
+  EXPECT_EQ(r.err.find("moved no point farther"), r.err.rfind("moved no point farther"));
+  r = run(kRelief + " " + displacedScene(dir, "3", push).string() + " -o " + (dir / "near.png").string());
+  EXPECT_EQ(r.err.find("moved no point farther"), std::string::npos) << r.err;
+  // Near float's limit the grown boxes would overflow and every ray miss: an error, not a black
+  // image.
+  const fs::path overflowing = displacedScene(dir, "2e38", push);
+  r = run(kRelief + " " + overflowing.string() + " -o " + (dir / "overflow.png").string());
+  EXPECT_EQ(r.exitCode, 1);
+  EXPECT_NE(r.err.find("the displacement bound is 2e+38 world units, beyond any scene"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir / "overflow.png"));
 }
 
 // A spline basis named at run time that the library does not know falls back to catmull-rom and

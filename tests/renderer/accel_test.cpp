@@ -297,6 +297,40 @@ TEST(ContributorGrid, FineDisplacementGetsVoxelsForItsMicroTriangles) {
   EXPECT_LT(capped.voxelSize(), kVoxelsPerBound * o.km);
 }
 
+// The automatic resolution depends on the scene's shape, not its units: a sphere scaled by 1e-11
+// gets the grid of the unscaled one (an absolute floor of 1e-6 units made it one voxel), and a
+// scene 2^31 bounds across is capped, not overflowed into a single voxel (a floor of +-1e9
+// under a bound of 0.06 held 34M micro-triangles in its one voxel).
+TEST(ContributorGrid, AutomaticResolutionIsTheSameInAnyUnits) {
+  SphereOptions o;
+  o.nu = 32, o.nv = 16;
+  o.km = 0.02f;
+  o.edgeLength = 0.03f;
+  const Scene unit = makeSphereScene(o);
+  const glm::ivec3 expected = ContributorGrid(unit, AccelOptions{}).resolution();
+  ASSERT_GT(expected.x, 4);
+  for (float scale : {1e-11f, 1e-20f, 1e6f}) {
+    Scene scaled = makeSphereScene(o);
+    for (glm::vec3& p : scaled.meshes[0].P) p *= scale;
+    scaled.displacements[0].boundWorld *= scale;
+    scaled.displacements[0].edgeLength *= scale;
+    EXPECT_EQ(ContributorGrid(scaled, AccelOptions{}).resolution(), expected) << scale;
+  }
+  Scene floor;
+  Mesh square;
+  square.P = {{-1e9f, 0, -1e9f}, {1e9f, 0, -1e9f}, {1e9f, 0, 1e9f}, {-1e9f, 0, 1e9f}};
+  square.indices = {0, 1, 2, 0, 2, 3};
+  floor.meshes.push_back(square);
+  Displacement d = unit.displacements[0];
+  d.boundWorld = 0.06f;
+  d.edgeLength = 1e8f;
+  floor.displacements.push_back(d);
+  floor.meshes[0].displacementIndex = 0;
+  const ContributorGrid wide(floor, AccelOptions{});
+  EXPECT_GT(wide.resolution().x, 1);
+  EXPECT_GT(wide.resolution().z, 1);
+}
+
 // A budget that holds only a few voxels makes every refill a heavy one, and a generous
 // displacement bound makes heavy voxels (the automatic grid keeps a voxel several bounds wide). So
 // under a budget the automatic resolution is raised, past the bound's cap, until the heaviest
