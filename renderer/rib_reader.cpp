@@ -4090,9 +4090,12 @@ bool RibParser::addMesh(Mesh mesh, int line, bool wound) {
   inputTriangles_ += mesh.numTriangles();
   if (inputTriangles_ > kMaxInputTriangles)
     return fail(line, "the scene has more than " + std::to_string(kMaxInputTriangles) + " input triangles" +
-                          (instanceDepth_ > 0 || archiveDepth_ > 0
+                          (instanceDepth_ > 1 || archiveDepth_ > 1
                                ? " (ObjectInstance or ReadArchive nested within each other?)"
-                               : ""));
+                           : instanceDepth_ > 0
+                               ? " (each ObjectInstance adds a copy of its object's triangles; quadrics are "
+                                 "tessellated finely: 65,536 triangles for a whole sphere)"
+                               : " (quadrics are tessellated finely: 65,536 triangles for a whole sphere)"));
   for (const glm::vec3& p : mesh.P)
     if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
       return fail(line, "geometry has non-finite coordinates after transformation");
