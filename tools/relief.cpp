@@ -521,6 +521,9 @@ const char* edgeLengthSetting(bool fromCommandLine) {
   return fromCommandLine ? "--edge-length" : "Attribute \"relief\" \"float edgelength\"";
 }
 
+// How far from the camera geometry may lie before the float intersection tests overflow.
+constexpr float kFarthestRenderable = 2e14f;
+
 // A displacement bound this many times the farthest any point moved is called loose (when it is
 // also large against the scene).
 constexpr float kLooseBoundRatio = 16.0f;
@@ -1037,6 +1040,20 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
     else
       *warnings << cl.label() << ": warning: the scene has no LightSource, so its surfaces (other than "
                 << "Surface \"constant\") render black\n";
+  }
+  // Single-precision ray-triangle tests multiply coordinates (relative to the ray's origin), and
+  // far enough out that overflows float: the example sphere scaled by 1e13 (geometry 1.26e14 from
+  // the camera) renders as at scale 1, by 1e14 it tears and by 1e15 it vanishes, in the Embree
+  // baseline too. Said, rather than left to look like a rendering bug.
+  if (warnings) {
+    const glm::vec3 eye(scene.camera.worldFromCamera[3]);
+    float farthest = 0.0f;
+    for (const relief::Mesh& m : scene.meshes)
+      for (const glm::vec3& p : m.P) farthest = std::max(farthest, glm::length(p - eye));
+    if (farthest > kFarthestRenderable)
+      *warnings << cl.label() << ": warning: geometry lies up to " << farthest
+                << " units from the camera; beyond about " << kFarthestRenderable
+                << " single-precision intersection overflows and surfaces tear or vanish: scale the scene down\n";
   }
   std::vector<std::string> outputKeys;
   for (size_t i = 0; i < outputs.size(); ++i) {

@@ -513,6 +513,21 @@ TEST(Relief, ReadsTheSceneFromStandardInputAndNameEqualsValueOptions) {
   EXPECT_NE(r.err.find("'--stats' takes no value (given '--stats=yes')"), std::string::npos) << r.err;
 }
 
+// Geometry so far from the camera that float intersection overflows is said to be, once; the
+// scene near it is not.
+TEST(Relief, GeometryBeyondFloatIntersectionRangeWarns) {
+  const fs::path dir = scratchDir();
+  const fs::path far = smallScene(dir, "", "Polygon \"P\" [0 0 1e15  1e13 0 1e15  0 1e13 1e15]\n");
+  RunResult r = run(kRelief + " " + far.string() + " -o " + (dir / "far.png").string());
+  EXPECT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_NE(onlyWarning(r.err, "small.rib: warning: geometry lies up to 1e+15 units from the camera; beyond about 2e+14"),
+            std::string::npos)
+      << r.err;
+  r = run(kRelief + " " + smallScene(dir, "").string() + " -o " + (dir / "near.png").string());
+  EXPECT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_EQ(r.err.find("units from the camera"), std::string::npos) << r.err;
+}
+
 // gzip-compressed scenes and archives (.rib.gz) are read as PRMan and 3Delight read them; a
 // damaged one is an error naming the file, not "binary RIB".
 TEST(Relief, ReadsGzipCompressedScenesAndArchives) {
