@@ -3,6 +3,8 @@
 // separated by spaces.
 #include "runtime/builtins_print.h"
 
+#include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <deque>
 #include <string>
@@ -90,9 +92,22 @@ std::string formatText(const char* format, const int32_t* kinds, int32_t count, 
       appendFormatted(out, spec + 's', plain().c_str());
     } else if ((conv == 'd' || conv == 'i') && kind == kRlfPrintInt) {
       appendFormatted(out, spec + 'd', ints[ii]);
+    } else if ((conv == 'd' || conv == 'i') && kind != kRlfPrintString) {
+      // RSL has no int: `format("tex.%04d.tx", frame)` with a float frame is the idiom. Each
+      // component goes toward zero, saturated, as a conversion to int would (3.7 printed "03.7").
+      for (int k = 0; k < n; ++k) {
+        const double v = double(floats[fi + k]);
+        if (k) out += ' ';
+        if (!std::isfinite(v)) {
+          appendFormatted(out, "%g", v);
+          continue;
+        }
+        const int whole = v >= 2147483647.0 ? INT32_MAX : v <= -2147483648.0 ? INT32_MIN : int(v);
+        appendFormatted(out, spec + 'd', whole);
+      }
     } else if (numeric && kind != kRlfPrintString) {
       // RSL's %p (point), %c (color) and %m (matrix) print every component as %f does.
-      const char c = (conv == 'd' || conv == 'i') ? 'g' : (conv == 'p' || conv == 'c' || conv == 'm') ? 'f' : conv;
+      const char c = (conv == 'p' || conv == 'c' || conv == 'm') ? 'f' : conv;
       for (int k = 0; k < n; ++k) {
         const double v = kind == kRlfPrintInt ? double(ints[ii]) : double(floats[fi + k]);
         if (k) out += ' ';

@@ -239,6 +239,18 @@ displacement pm(string fmt = "%d|%f|%s")
   EXPECT_EQ(b.Pout[2][0], b.P[2][0]);
 }
 
+// %d of a float (RSL has no int: `format("tex.%04d.tx", frame)`) prints it converted toward zero,
+// saturated; a non-finite value prints as itself.
+TEST(PrintfTest, IntegerConversionsOfFloatsTruncate) {
+  const std::string source = R"(
+displacement pd(float frame = 3.7; float big = 1e38)
+{
+    printf("%s|%d|%i|%d|%d\n", format("tex.%04d.tx", frame), -2.5, 1e20, point(1.9, -1.9, 0), big * 10);
+})";
+  TestBatch b(1);
+  EXPECT_EQ(evaluate(source, b), "tex.0003.tx|-2|2147483647|1 -1 0|inf\n");
+}
+
 // Field widths and precisions above 1024 are taken as 1024: "%999999999f" made snprintf write a
 // gigabyte per conversion at every shading point (a render hung), in printf and format alike.
 TEST(PrintfTest, HugeFieldWidthsAreCapped) {
