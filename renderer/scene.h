@@ -98,6 +98,7 @@ struct ShaderProblemCounts {
   // The largest distance the shader moved any point (float bits, as above): a bound far beyond it
   // coarsens the contributor grid for nothing, which the host says after the render.
   std::atomic<uint32_t> maxMoveBits{0};
+  std::atomic<bool> evaluated{false};  // some point was displaced (maxMoveBits 0 then means no move)
   // Edges that still wanted splitting at the subdivision depth guard. Not a warning of its own:
   // every step in a displacement (grooves) leaves such edges; it names the cause of a runaway.
   std::atomic<uint64_t> depthLimited{0};

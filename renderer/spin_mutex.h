@@ -33,8 +33,8 @@ class SpinMutex {
   void unlock() { locked_.store(false, std::memory_order_release); }
 
  private:
-  // About 10-50 us of pause instructions: far beyond a critical section's length, well short of
-  // a scheduler quantum.
+  // A few to some tens of microseconds of pause instructions (their latency varies by CPU):
+  // far beyond a critical section's length, well short of a scheduler quantum.
   static constexpr int kSpinsBeforeYield = 1024;
   static void pause() {
 #if defined(__x86_64__) || defined(__i386__)

@@ -380,6 +380,8 @@ void displaceBatch(const Displacement& disp, const TriangleFrame& frame, Vertice
       ++replaced;
     }
   }
+  if (ShaderProblemCounts* pc = disp.problems.get(); pc && n > 0 && !pc->evaluated.load(std::memory_order_relaxed))
+    pc->evaluated.store(true, std::memory_order_relaxed);
   if (ShaderProblemCounts* pc = disp.problems.get(); pc && anyMove2 > 0.0f) {
     // Only the bound's order of magnitude is compared against it: an overflowed square is as good.
     const float move = std::sqrt(anyMove2);

@@ -124,17 +124,18 @@ class ShaderProvider {
                                                      std::string* error) = 0;
 };
 
-// The file of shader `name` on `searchPath` and the shader's name in it. RenderMan accepts a path
-// for a shader name ("lib/stone", "/abs/stone.disp"): the file is that path (with .disp added if
-// it has no extension), absolute or under each search directory, and the shader is the one named
-// by the file's stem. "file:shader" selects another shader of the file (one file may define
-// several), and a bare name with no file of its own is looked for among the declarations of the
-// .disp files of each search directory. False with *error when no such file exists.
 // "'path' defines no shader named 'name'", with the names it does define, for a file found by
 // name whose shaders are called otherwise.
 std::string noShaderNamed(const std::string& path, const std::string& name,
                           std::span<const std::shared_ptr<const CompiledShader>> defined);
 
+// The file of shader `name` on `searchPath` and the shader's name in it. RenderMan accepts a path
+// for a shader name ("lib/stone", "/abs/stone.disp"): the file is that path (with .disp added if
+// it has no extension), absolute or under each search directory, and the shader is the one named
+// by the file's stem. "file:shader" selects another shader of the file (one file may define
+// several; a file whose own name has that shape wins), and a bare name with no file of its own is
+// looked for among the declarations of the .disp files of each search directory. False with
+// *error when no file is found, or when two files of one directory declare a bare name.
 bool locateShaderFile(std::string_view name, std::span<const std::string> searchPath, std::string* path,
                       std::string* shaderName, std::string* error);
 

@@ -422,7 +422,7 @@ StatList collectStats(const CommandLine& cl, const relief::Scene& scene,
           ? 1.0 - double(a.trianglesAfterSimplification) / double(a.trianglesBeforeSimplification)
           : 0.0;
   StatList s = {
-      {"scene.file", relief::compiler::jsonQuoted(cl.scene)},
+      {"scene.file", relief::compiler::jsonQuoted(cl.label())},
       {"scene.frame", scene.frameNumbers.empty()
                           ? std::string("null")
                           : std::to_string(scene.frameNumbers[size_t(scene.frameIndex)])},
@@ -537,6 +537,11 @@ void reportShaderProblems(const relief::Scene& scene, std::ostream& out) {
     for (const glm::vec3& p : m.P) sceneBox.extend(p);
   const glm::vec3 sceneExtent = sceneBox.empty() ? glm::vec3(0.0f) : sceneBox.hi - sceneBox.lo;
   const float sceneSize = std::max({sceneExtent.x, sceneExtent.y, sceneExtent.z});
+  struct LooseBound {
+    std::string shader;
+    float maxMove = 0.0f, bound = 0.0f;
+  };
+  std::map<std::pair<std::string, int>, LooseBound> loose;  // by the Displacement call's file and line
   for (const relief::Displacement* shader : distinctShaderProblems(scene)) {
     const relief::Displacement& d = *shader;
     const relief::ShaderProblemCounts* p = d.problems.get();
@@ -563,17 +568,32 @@ void reportShaderProblems(const relief::Scene& scene, std::ostream& out) {
           << "; rays may miss those parts, and which ones depends on the contributor grid (so the image may"
              " change with --cache-triangles or --grid-resolution): raise Attribute \"displacementbound\"\n";
     }
-    // A bound far beyond what the shader does, and large against the scene, makes voxels that
-    // large (kVoxelsPerBound) and their BVHs loose: a sphere of radius 1 under a bound of 1e4
-    // rendered 5x slower than under 0.06, for the same image.
-    float maxMove;
+    // Gathered per Displacement call, whose primitives under different transforms have entries
+    // (and counts) of their own: one warning per call, as for the others.
+    float move;
     const uint32_t moveBits = p->maxMoveBits.load();
-    std::memcpy(&maxMove, &moveBits, 4);
-    if (moveBits && d.boundWorld > kLooseBoundRatio * maxMove && d.boundWorld > 0.05f * sceneSize) {
-      warn() << " moved no point farther than " << maxMove << " (world units), against a displacement bound of "
-             << d.boundWorld << "; a bound that loose coarsens the contributor grid and slows the render:"
-                " lower Attribute \"displacementbound\" toward " << maxMove << "\n";
+    std::memcpy(&move, &moveBits, 4);
+    if (p->evaluated.load()) {
+      LooseBound& l = loose[{d.sourceFile, d.sourceLine}];
+      l.shader = d.shader->name();
+      l.maxMove = std::max(l.maxMove, move);
+      l.bound = std::max(l.bound, d.boundWorld);
     }
+  }
+  // A bound far beyond what the shader does, and large against the scene, makes voxels that large
+  // (kVoxelsPerBound) and their BVHs loose: a sphere of radius 1 under a bound of 1e4 rendered 5x
+  // slower than under 0.06, for the same image.
+  for (const auto& [where, l] : loose) {
+    if (!(l.bound > kLooseBoundRatio * l.maxMove && l.bound > 0.05f * sceneSize)) continue;
+    out << where.first << ":" << where.second << ": warning: displacement shader '" << l.shader << "'";
+    if (l.maxMove > 0.0f)
+      out << " moved no point farther than " << l.maxMove << " (world units), against a displacement bound of "
+          << l.bound << "; a bound that loose coarsens the contributor grid and slows the render: lower "
+          << "Attribute \"displacementbound\" toward " << l.maxMove << "\n";
+    else
+      out << " moved no point at all, under a displacement bound of " << l.bound
+          << "; a bound coarsens the contributor grid and slows the render, and a shader that only "
+             "bends N needs none: lower Attribute \"displacementbound\" to 0\n";
   }
 }
 

@@ -500,10 +500,16 @@ TEST(Relief, ReadsTheSceneFromStandardInputAndNameEqualsValueOptions) {
   RunResult r = run("(cat " + (dir / "piped.rib").string() + " | " + kRelief + " - --quiet --shader-path=" + kShaders +
                     " --resolution=8x6 -o " + image + ")");
   EXPECT_EQ(r.exitCode, 0) << r.err;
-  EXPECT_TRUE(fs::exists(image)) << r.err;
+  {
+    auto in = OIIO::ImageInput::open(image);  // --resolution=8x6 took its value
+    ASSERT_TRUE(in) << r.err;
+    EXPECT_EQ(in->spec().width, 8);
+    EXPECT_EQ(in->spec().height, 6);
+  }
   // Its directory is the working directory's: the shader is not found without the flag, and the
   // error is located in <stdin>.
-  r = run("(cd " + dir.string() + " && cat piped.rib | " + kRelief + " - --quiet -o " + image + ")");
+  r = run("(cd " + dir.string() + " && cat piped.rib | env -u RELIEF_SHADER_PATH " + kRelief + " - --quiet -o " +
+          image + ")");
   EXPECT_EQ(r.exitCode, 1);
   EXPECT_NE(r.err.find("<stdin>:7: error: cannot load displacement shader 'bumps'"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("in the search path ('.')"), std::string::npos) << r.err;
@@ -511,21 +517,6 @@ TEST(Relief, ReadsTheSceneFromStandardInputAndNameEqualsValueOptions) {
   r = run(kRelief + " " + kSphereScene + " --stats=yes");
   EXPECT_EQ(r.exitCode, 2);
   EXPECT_NE(r.err.find("'--stats' takes no value (given '--stats=yes')"), std::string::npos) << r.err;
-}
-
-// Geometry so far from the camera that float intersection overflows is said to be, once; the
-// scene near it is not.
-TEST(Relief, GeometryBeyondFloatIntersectionRangeWarns) {
-  const fs::path dir = scratchDir();
-  const fs::path far = smallScene(dir, "", "Polygon \"P\" [0 0 1e15  1e13 0 1e15  0 1e13 1e15]\n");
-  RunResult r = run(kRelief + " " + far.string() + " -o " + (dir / "far.png").string());
-  EXPECT_EQ(r.exitCode, 0) << r.err;
-  EXPECT_NE(onlyWarning(r.err, "small.rib: warning: geometry lies up to 1e+15 units from the camera; beyond about 2e+14"),
-            std::string::npos)
-      << r.err;
-  r = run(kRelief + " " + smallScene(dir, "").string() + " -o " + (dir / "near.png").string());
-  EXPECT_EQ(r.exitCode, 0) << r.err;
-  EXPECT_EQ(r.err.find("units from the camera"), std::string::npos) << r.err;
 }
 
 // gzip-compressed scenes and archives (.rib.gz) are read as PRMan and 3Delight read them; a
@@ -555,6 +546,22 @@ TEST(Relief, ReadsGzipCompressedScenesAndArchives) {
   EXPECT_GT(relief::test::compareImages((dir / "gz.png").string(), (dir / "empty.png").string(), 0.0f).maxDifference,
             0.1);
   const std::string whole = readFile(dir / "plain.rib.gz");
+  // Members one after another are one file, as zcat reads them.
+  const std::string plainText = readFile(dir / "plain.rib");
+  const size_t split = plainText.find("WorldBegin");
+  writeFile(dir / "head.rib", plainText.substr(0, split));
+  writeFile(dir / "tail.rib", plainText.substr(split));
+  ASSERT_EQ(run("gzip -kf " + (dir / "head.rib").string() + " " + (dir / "tail.rib").string()).exitCode, 0);
+  writeFile(dir / "two.rib.gz", readFile(dir / "head.rib.gz") + readFile(dir / "tail.rib.gz"));
+  r = run(kRelief + " " + (dir / "two.rib.gz").string() + " --quiet -o " + (dir / "two.png").string());
+  EXPECT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_EQ(relief::test::compareImages((dir / "two.png").string(), (dir / "plain.png").string(), 0.0f).maxDifference,
+            0.0);
+  // Anything else after the stream is damage, not dropped without a word.
+  writeFile(dir / "junk.rib.gz", whole + "garbage");
+  r = run(kRelief + " " + (dir / "junk.rib.gz").string() + " --quiet -o " + (dir / "junk.png").string());
+  EXPECT_EQ(r.exitCode, 1);
+  EXPECT_NE(r.err.find("has 7 bytes of trailing data after its stream"), std::string::npos) << r.err;
   writeFile(dir / "cut.rib.gz", whole.substr(0, whole.size() / 2));
   r = run(kRelief + " " + (dir / "cut.rib.gz").string() + " --quiet -o " + (dir / "cut.png").string());
   EXPECT_EQ(r.exitCode, 1);
@@ -962,6 +969,21 @@ TEST(Relief, RunawaySubdivisionIsAnErrorNotAHang) {
   EXPECT_FALSE(fs::exists(dir / "ripple.png"));
 }
 
+// Geometry so far from the camera that float intersection overflows is said to be, once; the
+// scene near it is not.
+TEST(Relief, GeometryBeyondFloatIntersectionRangeWarns) {
+  const fs::path dir = scratchDir();
+  const fs::path far = smallScene(dir, "", "Polygon \"P\" [0 0 1e15  1e13 0 1e15  0 1e13 1e15]\n");
+  RunResult r = run(kRelief + " " + far.string() + " -o " + (dir / "far.png").string());
+  EXPECT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_NE(onlyWarning(r.err, "small.rib: warning: geometry lies up to 1.00005e+15 units from the camera; beyond about 2e+14"),
+            std::string::npos)
+      << r.err;
+  r = run(kRelief + " " + smallScene(dir, "").string() + " -o " + (dir / "near.png").string());
+  EXPECT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_EQ(r.err.find("units from the camera"), std::string::npos) << r.err;
+}
+
 // language.md §7: a shader that moves points farther than the declared bound is not clamped, and the
 // host warns once per Displacement with the largest excess; one within its bound gets no warning.
 TEST(Relief, DisplacementBeyondTheBoundIsOneWarningWithTheLargestExcess) {
@@ -1002,6 +1024,25 @@ TEST(Relief, DisplacementBeyondTheBoundIsOneWarningWithTheLargestExcess) {
   EXPECT_EQ(r.err.find("moved no point farther"), r.err.rfind("moved no point farther"));
   r = run(kRelief + " " + displacedScene(dir, "3", push).string() + " -o " + (dir / "near.png").string());
   EXPECT_EQ(r.err.find("moved no point farther"), std::string::npos) << r.err;
+  // Primitives of one Displacement call under different transforms: still one warning.
+  const fs::path two = smallScene(dir, "",
+                                  "Attribute \"displacementbound\" \"float sphere\" [4]\n"
+                                  "Attribute \"relief\" \"float edgelength\" [0.5]\n" + push + "\n"
+                                  "TransformBegin\nTranslate 0 0 0.5\nPolygon \"P\" [-1 -1 0  1 -1 0  1 1 0  -1 1 0]\n"
+                                  "TransformEnd\n");
+  r = run(kRelief + " " + two.string() + " -o " + (dir / "two.png").string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_NE(onlyWarning(r.err, two.string() + ":8: warning: displacement shader 'push' moved no point farther than"),
+            std::string::npos)
+      << r.err;
+  // A shader that moves nothing needs no bound at all.
+  const fs::path still = displacedScene(dir, "1", "Displacement \"push\" \"float amount\" [0]");
+  r = run(kRelief + " " + still.string() + " -o " + (dir / "still.png").string());
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_NE(onlyWarning(r.err, still.string() + ":8: warning: displacement shader 'push' moved no point at all, under "
+                                                "a displacement bound of 1;"),
+            std::string::npos)
+      << r.err;
   // Near float's limit the grown boxes would overflow and every ray miss: an error, not a black
   // image.
   const fs::path overflowing = displacedScene(dir, "2e38", push);
