@@ -19,6 +19,11 @@ namespace relief::compiler {
 
 namespace {
 
+// RSL's surface-shading globals (language.md 5 names them), which displacement shaders lack:
+// their undeclared uses get a note saying why.
+const std::set<std::string> kRslGlobals = {"I",  "E",  "L",  "Cl",   "Ol",    "Cs",      "Os",
+                                           "Ci", "Oi", "time", "dtime", "dPdtime", "ncomps", "alpha"};
+
 const Type kError{};
 const Type kVoid{TypeKind::Void};
 const Type kInt{TypeKind::Int};
@@ -620,7 +625,10 @@ class Checker {
             target = lookup(d->name);
           }
           if (!target) {
-            report(DiagId::ErrExternUnknown, d->nameRange.begin).arg(d->name).range(d->nameRange);
+            // `extern float time;` (RSL functions declare the globals they use): why it is missing.
+            auto r = report(DiagId::ErrExternUnknown, d->nameRange.begin);
+            r.arg(d->name).range(d->nameRange);
+            if (kRslGlobals.count(d->name)) r.note(DiagId::NoteRslGlobal, d->nameRange.begin, {d->name}, d->nameRange);
             // Declared here as a variable in error, so its uses raise nothing more.
             d->invalid = true;
             scopes_.back()[d->name] = d.get();
@@ -699,9 +707,6 @@ class Checker {
             report(DiagId::ErrOwnInitializer, e.range.begin).arg(e.text).range(e.opRange);
           else if (!suppress_ && undeclaredReported_.insert(e.text).second) {
             // RSL's surface-shading globals (language.md 5 names them): say why they are missing.
-            static const std::set<std::string> kRslGlobals = {"I",    "E",     "L",       "Cl",    "Ol",
-                                                               "Cs",   "Os",    "Ci",      "Oi",    "time",
-                                                               "dtime", "dPdtime", "ncomps", "alpha"};
             auto r = report(DiagId::ErrUndeclared, e.range.begin);
             r.arg(e.text).range(e.opRange);
             if (kRslGlobals.count(e.text)) r.note(DiagId::NoteRslGlobal, e.range.begin, {e.text}, e.opRange);
