@@ -7,7 +7,7 @@ RELIEF_PACKAGES=(
   cmake make g++ pkg-config
   llvm-19-dev libzstd-dev          # the shader JIT (libzstd-dev: LLVM's CMake targets reference it)
   libopenimageio-dev               # texture() lookups and image formats other than PNG/PNM (a plugin)
-  zlib1g-dev                       # PNG output, written by Relief itself
+  zlib1g-dev                       # PNG output, written by Relief itself; .rib.gz scenes
   libglm-dev                       # vector math
   googletest libgtest-dev          # unit tests
   libbenchmark-dev                 # bench/
