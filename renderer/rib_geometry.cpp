@@ -114,18 +114,40 @@ std::vector<uint32_t> triangulatePolygon(const std::vector<std::vector<glm::vec3
       triangles.insert(triangles.end(), {0u, k, k + 1});
     return triangles;
   };
+  // A convex boundary of many points (a disk of 300,000) is split in halves instead: triangle
+  // (a, middle, b) and each half again, so triangles shrink toward the boundary rather than all
+  // reaching from corner 0. A fan's slivers each crossed the scene (40 us apiece to place in the
+  // grid, deep subdivision when displaced). Any corners of a convex loop make a triangle inside
+  // it, wound as the loop; small polygons keep their fan (the quads' diagonal stays 0-2).
+  auto halves = [&]() {
+    const uint32_t n = uint32_t(loopIndices[0].size());
+    std::vector<std::pair<uint32_t, uint32_t>> arcs = {{0, n / 3}, {n / 3, 2 * n / 3}, {2 * n / 3, n}};
+    triangles.insert(triangles.end(), {0u, n / 3, 2 * n / 3});
+    while (!arcs.empty()) {
+      const auto [a, b] = arcs.back();
+      arcs.pop_back();
+      if (b - a < 2) continue;
+      const uint32_t mid = a + (b - a) / 2;
+      triangles.insert(triangles.end(), {a, mid, b % n});
+      arcs.push_back({a, mid});
+      arcs.push_back({mid, b});
+    }
+    return triangles;
+  };
   if (loopIndices.size() == 1) {
     bool convex = true;
     const std::vector<uint32_t>& loop = loopIndices[0];
     for (size_t i = 0; i < loop.size() && convex; ++i)
       convex = cross2(pts[loop[i]], pts[loop[(i + 1) % loop.size()]],
                       pts[loop[(i + 2) % loop.size()]]) > 0;
-    if (convex) return fan();
+    if (convex) return loop.size() > kBalancedConvexPoints ? halves() : fan();
   }
-  // Ear clipping is quadratic or worse; beyond this size a fan is the bounded-time answer.
+  // Ear clipping is quadratic or worse; beyond this size the halves are the bounded-time answer
+  // (exact for a convex loop whose float corners lost their strict convexity, as a disk of 300,000
+  // points does; a concave one may get triangles outside it, as a fan would, but no slivers).
   if (pts.size() > kMaxEarClippingPoints) {
     if (fanned) *fanned = true;
-    return fan();
+    return halves();
   }
 
   std::vector<uint32_t> polygon = loopIndices[0];

@@ -22,13 +22,16 @@ namespace relief {
 // (collinear or repeated points, self-intersections) still yields loop.size() - 2 triangles per
 // loop when possible, some of them possibly zero-area, rather than an error or an endless loop.
 //
-// Polygons of more than kMaxEarClippingPoints points in all (holes included) are fanned from their
-// first corner instead, holes ignored: ear clipping's quadratic cost would otherwise let one
+// Polygons of more than kMaxEarClippingPoints points in all (holes included) are split in halves
+// (as large convex ones are) instead, holes ignored: ear clipping's quadratic cost would otherwise let one
 // polygon stall the load. `fanned`, if given, says whether that happened to a polygon that is
 // not a convex loop (so that the caller can warn). A hole with a vertex outside the boundary
 // (in the projection plane) is left out rather than bridged, which would draw a spike out to it;
 // `outsideHoles`, if given, counts them.
 constexpr size_t kMaxEarClippingPoints = 20000;
+// Convex polygons of more than kBalancedConvexPoints points are split in halves recursively rather
+// than fanned, so their triangles are not slivers from the first corner; smaller ones are fans.
+constexpr size_t kBalancedConvexPoints = 32;
 std::vector<uint32_t> triangulatePolygon(const std::vector<std::vector<glm::vec3>>& loops,
                                          bool* fanned = nullptr, size_t* outsideHoles = nullptr);
 

@@ -3561,8 +3561,8 @@ bool RibParser::buildPolygonMesh(const Call& call, const std::vector<int>& nloop
     if (fanned)
       warnOnce(call.line, "fanned",
                "'" + call.name + "': a polygon of more than " + std::to_string(kMaxEarClippingPoints) +
-                   " points that is not convex is fanned from its first corner, its holes ignored; "
-                   "split it into smaller polygons");
+                   " points that is not convex is split without ear clipping (triangles may cross its "
+                   "concave parts), its holes ignored; split it into smaller polygons");
   }
   mesh.givenNormals = N != nullptr;
   return addMesh(std::move(mesh), call.line);  // which keeps the winding under a mirroring transform

@@ -2,6 +2,7 @@
 // degenerate input) and the cubic bases of RiBasis.
 #include "renderer/rib_geometry.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include <gtest/gtest.h>
@@ -36,6 +37,38 @@ TEST(Triangulate, ConvexPolygonIsAFanAroundTheFirstCorner) {
   EXPECT_EQ(triangulatePolygon(square), (std::vector<uint32_t>{0, 1, 2, 0, 2, 3}));
   const Loops triangle = {{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}}};
   EXPECT_EQ(triangulatePolygon(triangle), (std::vector<uint32_t>{0, 1, 2}));
+}
+
+// A convex polygon of many points (a disk) is split in halves: n - 2 triangles, all wound as the
+// loop, covering it, and small, not slivers from corner 0 across the whole disk.
+TEST(Triangulate, LargeConvexPolygonsAreSplitInHalvesNotFanned) {
+  const int n = 1000;
+  std::vector<glm::vec3> disk;
+  for (int i = 0; i < n; ++i) {
+    const float a = 2.0f * float(M_PI) * float(i) / float(n);
+    disk.emplace_back(std::cos(a), std::sin(a), 0.0f);
+  }
+  const Loops loops = {disk};
+  const std::vector<uint32_t> tris = triangulatePolygon(loops);
+  ASSERT_EQ(tris.size(), 3u * (n - 2));
+  const float polygonArea = 0.5f * float(n) * std::sin(2.0f * float(M_PI) / float(n));
+  EXPECT_NEAR(signedAreaZ(loops, tris), polygonArea, 1e-4f);
+  int reachingAcross = 0;
+  for (size_t i = 0; i < tris.size(); i += 3) {
+    const glm::vec3 a = corner(loops, tris[i]), b = corner(loops, tris[i + 1]), c = corner(loops, tris[i + 2]);
+    EXPECT_GT(glm::cross(b - a, c - a).z, 0.0f) << "triangle " << i / 3;
+    if (std::max({glm::distance(a, b), glm::distance(b, c), glm::distance(c, a)}) > 1.0f) ++reachingAcross;
+  }
+  // A fan has about 2n/3 triangles with an edge longer than the radius; halves have a handful.
+  EXPECT_LT(reachingAcross, 10);
+  // Up to kBalancedConvexPoints it stays the fan.
+  std::vector<glm::vec3> small;
+  for (size_t i = 0; i < kBalancedConvexPoints; ++i) {
+    const float a = 2.0f * float(M_PI) * float(i) / float(kBalancedConvexPoints);
+    small.emplace_back(std::cos(a), std::sin(a), 0.0f);
+  }
+  const std::vector<uint32_t> fan = triangulatePolygon({small});
+  for (size_t i = 0; i < fan.size(); i += 3) EXPECT_EQ(fan[i], 0u);
 }
 
 TEST(Triangulate, ConcavePolygonKeepsItsAreaAndWinding) {
@@ -84,7 +117,7 @@ TEST(Triangulate, NonPlanarAxisAndDegenerateInputStillGiveTriangles) {
   EXPECT_TRUE(triangulatePolygon({{{0, 0, 0}, {1, 0, 0}}}).empty());
 }
 
-TEST(Triangulate, HugePolygonsFinishAsFans) {
+TEST(Triangulate, HugePolygonsFinishInBoundedTime) {
   // A concave comb far beyond the ear-clipping limit: bounded time, n - 2 triangles.
   std::vector<glm::vec3> comb;
   for (size_t i = 0; i < kMaxEarClippingPoints + 2; ++i)
