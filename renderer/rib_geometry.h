@@ -23,8 +23,8 @@ namespace relief {
 // loop when possible, some of them possibly zero-area, rather than an error or an endless loop.
 //
 // Polygons of more than kMaxEarClippingPoints points in all (holes included) are split in halves
-// (as large convex ones are) instead, holes ignored: ear clipping's quadratic cost would otherwise let one
-// polygon stall the load. `fanned`, if given, says whether that happened to a polygon that is
+// (as large convex ones are) instead, holes ignored: ear clipping's quadratic cost would otherwise
+// let one polygon stall the load. `fanned`, if given, says whether that happened to a polygon that is
 // not a convex loop (so that the caller can warn). A hole with a vertex outside the boundary
 // (in the projection plane) is left out rather than bridged, which would draw a spike out to it;
 // `outsideHoles`, if given, counts them.

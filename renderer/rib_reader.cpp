@@ -221,7 +221,8 @@ struct Param {
   int arraySize = 0;
   std::string storageClass;  // "vertex", "uniform", ... as declared; empty: not given
   bool homogeneous = false;  // declared "hpoint": four numbers per point (x y z w)
-  std::string declaredAt;    // where the Declare that typed an untyped name is (lineRef), if one did
+  int declaredLine = 0;      // the Declare that typed an untyped name, if one did (0: none)
+  const std::string* declaredFile = nullptr;  // its file (the Declare's own record)
   Arg value;
   int line = 0;
 };
@@ -835,7 +836,7 @@ class RibParser {
         p->type = declared->second.type;
         p->arraySize = declared->second.arraySize;
         p->homogeneous = declared->second.homogeneous;
-        p->declaredAt = lineRef(declared->second.line, declared->second.file);
+        p->declaredLine = declared->second.line, p->declaredFile = &declared->second.file;
         if (p->storageClass.empty()) p->storageClass = declared->second.storageClass;
       }
       return true;
@@ -985,6 +986,10 @@ class RibParser {
   // "line N", and the file too when the block opened in another one (an archive).
   std::string lineRef(int line, const std::string& file) const {
     return "line " + std::to_string(line) + (file != fileName_ ? " of '" + file + "'" : "");
+  }
+  // For a value that does not fit its type: where the type came from, when a Declare gave it.
+  std::string declareNote(const Param& p) const {
+    return p.declaredLine ? " (typed by the 'Declare' at " + lineRef(p.declaredLine, *p.declaredFile) + ")" : "";
   }
   std::string unclosedRecording() const {
     const char* what = recordingArchive_ ? "Archive" : "Object";
@@ -2255,8 +2260,7 @@ bool RibParser::doDisplacement(const Call& call) {
     std::string error;
     if (!instance->bind(value, &error)) {
       // `Declare "freq" "color"` then `"freq" [3]`: the type the message names came from there.
-      if (!p.declaredAt.empty()) error += " (typed by the 'Declare' at " + p.declaredAt + ")";
-      return fail(call.line, error);
+      return fail(call.line, error + declareNote(p));
     }
     bound.push_back(std::move(value));
   }
@@ -2313,11 +2317,8 @@ bool RibParser::shaderParamValue(int line, const runtime::CompiledShader& compil
       // A triple moves as the shader's parameter is declared (a "point" given to a normal
       // parameter is a normal to the shader; it had moved as a point, with the translation).
       const runtime::ParamInfo* info = compiled.findParam(p.name);
-      auto isSpatial = [](runtime::ParamType t) {
-        return t == runtime::ParamType::Point || t == runtime::ParamType::Vector || t == runtime::ParamType::Normal;
-      };
       const runtime::ParamType given = value.type;
-      if (info && isSpatial(info->type) && isSpatial(given)) value.type = info->type;
+      if (info && runtime::isSpatial(info->type) && runtime::isSpatial(given)) value.type = info->type;
       moveSpatial(attr_.ctm, &value);
       value.type = given;
     }
@@ -3361,7 +3362,7 @@ bool RibParser::shaderPrimvar(const Call& call, const Param& p, const PrimvarCou
   value.strings.resize(std::min(value.strings.size(), one));
   std::string error;
   runtime::ShaderInstance probe(attr_.displacement->sharedShader());
-  if (!probe.bind(value, &error)) return fail(p.line, "'" + call.name + "': " + error);
+  if (!probe.bind(value, &error)) return fail(p.line, "'" + call.name + "': " + error + declareNote(p));
   primvarParams_.push_back(std::move(value));
   return true;
 }

@@ -38,9 +38,6 @@ int paramComponents(ParamType type) {
   }
 }
 
-static bool isSpatial(ParamType t) {
-  return t == ParamType::Point || t == ParamType::Vector || t == ParamType::Normal;
-}
 static bool isScalar(ParamType t) { return t == ParamType::Float || t == ParamType::Int; }
 
 CompiledShader::CompiledShader(std::string name, RlfShaderEntry entry, std::vector<ParamInfo> params,
@@ -253,13 +250,10 @@ std::string noShaderNamed(const std::string& path, const std::string& name,
                           std::span<const std::shared_ptr<const CompiledShader>> defined) {
   std::string text = "'" + path + "' defines no shader named '" + name + "'";
   if (defined.empty()) return text;
-  text += defined.size() == 1 ? " (it defines '" : " (it defines ";
-  for (size_t i = 0; i < defined.size(); ++i) {
-    if (defined.size() > 1) text += (i == 0 ? "'" : i + 1 == defined.size() ? " and '" : ", '");
-    text += defined[i]->name() + "'";
-  }
-  text += defined.size() == 1 ? ")" : "; select one as 'file:shader')";
-  return text;
+  std::string names;
+  for (size_t i = 0; i < defined.size(); ++i)
+    names += (i == 0 ? "'" : i + 1 == defined.size() ? " and '" : ", '") + defined[i]->name() + "'";
+  return text + " (it defines " + names + (defined.size() == 1 ? ")" : "; select one as 'file:shader')");
 }
 
 bool locateShaderFile(std::string_view name, std::span<const std::string> searchPath, std::string* path,

@@ -20,6 +20,10 @@ enum class ParamType : uint8_t { Float, Int, Point, Vector, Normal, Color, Strin
 std::string_view paramTypeName(ParamType type);
 // Number of float (or int) scalars in one element: 1, 3 or 16; strings count 1 (a pointer).
 int paramComponents(ParamType type);
+// Point, vector or normal: the kinds a transform moves (and that convert into one another).
+inline bool isSpatial(ParamType t) {
+  return t == ParamType::Point || t == ParamType::Vector || t == ParamType::Normal;
+}
 
 // Layout of one parameter in the parameter block. Floats, ints and triples/matrices are stored as
 // consecutive 4-byte scalars; strings as `const char*` (8-byte aligned). Arrays are consecutive

@@ -530,11 +530,9 @@ constexpr float kLooseBoundRatio = 16.0f;
 
 // Runtime problems inside displacement shaders are counted, not thrown (abi.h); say so once per
 // Displacement call, naming the shader and where the scene bound it.
-void reportShaderProblems(const relief::Scene& scene, std::ostream& out) {
-  // The undisplaced scene's size, against which a displacement bound is loose enough to matter.
-  relief::Bounds3 sceneBox;
-  for (const relief::Mesh& m : scene.meshes)
-    for (const glm::vec3& p : m.P) sceneBox.extend(p);
+// `sceneBox` bounds the undisplaced scene, against whose size a displacement bound is loose
+// enough to matter.
+void reportShaderProblems(const relief::Scene& scene, const relief::Bounds3& sceneBox, std::ostream& out) {
   const glm::vec3 sceneExtent = sceneBox.empty() ? glm::vec3(0.0f) : sceneBox.hi - sceneBox.lo;
   const float sceneSize = std::max({sceneExtent.x, sceneExtent.y, sceneExtent.z});
   struct LooseBound {
@@ -1065,13 +1063,16 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
   // far enough out that overflows float: the example sphere scaled by 1e13 (geometry 1.26e14 from
   // the camera) renders as at scale 1, by 1e14 it tears and by 1e15 it vanishes, in the Embree
   // baseline too. Said, rather than left to look like a rendering bug.
-  if (warnings) {
+  relief::Bounds3 sceneBox;  // of the undisplaced input (also for reportShaderProblems)
+  for (const relief::Mesh& m : scene.meshes)
+    for (const glm::vec3& p : m.P) sceneBox.extend(p);
+  if (warnings && !sceneBox.empty()) {
+    // The farthest corner of the box: at most a little past the farthest vertex.
     const glm::vec3 eye(scene.camera.worldFromCamera[3]);
-    float farthest = 0.0f;
-    for (const relief::Mesh& m : scene.meshes)
-      for (const glm::vec3& p : m.P) farthest = std::max(farthest, glm::length(p - eye));
+    const glm::vec3 far = glm::max(glm::abs(sceneBox.lo - eye), glm::abs(sceneBox.hi - eye));
+    const float farthest = glm::length(far);
     if (farthest > kFarthestRenderable)
-      *warnings << cl.label() << ": warning: geometry lies up to " << farthest
+      *warnings << cl.label() << ": warning: the scene reaches about " << farthest
                 << " units from the camera; beyond about " << kFarthestRenderable
                 << " single-precision intersection overflows and surfaces tear or vanish: scale the scene down\n";
   }
@@ -1453,7 +1454,7 @@ int renderFrame(const CommandLine& cl, relief::Scene& scene, double loadSeconds,
   }
   const relief::AccelStats accelStats = accel->stats();
   if (warnings) {
-    reportShaderProblems(scene, *warnings);
+    reportShaderProblems(scene, sceneBox, *warnings);
     if (!progress.warnedThinBudget()) reportThinBudget(cl.label(), accelStats, *warnings);
   }
   const StatList stats =

@@ -19,6 +19,8 @@
 #include <string>
 #include <vector>
 
+#include <glm/glm.hpp>
+
 #include "compiler/compiler.h"
 #include "runtime/abi.h"
 #include "runtime/builtins_texture.h"
@@ -244,19 +246,14 @@ int evaluate(const Args& args, const CompileResult& result) {
   // A normal given without tangents gets tangents perpendicular to it (dPdu ^ dPdv along N), so
   // calculatenormal agrees with it rather than with the default frame's (0,0,1).
   if (given.count("N") && !given.count("dPdu") && !given.count("dPdv")) {
-    const std::vector<float>& n = at["N"];
-    const double len = std::sqrt(double(n[0]) * n[0] + double(n[1]) * n[1] + double(n[2]) * n[2]);
-    if (len > 0) {
-      const double nx = n[0] / len, ny = n[1] / len, nz = n[2] / len;
-      // dPdu: the x axis made perpendicular to N (the y axis where N is along x).
-      double ux = 1, uy = 0, uz = 0;
-      if (std::fabs(nx) > 0.9) ux = 0, uy = 1;
-      const double d = ux * nx + uy * ny + uz * nz;
-      ux -= d * nx, uy -= d * ny, uz -= d * nz;
-      const double ul = std::sqrt(ux * ux + uy * uy + uz * uz);
-      ux /= ul, uy /= ul, uz /= ul;
-      at["dPdu"] = {float(ux), float(uy), float(uz)};
-      at["dPdv"] = {float(ny * uz - nz * uy), float(nz * ux - nx * uz), float(nx * uy - ny * ux)};
+    const glm::dvec3 given(at["N"][0], at["N"][1], at["N"][2]);
+    if (glm::length(given) > 0.0) {
+      const glm::dvec3 n = glm::normalize(given);
+      // dPdu: the x axis made perpendicular to N (the y axis where N is along x); dPdv = N ^ dPdu.
+      const glm::dvec3 axis = std::fabs(n.x) > 0.9 ? glm::dvec3(0, 1, 0) : glm::dvec3(1, 0, 0);
+      const glm::dvec3 u = glm::normalize(axis - glm::dot(axis, n) * n), v = glm::cross(n, u);
+      at["dPdu"] = {float(u.x), float(u.y), float(u.z)};
+      at["dPdv"] = {float(v.x), float(v.y), float(v.z)};
     }
   }
   if (at["Ng"].empty()) at["Ng"] = at["N"];

@@ -837,6 +837,10 @@ TEST(RibReader, DeclareTypesLaterParameters) {
   EXPECT_NE(r.error.message.find("declared 'float' but was given 'color' (typed by the 'Declare' at line 2)"),
             std::string::npos)
       << r.error.message;
+  // So does a primitive variable that binds the parameter.
+  r = read(world("Declare \"Km\" \"color\"\nDisplacement \"push\"\nSphere 1 -1 1 360 \"Km\" [3 3 3]"), &shaders);
+  ASSERT_FALSE(r.scene);
+  EXPECT_NE(r.error.message.find("(typed by the 'Declare' at line 2)"), std::string::npos) << r.error.message;
 }
 
 TEST(RibReader, BilinearPatch) {
